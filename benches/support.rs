@@ -1,0 +1,45 @@
+//! Shared, seeded inputs for the benchmarks: scenes from `scenes/`, camera-ray queues, thread pools.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use strata::scene::{load_scene, Profile, Scene};
+use strata::wavefront::generate::{generate, Tile};
+use strata::wavefront::{PathTable, RayQueue};
+
+/// Benchmarks run on 2 threads (the target machine's cores).
+pub const THREADS: usize = 2;
+/// Rays per wavefront queue (the renderer's size).
+pub const CHUNK: u32 = 4096;
+
+pub fn scene(name: &str) -> Scene {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name);
+    load_scene(&p).unwrap_or_else(|e| panic!("{e}"))
+}
+
+pub fn pool() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(THREADS).build().unwrap()
+}
+
+/// Camera rays of the whole image at `spp` samples, cut into padded wavefront-sized queues
+/// (one tile of 64x64 pixels per queue at 1 spp).
+pub fn camera_queues(scene: &Scene, spp: u32) -> Vec<RayQueue> {
+    let mut profile = Profile::builtin("bench");
+    profile.spp = spp;
+    let mut out = Vec::new();
+    let side = ((CHUNK / spp) as f32).sqrt().max(1.0) as u32;
+    for y0 in (0..scene.height).step_by(side as usize) {
+        for x0 in (0..scene.width).step_by(side as usize) {
+            let tile = Tile { x0, y0, x1: (x0 + side).min(scene.width), y1: (y0 + side).min(scene.height) };
+            let mut q = RayQueue::new(scene.features.motion, scene.features.dispersion);
+            let mut paths = PathTable::default();
+            generate(scene, &profile, 1, tile, 0..spp, &mut paths, &mut q);
+            q.pad();
+            out.push(q);
+        }
+    }
+    out
+}
+
+pub fn ray_count(qs: &[RayQueue]) -> u64 {
+    qs.iter().map(|q| q.len() as u64).sum()
+}

@@ -1,0 +1,71 @@
+//! Bounding volume hierarchy: binned SAH build and packet traversal.
+//!
+//! - `aabb.rs`: the box type and the ray-box slab kernels (`intersect_aabb_x8` and its f64 twin).
+//! - `node.rs`: the 32-byte node layout, a `Pod` contract.
+//! - `build.rs`: binned SAH build (Wald 2007, "On fast Construction of SAH-based Bounding Volume
+//!   Hierarchies"), single-threaded, with a median-split fallback that bounds the depth.
+//! - `traverse.rs`: closest-hit and any-hit traversal of 8-ray packets, and a scalar f64 reference.
+//! - `validate.rs`: `validate()` (tree invariants), `depth()`, `sah_cost()`.
+//!
+//! Conventions a caller must know:
+//! - The BVH knows only boxes. Primitives are identified by their index into the `bounds` slice given
+//!   to [`build_bvh`]; leaves reference them through `Bvh::indices`, so a renderer may reorder its
+//!   primitive arrays by `indices` once after the build and then read leaf ranges contiguously.
+//! - Node 0 is the root. The children of an inner node are adjacent: right = left + 1.
+//! - Depth (levels, root = 1) is at most [`MAX_DEPTH`], so traversal uses a fixed stack of
+//!   `MAX_DEPTH` entries and never allocates.
+//! - A packet lane is inactive when its `tmax < 0` (the team's convention is `-1`).
+
+mod aabb;
+mod build;
+mod node;
+mod traverse;
+mod validate;
+
+pub use aabb::{intersect_aabb_f64, intersect_aabb_x8, slab_interval_f64, Aabb, PacketRay, INV_D_CLAMP};
+pub use build::build_bvh;
+pub use node::{BvhNode, MAX_LEAF_COUNT};
+
+/// Maximum number of levels of a built tree (a root-only tree has depth 1). The build guarantees it
+/// by switching to object-median splits when an SAH split would leave too few levels; traversal
+/// relies on it for its fixed-size stack (at most `MAX_DEPTH - 1` far children are pending at once).
+pub const MAX_DEPTH: usize = 64;
+
+/// SAH cost of visiting an inner node (one packet box test), relative to [`SAH_INTERSECT_COST`].
+pub const SAH_TRAVERSAL_COST: f32 = 1.0;
+/// SAH cost of testing one primitive.
+pub const SAH_INTERSECT_COST: f32 = 1.0;
+
+/// Build parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BuildOptions {
+    /// Largest leaf the build creates (clamped to `1..=MAX_LEAF_COUNT`); larger leaves occur only
+    /// when all their primitives have bit-identical centroids (binning cannot separate them and the
+    /// SAH prefers one leaf to a split whose children have the parent's box).
+    pub max_leaf: u32,
+    /// SAH bins per axis (clamped to `2..=64`).
+    pub bins: u32,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        Self { max_leaf: 4, bins: 16 }
+    }
+}
+
+/// A built hierarchy. `nodes[0]` is the root; an empty `nodes` is an empty tree that hits nothing.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Bvh {
+    pub nodes: Vec<BvhNode>,
+    /// Primitive indices, grouped by leaf: a leaf owns `indices[first..first + count]`.
+    pub indices: Vec<u32>,
+    /// The `max_leaf` the tree was built with (after clamping); `validate` checks leaves against it.
+    pub max_leaf: u32,
+}
+
+impl Bvh {
+    /// True when the tree holds no primitive.
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+}

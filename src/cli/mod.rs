@@ -1,0 +1,49 @@
+//! Command-line interface. Exit codes: 0 success, 1 a failure while running (e.g. writing output),
+//! 2 bad input (scene, profile, flags), 130 interrupted (the accumulated image is still written).
+
+pub mod render_cmd;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Parser, Debug)]
+#[command(name = "strata", version, about = "A data-oriented SIMD wavefront ray tracer for the CPU")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Render a scene to PNG or EXR.
+    Render(render_cmd::RenderArgs),
+}
+
+/// An error with its exit code.
+pub struct Failure {
+    pub code: u8,
+    pub message: String,
+}
+
+impl Failure {
+    pub fn input(m: impl std::fmt::Display) -> Self {
+        Failure { code: 2, message: m.to_string() }
+    }
+    pub fn runtime(m: impl std::fmt::Display) -> Self {
+        Failure { code: 1, message: m.to_string() }
+    }
+}
+
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let r = match cli.command {
+        Command::Render(a) => render_cmd::run(a),
+    };
+    match r {
+        Ok(code) => ExitCode::from(code),
+        Err(f) => {
+            eprintln!("error: {}", f.message);
+            ExitCode::from(f.code)
+        }
+    }
+}

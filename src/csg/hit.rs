@@ -1,0 +1,69 @@
+//! First boundary of a solid along rays: leaf crossings by the 8-lane kernels (one call per leaf per
+//! packet), then Roth's merge per lane (`merge.rs`).
+
+use super::interval_x8::leaf_x8;
+use super::merge::{eval_lane, tol_base, CsgArena, COINCIDENT_EPS};
+use super::program::{Csg, Solid};
+use crate::simd::{f32x8, Ray8, Vec3x8};
+use glam::Vec3;
+
+/// A boundary of a CSG solid along a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CsgHit {
+    pub t: f32,
+    /// Global leaf id ([`Csg::leaf`]) whose surface this is.
+    pub leaf: u32,
+    /// The surface belongs to a subtracted solid: the outward normal of the result is `-leaf.normal`.
+    pub flip: bool,
+    /// The ray enters the solid here (else it leaves).
+    pub entering: bool,
+}
+
+/// Fill the arena's crossing table for the solid's leaves and a world-space packet.
+fn fill_crossings(csg: &Csg, s: &Solid, o: &Vec3x8, d: &Vec3x8, arena: &mut CsgArena) {
+    let n = s.leaf_count as usize;
+    if arena.cross.len() < n {
+        arena.cross.resize(n, [[0.0; 8]; 4]);
+    }
+    let leaves = &csg.leaves[s.leaf_start as usize..s.leaf_start as usize + n];
+    for (slot, leaf) in arena.cross.iter_mut().zip(leaves) {
+        let c = leaf_x8(leaf, o, d);
+        *slot = [c[0].to_array(), c[1].to_array(), c[2].to_array(), c[3].to_array()];
+    }
+}
+
+/// First boundary of the solid along `o + t d` with `tmin < t < tmax` (`d` not necessarily unit); handles
+/// an origin inside the solid (the first boundary is then an exit). Uses the same 8-lane kernels as
+/// [`first_hit_x8`] (the ray in every lane), so both agree bit for bit. An unknown solid id gives `None`.
+pub fn first_hit(csg: &Csg, solid: u32, o: Vec3, d: Vec3, tmin: f32, tmax: f32, arena: &mut CsgArena) -> Option<CsgHit> {
+    let s = csg.solids.get(solid as usize)?;
+    if !(tmax > tmin) {
+        return None;
+    }
+    fill_crossings(csg, s, &Vec3x8::splat(o), &Vec3x8::splat(d), arena);
+    let base = tol_base(o.length(), d.length());
+    eval_lane(csg.program(s), s.leaf_start, 0, tmin, tmax, base, arena)
+}
+
+/// 8 rays against one solid: leaf crossings by the 8-lane kernels (one call per leaf per packet), then the
+/// merge per active lane. Inactive lanes (`tmax <= tmin`) get `None`.
+pub fn first_hit_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, out: &mut [Option<CsgHit>; 8]) {
+    *out = [None; 8];
+    let Some(s) = csg.solids.get(solid as usize) else {
+        return;
+    };
+    let mask = ray.tmax.simd_gt(tmin).to_bitmask();
+    if mask == 0 {
+        return;
+    }
+    fill_crossings(csg, s, &ray.o, &ray.d, arena);
+    let eps = f32x8::splat(COINCIDENT_EPS);
+    let base = (eps * ray.o.dot(ray.o).sqrt().max(f32x8::ONE) / ray.d.dot(ray.d).sqrt()).to_array();
+    let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
+    let prog = csg.program(s);
+    for (lane, hit) in out.iter_mut().enumerate() {
+        if mask & (1 << lane) != 0 {
+            *hit = eval_lane(prog, s.leaf_start, lane, t0[lane], t1[lane], base[lane], arena);
+        }
+    }
+}

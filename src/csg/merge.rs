@@ -1,0 +1,207 @@
+//! Roth's interval merge (S. D. Roth, "Ray Casting for Modeling Solids", CGIP 18, 1982) and its scratch
+//! arena.
+//!
+//! A solid's inside along a ray is a sorted list of events `t0 < t1 < ...` alternating entry / exit (even
+//! index = entry). Each leaf contributes its intervals; every operator of the postfix program pops two
+//! lists and pushes their combination, computed by one sweep over both lists (time linear in the number of
+//! events). Each event carries the global id of the leaf whose surface it is, and a `FLIP` bit toggled each
+//! time the event passes through the right operand of a difference: there the solid's outward normal is
+//! the leaf's inward one.
+//!
+//! # Coincident crossings (the one rule)
+//!
+//! Crossings closer than a tolerance are **one event**: the sweep takes the earliest pending crossing
+//! `t0` of either operand, applies together every crossing of both operands with
+//! `t <= t0 + tol(t0)`, and emits a boundary only if the combined inside/outside state differs from the
+//! state before the group. With `o`, `d` the world ray (`d` need not be unit):
+//!
+//! ```text
+//! tol(t) = COINCIDENT_EPS * (max(1, |o|) / |d| + |t|)        COINCIDENT_EPS = 1e-5
+//! ```
+//!
+//! i.e. in world units, `1e-5 * (max(1, |o|) + |t d|)`: relative to the magnitude of the coordinates the
+//! f32 crossings were computed from, with an absolute floor of `1e-5` for scenes near the origin. The
+//! boundary emitted for a group is the first crossing of the group, from the operand whose own state
+//! changed the same way as the result's (`a` preferred), so its leaf (and flip) is a surface that really
+//! bounds the result there.
+//!
+//! Consequences: `A - A` is empty; `A ∪ A = A ∩ A = A`; a hole whose cap is flush with a face leaves a clean
+//! opening (no face is reported inside the hole); two faces closer than the tolerance are one face (and a
+//! slab thinner than it vanishes when combined with another operand). Events of a single leaf list that
+//! reaches the top of the program unmerged are not regrouped.
+
+use super::program::{Instr, Op};
+use super::CsgHit;
+
+/// Relative tolerance of the coincident-crossing rule (see the module docs).
+pub const COINCIDENT_EPS: f32 = 1e-5;
+
+/// Set on an event's tag when the surface belongs to a subtracted solid.
+pub(crate) const FLIP: u32 = 1 << 31;
+
+/// One crossing: parameter and tag (global leaf id, `FLIP` bit).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Ev {
+    pub t: f32,
+    pub tag: u32,
+}
+
+/// Per-ray part of the tolerance, `COINCIDENT_EPS * max(1, |o|) / |d|`, in units of `t`.
+#[inline]
+pub fn tol_base(o_len: f32, d_len: f32) -> f32 {
+    COINCIDENT_EPS * o_len.max(1.0) / d_len
+}
+
+/// Last parameter of the group that starts at `t0` (`|t0|` is capped so that `±inf` stays finite-safe).
+#[inline(always)]
+pub(crate) fn group_end(t0: f32, base: f32) -> f32 {
+    t0 + (base + COINCIDENT_EPS * t0.abs().min(1e30))
+}
+
+/// `out = a op b` (appended). Both lists alternate entry/exit starting with an entry.
+pub(crate) fn merge(a: &[Ev], b: &[Ev], op: Op, base: f32, out: &mut Vec<Ev>) {
+    let flip_b = if op == Op::Difference { FLIP } else { 0 };
+    // Empty operands.
+    match op {
+        Op::Union if a.is_empty() => return out.extend_from_slice(b),
+        Op::Union | Op::Difference if b.is_empty() => return out.extend_from_slice(a),
+        Op::Intersection | Op::Difference if a.is_empty() => return,
+        Op::Intersection if b.is_empty() => return,
+        _ => {}
+    }
+    // Disjoint spans (farther apart than the tolerance): no sweep needed.
+    let (a_first, a_last) = (a[0].t, a[a.len() - 1].t);
+    let (b_first, b_last) = (b[0].t, b[b.len() - 1].t);
+    let a_before = group_end(a_last, base) < b_first;
+    let b_before = group_end(b_last, base) < a_first;
+    if a_before || b_before {
+        match op {
+            Op::Intersection => {}
+            Op::Difference => out.extend_from_slice(a),
+            Op::Union if a_before => {
+                out.extend_from_slice(a);
+                out.extend_from_slice(b);
+            }
+            Op::Union => {
+                out.extend_from_slice(b);
+                out.extend_from_slice(a);
+            }
+        }
+        return;
+    }
+    sweep(a, b, op, flip_b, base, out);
+}
+
+/// The general sweep with grouping of coincident crossings.
+fn sweep(a: &[Ev], b: &[Ev], op: Op, flip_b: u32, base: f32, out: &mut Vec<Ev>) {
+    let is_diff = op == Op::Difference;
+    let (mut i, mut j) = (0, 0);
+    let (mut in_a, mut in_b, mut in_r) = (false, false, false);
+    while i < a.len() || j < b.len() {
+        let ta = a.get(i).map_or(f32::INFINITY, |e| e.t);
+        let tb = b.get(j).map_or(f32::INFINITY, |e| e.t);
+        let end = group_end(ta.min(tb), base);
+        let (i0, j0) = (i, j);
+        while i < a.len() && a[i].t <= end {
+            i += 1;
+        }
+        while j < b.len() && b[j].t <= end {
+            j += 1;
+        }
+        let na = in_a ^ ((i - i0) & 1 == 1);
+        let nb = in_b ^ ((j - j0) & 1 == 1);
+        let nr = op.apply(na, nb);
+        if nr != in_r {
+            // Attribute the boundary to an operand that moved the same way as the result.
+            let a_ok = na != in_a && na == nr;
+            let b_ok = nb != in_b && (nb ^ is_diff) == nr;
+            let e = if a_ok || !b_ok { a[i0] } else { Ev { t: b[j0].t, tag: b[j0].tag ^ flip_b } };
+            out.push(e);
+            in_r = nr;
+        }
+        in_a = na;
+        in_b = nb;
+    }
+}
+
+/// Reusable scratch for the merge: the stack of interval lists, one temporary list, and the crossings of
+/// the current packet. Vectors only grow (to the largest solid and list seen); no allocation per ray after
+/// warm-up.
+#[derive(Clone, Debug, Default)]
+pub struct CsgArena {
+    pub(crate) evs: Vec<Ev>,
+    pub(crate) tmp: Vec<Ev>,
+    pub(crate) starts: Vec<usize>,
+    /// Per leaf of the solid: `[a0, b0, a1, b1]`, each over the 8 lanes.
+    pub(crate) cross: Vec<[[f32; 8]; 4]>,
+}
+
+impl CsgArena {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Total capacity (elements over all buffers): stops changing once warmed up.
+    pub fn capacity(&self) -> usize {
+        self.evs.capacity() + self.tmp.capacity() + self.starts.capacity() + self.cross.capacity()
+    }
+}
+
+/// Run a solid's program on one lane of the crossings table; first boundary in `(tmin, tmax)`.
+///
+/// Intervals that end before `tmin` or start after `tmax` by more than twice the tolerance cannot change
+/// the state in `(tmin, tmax)` and are skipped.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn eval_lane(
+    prog: &[Instr],
+    leaf_start: u32,
+    lane: usize,
+    tmin: f32,
+    tmax: f32,
+    base: f32,
+    arena: &mut CsgArena,
+) -> Option<CsgHit> {
+    let CsgArena { evs, tmp, starts, cross } = arena;
+    evs.clear();
+    starts.clear();
+    let lo_cut = tmin - 2.0 * (group_end(tmin, base) - tmin);
+    let hi_cut = tmax + 2.0 * (group_end(tmax, base) - tmax);
+    for ins in prog {
+        match *ins {
+            Instr::Leaf(k) => {
+                starts.push(evs.len());
+                let c = &cross[k as usize];
+                let tag = leaf_start + k;
+                for iv in 0..2 {
+                    let (t0, t1) = (c[2 * iv][lane], c[2 * iv + 1][lane]);
+                    if t0 < t1 && t1 >= lo_cut && t0 <= hi_cut {
+                        evs.push(Ev { t: t0, tag });
+                        evs.push(Ev { t: t1, tag });
+                    }
+                }
+            }
+            Instr::Op(op) => {
+                let (Some(sb), Some(sa)) = (starts.pop(), starts.last().copied()) else {
+                    return None;
+                };
+                tmp.clear();
+                let (left, right) = evs.split_at(sb);
+                merge(&left[sa..], right, op, base, tmp);
+                evs.truncate(sa);
+                evs.extend_from_slice(tmp);
+                if std::env::var("DBG").is_ok() {
+                    eprintln!("op {op:?} sa {sa} sb {sb} -> {:?}", &evs[sa..]);
+                }
+            }
+        }
+    }
+    for (i, e) in evs.iter().enumerate() {
+        if !(e.t < tmax) {
+            break;
+        }
+        if e.t > tmin {
+            return Some(CsgHit { t: e.t, leaf: e.tag & !FLIP, flip: e.tag & FLIP != 0, entering: i % 2 == 0 });
+        }
+    }
+    None
+}

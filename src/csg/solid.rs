@@ -1,0 +1,216 @@
+//! Leaf solids: one canonical shape in object space, placed in the world by an affine transform.
+//!
+//! # Canonical forms (object space)
+//!
+//! Every bounded shape lies in (or on) the cube `[-1, 1]^3`, except the torus (see below). The axis of
+//! every shape of revolution is **+z**. All solids are closed sets (`<=`).
+//!
+//! | shape | solid (object space) |
+//! | --- | --- |
+//! | `Sphere` | `x² + y² + z² <= 1` (unit sphere at the origin) |
+//! | `Box` | `|x|, |y|, |z| <= 1` (the cube `[-1, 1]^3`) |
+//! | `Cylinder` | `x² + y² <= 1` and `|z| <= 1` (radius 1, caps at `z = ±1`) |
+//! | `Cone { r0, r1 }` | `|z| <= 1` and `sqrt(x² + y²) <= r0 + (r1 - r0) (z + 1) / 2`: radius `r0` on the cap `z = -1`, `r1` on the cap `z = +1` (a frustum; one radius may be 0: a cone with its apex on that cap) |
+//! | `Torus { major, minor }` | `(sqrt(x² + y²) - major)² + z² <= minor²`: ring in the xy-plane around the z axis, `0 < minor <= major` |
+//! | `HalfSpace` | `z <= 0` (outward normal +z; unbounded) |
+//!
+//! [`Leaf::new`] sanitises the parameters so that no finite input panics: cone radii are made
+//! non-negative, the torus gets `major = max(|major|, 1e-6)` and `minor = min(|minor|, major)` (a spindle
+//! torus, `minor > major`, is not supported: its quartic has roots on the inner "lemon" surface, which is not
+//! a boundary of the solid). Use [`Leaf::half_space`] to place a half-space `n . p <= d` directly.
+//!
+//! The transform is any invertible affine map (rotation, translation, non-uniform scale, shear). Rays are
+//! taken to object space by the inverse transform *without* renormalising the direction, so the ray
+//! parameter `t` is the same in both spaces. World normals use the inverse transpose of the linear part.
+
+use glam::{Affine3A, DAffine3, Mat3A, Quat, Vec3, Vec3A};
+
+/// A canonical shape (see the module docs for the exact sets).
+#[derive(Clone, Copy, Debug)]
+pub enum Shape {
+    Sphere,
+    Box,
+    Cylinder,
+    Cone { r0: f32, r1: f32 },
+    Torus { major: f32, minor: f32 },
+    HalfSpace,
+}
+
+/// A placed canonical shape. Build it with [`Leaf::new`]: the cached inverse and normal matrix are only
+/// filled in there, so change `shape` or `object_to_world` by building a new leaf.
+#[derive(Clone, Copy, Debug)]
+pub struct Leaf {
+    pub shape: Shape,
+    pub object_to_world: Affine3A,
+    world_to_object: Affine3A,
+    /// Inverse transpose of the linear part: takes object-space normals to world space.
+    normal_to_world: Mat3A,
+    pub material: u32,
+}
+
+impl Leaf {
+    /// A leaf. `object_to_world` must be invertible (a singular one gives NaN crossings, never a panic).
+    pub fn new(shape: Shape, object_to_world: Affine3A, material: u32) -> Leaf {
+        let shape = sanitize(shape);
+        let world_to_object = object_to_world.inverse();
+        Leaf { shape, object_to_world, world_to_object, normal_to_world: world_to_object.matrix3.transpose(), material }
+    }
+
+    /// The half-space `n . p <= d` (world space, `n` need not be unit; `n` must be non-zero).
+    pub fn half_space(n: Vec3, d: f32, material: u32) -> Leaf {
+        let len = n.length();
+        let unit = n / len;
+        let rot = Quat::from_rotation_arc(Vec3::Z, unit);
+        Leaf::new(Shape::HalfSpace, Affine3A::from_rotation_translation(rot, unit * (d / len)), material)
+    }
+
+    /// World-to-object transform (cached inverse).
+    #[inline]
+    pub fn world_to_object(&self) -> &Affine3A {
+        &self.world_to_object
+    }
+
+    /// World-to-object transform inverted in f64 from the exact f32 `object_to_world` (for references).
+    pub fn world_to_object_f64(&self) -> DAffine3 {
+        self.object_to_world.as_daffine3().inverse()
+    }
+
+    /// World-space axis-aligned bounds, `None` for the half-space.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let m = self.object_to_world.matrix3;
+        let c = Vec3::from(self.object_to_world.translation);
+        let half = match self.shape {
+            Shape::HalfSpace => return None,
+            // Exact bounds of an ellipsoid: the extent along world axis i is the length of row i.
+            Shape::Sphere => {
+                let r = m.transpose();
+                Vec3::new(r.x_axis.length(), r.y_axis.length(), r.z_axis.length())
+            }
+            _ => {
+                let h = object_half_extent(self.shape);
+                let a = m.transpose();
+                Vec3::new(Vec3::from(a.x_axis.abs()).dot(h), Vec3::from(a.y_axis.abs()).dot(h), Vec3::from(a.z_axis.abs()).dot(h))
+            }
+        };
+        Some((c - half, c + half))
+    }
+
+    /// Outward unit normal in world space at a world point `p` on (or near) the surface.
+    ///
+    /// Near an edge of a box, cylinder or cone the face closest to `p` (in object space) wins.
+    pub fn normal(&self, p: Vec3) -> Vec3 {
+        let q = self.world_to_object.transform_point3(p);
+        let n = self.normal_to_world * Vec3A::from(object_normal(self.shape, q));
+        Vec3::from(n).normalize_or(Vec3::Z)
+    }
+
+    /// Point classification (closed set) of a world point.
+    pub fn inside(&self, p: Vec3) -> bool {
+        inside_object(self.shape, self.world_to_object.transform_point3(p))
+    }
+
+    /// The world plane `(n, d)` with the solid `n . p <= d`, for a half-space leaf.
+    pub fn plane(&self) -> Option<(Vec3, f32)> {
+        match self.shape {
+            Shape::HalfSpace => {
+                let n = Vec3::from(self.normal_to_world.z_axis);
+                Some((n, n.dot(Vec3::from(self.object_to_world.translation))))
+            }
+            _ => None,
+        }
+    }
+}
+
+fn sanitize(shape: Shape) -> Shape {
+    match shape {
+        Shape::Cone { r0, r1 } => Shape::Cone { r0: r0.abs(), r1: r1.abs() },
+        Shape::Torus { major, minor } => {
+            let major = major.abs().max(1e-6);
+            Shape::Torus { major, minor: minor.abs().min(major) }
+        }
+        s => s,
+    }
+}
+
+/// Half extents of the object-space bounding box (centred at the origin).
+fn object_half_extent(shape: Shape) -> Vec3 {
+    match shape {
+        Shape::Sphere | Shape::Box | Shape::Cylinder => Vec3::ONE,
+        Shape::Cone { r0, r1 } => {
+            let r = r0.max(r1);
+            Vec3::new(r, r, 1.0)
+        }
+        Shape::Torus { major, minor } => Vec3::new(major + minor, major + minor, minor),
+        Shape::HalfSpace => Vec3::INFINITY,
+    }
+}
+
+/// Cone radius as `m z + k` (see the canonical form).
+#[inline]
+pub(crate) fn cone_line(r0: f32, r1: f32) -> (f32, f32) {
+    (0.5 * (r1 - r0), 0.5 * (r0 + r1))
+}
+
+/// Object-space outward normal (not normalised) at an object-space point `q`.
+pub fn object_normal(shape: Shape, q: Vec3) -> Vec3 {
+    match shape {
+        Shape::Sphere => q,
+        Shape::Box => {
+            let a = q.abs();
+            if a.x >= a.y && a.x >= a.z {
+                Vec3::new(q.x.signum(), 0.0, 0.0)
+            } else if a.y >= a.z {
+                Vec3::new(0.0, q.y.signum(), 0.0)
+            } else {
+                Vec3::new(0.0, 0.0, q.z.signum())
+            }
+        }
+        Shape::Cylinder => {
+            let rho = (q.x * q.x + q.y * q.y).sqrt();
+            if (1.0 - q.z.abs()).abs() < (rho - 1.0).abs() || rho == 0.0 {
+                Vec3::new(0.0, 0.0, q.z.signum())
+            } else {
+                Vec3::new(q.x / rho, q.y / rho, 0.0)
+            }
+        }
+        Shape::Cone { r0, r1 } => {
+            let (m, k) = cone_line(r0, r1);
+            let rho = (q.x * q.x + q.y * q.y).sqrt();
+            // Distance to the slanted side in the (rho, z) half-plane.
+            let side = (rho - m.mul_add(q.z, k)).abs() / m.mul_add(m, 1.0).sqrt();
+            if (1.0 - q.z.abs()).abs() < side || rho == 0.0 {
+                Vec3::new(0.0, 0.0, q.z.signum())
+            } else {
+                // Gradient of rho - (m z + k).
+                Vec3::new(q.x / rho, q.y / rho, -m)
+            }
+        }
+        Shape::Torus { major, .. } => {
+            let rho = (q.x * q.x + q.y * q.y).sqrt();
+            if rho == 0.0 {
+                return Vec3::new(0.0, 0.0, q.z.signum());
+            }
+            let s = 1.0 - major / rho;
+            Vec3::new(q.x * s, q.y * s, q.z)
+        }
+        Shape::HalfSpace => Vec3::Z,
+    }
+}
+
+/// Point classification in object space (closed sets).
+pub fn inside_object(shape: Shape, q: Vec3) -> bool {
+    match shape {
+        Shape::Sphere => q.length_squared() <= 1.0,
+        Shape::Box => q.abs().max_element() <= 1.0,
+        Shape::Cylinder => q.x * q.x + q.y * q.y <= 1.0 && q.z.abs() <= 1.0,
+        Shape::Cone { r0, r1 } => {
+            let (m, k) = cone_line(r0, r1);
+            q.z.abs() <= 1.0 && (q.x * q.x + q.y * q.y).sqrt() <= m.mul_add(q.z, k)
+        }
+        Shape::Torus { major, minor } => {
+            let rho = (q.x * q.x + q.y * q.y).sqrt();
+            (rho - major) * (rho - major) + q.z * q.z <= minor * minor
+        }
+        Shape::HalfSpace => q.z <= 0.0,
+    }
+}

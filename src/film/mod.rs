@@ -1,0 +1,147 @@
+//! The film: per pixel sum, sum of squares and sample count.
+//!
+//! Sums are kept in 128-bit fixed point (2^-32 resolution) rather than floating point, so accumulation is
+//! associative: the image does not depend on the order in which samples arrive (threads, tiles), and two
+//! films of disjoint sample ranges add up to exactly (bit for bit) the film of their union. A sample whose
+//! value is not finite or exceeds [`MAX_SAMPLE_VALUE`] is discarded and counted, never accumulated.
+
+pub mod output;
+
+use glam::Vec3;
+
+/// Fixed-point scale: one unit is 2^-32.
+pub const FIXED_ONE: f64 = 4_294_967_296.0;
+/// Samples beyond this magnitude are treated as non-finite (keeps the 128-bit sums of squares exact).
+pub const MAX_SAMPLE_VALUE: f32 = 1e12;
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Pixel {
+    pub sum: [i128; 3],
+    pub sum_sq: [i128; 3],
+    pub count: u64,
+}
+
+impl Pixel {
+    /// Add one sample; returns false (and adds nothing) if it is non-finite or out of range.
+    #[inline]
+    pub fn add(&mut self, v: Vec3) -> bool {
+        let a = v.to_array();
+        if !a.iter().all(|x| x.is_finite() && x.abs() <= MAX_SAMPLE_VALUE) {
+            return false;
+        }
+        for c in 0..3 {
+            let x = a[c] as f64;
+            self.sum[c] += (x * FIXED_ONE).round() as i128;
+            self.sum_sq[c] += (x * x * FIXED_ONE).round() as i128;
+        }
+        self.count += 1;
+        true
+    }
+
+    #[inline]
+    pub fn merge(&mut self, o: &Pixel) {
+        for c in 0..3 {
+            self.sum[c] += o.sum[c];
+            self.sum_sq[c] += o.sum_sq[c];
+        }
+        self.count += o.count;
+    }
+
+    /// Mean radiance (zero for a pixel with no samples).
+    #[inline]
+    pub fn mean(&self) -> Vec3 {
+        if self.count == 0 {
+            return Vec3::ZERO;
+        }
+        let n = self.count as f64 * FIXED_ONE;
+        Vec3::new((self.sum[0] as f64 / n) as f32, (self.sum[1] as f64 / n) as f32, (self.sum[2] as f64 / n) as f32)
+    }
+
+    /// Unbiased sample variance of the mean estimate per channel (variance / n).
+    pub fn variance_of_mean(&self) -> Vec3 {
+        if self.count < 2 {
+            return Vec3::ZERO;
+        }
+        let n = self.count as f64;
+        let mut out = [0.0f32; 3];
+        for (c, o) in out.iter_mut().enumerate() {
+            let s = self.sum[c] as f64 / FIXED_ONE;
+            let s2 = self.sum_sq[c] as f64 / FIXED_ONE;
+            *o = (((s2 - s * s / n) / (n - 1.0)).max(0.0) / n) as f32;
+        }
+        Vec3::from_array(out)
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Film {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Pixel>,
+}
+
+impl Film {
+    pub fn new(width: u32, height: u32) -> Film {
+        Film { width, height, pixels: vec![Pixel::default(); width as usize * height as usize] }
+    }
+
+    /// Linear radiance, row-major RGB.
+    pub fn to_rgb(&self) -> Vec<Vec3> {
+        self.pixels.iter().map(|p| p.mean()).collect()
+    }
+
+    pub fn merge(&mut self, o: &Film) {
+        assert_eq!((self.width, self.height), (o.width, o.height));
+        for (a, b) in self.pixels.iter_mut().zip(&o.pixels) {
+            a.merge(b);
+        }
+    }
+
+    pub fn total_samples(&self) -> u64 {
+        self.pixels.iter().map(|p| p.count).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_point_sums_are_order_independent_and_exact() {
+        let vals: Vec<Vec3> = (0..1000).map(|i| Vec3::splat(((i * 7919) % 1000) as f32 / 333.0 + 1e-3)).collect();
+        let mut a = Pixel::default();
+        vals.iter().for_each(|v| assert!(a.add(*v)));
+        let mut b = Pixel::default();
+        vals.iter().rev().for_each(|v| assert!(b.add(*v)));
+        assert_eq!(a, b);
+        let (mut c, mut d) = (Pixel::default(), Pixel::default());
+        vals[..400].iter().for_each(|v| assert!(c.add(*v)));
+        vals[400..].iter().for_each(|v| assert!(d.add(*v)));
+        c.merge(&d);
+        assert_eq!(a, c);
+        let mean: f64 = vals.iter().map(|v| v.x as f64).sum::<f64>() / 1000.0;
+        assert!((a.mean().x as f64 - mean).abs() < 1e-6);
+    }
+
+    #[test]
+    fn non_finite_samples_are_rejected() {
+        let mut p = Pixel::default();
+        assert!(!p.add(Vec3::new(f32::NAN, 0.0, 0.0)));
+        assert!(!p.add(Vec3::new(0.0, f32::INFINITY, 0.0)));
+        assert!(!p.add(Vec3::splat(2e12)));
+        assert_eq!(p.count, 0);
+        assert_eq!(p.mean(), Vec3::ZERO);
+    }
+
+    #[test]
+    fn variance_matches_direct_formula() {
+        let mut p = Pixel::default();
+        let xs = [0.5f32, 1.5, 2.0, 4.0];
+        xs.iter().for_each(|&x| {
+            p.add(Vec3::splat(x));
+        });
+        let m = 2.0f64;
+        let var = xs.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / 3.0 / 4.0;
+        assert!((p.variance_of_mean().x as f64 - var).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,33 @@
+//! Strata: a data-oriented SIMD wavefront ray tracer for the CPU.
+//!
+//! ```text
+//! scene.toml + profile.toml
+//!       | scene::load_scene   parse + validate (errors carry file:line:col and the field)
+//!       v
+//!   Scene (compiled, flat)    prims, CSG programs, materials, lights, camera, BVH, Features
+//!       v
+//!   for each work unit (tile x sample batch; one reusable Wavefront per worker):
+//!      generate        camera rays: pixel filter, lens, time, wavelength samples
+//!      loop until no rays or max depth:
+//!         intersect    BVH packet traversal + 8-lane primitive kernels  -> HitQueue
+//!         csg_merge    rays at CSG solids: Roth interval merge           -> HitQueue
+//!         shade        per material kind: NEE requests, next-bounce rays
+//!         shadow       light samples, any-hit packets, direct light
+//!      accumulate      film: exact fixed-point sums per pixel
+//!       v
+//!   film -> PNG / EXR + summary (rays per kind, rays/s, time per stage)
+//! ```
+
+pub mod accel;
+pub mod camera;
+pub mod cli;
+pub mod csg;
+pub mod film;
+pub mod geometry;
+pub mod light;
+pub mod optics;
+pub mod render;
+pub mod sample;
+pub mod scene;
+pub mod simd;
+pub mod wavefront;

@@ -1,0 +1,7 @@
+//! The `strata` command line: `render`, `study`, `merge`.
+
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    strata::cli::main()
+}

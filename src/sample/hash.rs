@@ -1,0 +1,172 @@
+//! Counter-based hashing: every random number is a pure function of its inputs.
+//!
+//! The mixer is the SplitMix64 output function (Steele, Lea & Flood 2014, "Fast splittable pseudorandom
+//! number generators"), i.e. David Stafford's "Mix13" variant of the MurmurHash3 `fmix64` finaliser. It
+//! is a bijection of `u64` with full avalanche, which is what a counter-based generator needs: distinct
+//! counters never collide and neighbouring counters give unrelated outputs. A random number for
+//! `(key, index)` is exactly the `index + 1`-th output of a SplitMix64 generator whose state starts at
+//! `key`, so the quality is that of SplitMix64 (passes BigCrush) while needing no state at all.
+
+/// 2^64 / golden ratio, odd: the SplitMix64 increment (a Weyl sequence step).
+pub const GOLDEN_GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
+
+/// The largest `f32` below 1 (1 - 2^-24): the upper clamp of every `[0, 1)` sample.
+pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// SplitMix64 finaliser (Stafford Mix13): a bijective 64-bit mixer with full avalanche.
+#[inline(always)]
+pub fn mix64(x: u64) -> u64 {
+    let x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    let x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+/// 64 -> 32 bit hash: the high half of [`mix64`] (the best-mixed bits).
+#[inline(always)]
+pub fn hash_u32(x: u64) -> u32 {
+    (mix64(x) >> 32) as u32
+}
+
+/// Bijective 32-bit mixer: Chris Wellons' "lowbias32" (hash-prospector), a murmur3-`fmix32`-shaped
+/// xorshift-multiply chain with searched constants and lower bias than `fmix32`.
+#[inline(always)]
+pub fn mix32(x: u32) -> u32 {
+    let x = (x ^ (x >> 16)).wrapping_mul(0x7feb_352d);
+    let x = (x ^ (x >> 15)).wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}
+
+/// Order-dependent combination of two 64-bit values into one well-mixed key:
+/// `mix64(a ^ mix64(b + GOLDEN_GAMMA))`. `b` is mixed on its own first so that small structured values
+/// of `a` and `b` (seed 0, pixel index, dimension) cannot cancel each other before the final mix.
+#[inline(always)]
+pub fn hash_combine(a: u64, b: u64) -> u64 {
+    mix64(a ^ mix64(b.wrapping_add(GOLDEN_GAMMA)))
+}
+
+/// The key of one `(seed, stream, dim)` sequence; every strategy derives its randomness from it.
+/// Callers that draw many samples of the same sequence may compute it once and use the `_keyed`
+/// functions.
+#[inline(always)]
+pub fn stream_key(seed: u64, stream: u64, dim: u32) -> u64 {
+    hash_combine(hash_combine(seed, stream), dim as u64)
+}
+
+/// 64 random bits for `index` of the sequence `key`: the `index + 1`-th SplitMix64 output from state `key`.
+#[inline(always)]
+pub fn random_bits(key: u64, index: u32) -> u64 {
+    mix64(key.wrapping_add((index as u64 + 1).wrapping_mul(GOLDEN_GAMMA)))
+}
+
+/// Map the high 24 bits of `bits` to a float in `[0, 1)`: exact, uniform over the 2^24 values
+/// `k / 2^24`, never 1.0.
+#[inline(always)]
+pub fn unit_f32(bits: u32) -> f32 {
+    (bits >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// Uniform float in `[0, 1)` from the hash of `(seed, stream, dim, index)`. Never returns 1.0.
+/// Equal to the first coordinate of `sample_2d(Strategy::Random, ..)` and to
+/// `sample_1d(Strategy::Random, ..)` for the same arguments.
+#[inline]
+pub fn random_f32(seed: u64, stream: u64, dim: u32, index: u32) -> f32 {
+    random_f32_keyed(stream_key(seed, stream, dim), index)
+}
+
+/// [`random_f32`] from a precomputed [`stream_key`].
+#[inline(always)]
+pub fn random_f32_keyed(key: u64, index: u32) -> f32 {
+    unit_f32((random_bits(key, index) >> 32) as u32)
+}
+
+/// Two independent uniform floats in `[0, 1)` from one 64-bit hash (bits 40..64 and 8..32).
+#[inline(always)]
+pub fn random_2d_keyed(key: u64, index: u32) -> [f32; 2] {
+    let h = random_bits(key, index);
+    [unit_f32((h >> 32) as u32), unit_f32(h as u32)]
+}
+
+/// A pseudo-random bijection of `0..n` selected by `key` (in the style of Kensler 2013, "Correlated
+/// Multi-Jittered Sampling", Pixar TM 13-01): an invertible hash of `k`-bit words (`2^k >= n`; xor with
+/// the key, odd multiplications and masked xor-shifts, each invertible mod 2^k) applied by cycle-walking
+/// until the value falls back into `0..n`. Since the word hash is a bijection of `0..2^k` and
+/// `2^k < 2n`, fewer than two rounds are needed on average.
+///
+/// Conventions: `n == 0` is treated as 1; `i >= n` is wrapped (`i % n`).
+#[inline]
+pub fn permute(i: u32, n: u32, key: u32) -> u32 {
+    let n = n.max(1);
+    let mut i = i % n;
+    // Mask of the smallest power of two >= n, minus one (0 for n == 1).
+    let w = u32::MAX.checked_shr((n - 1).leading_zeros()).unwrap_or(0);
+    // Shift amounts that reach across the word for any size: half and quarter of its bit count.
+    let bits = 32 - w.leading_zeros();
+    let s1 = bits.div_ceil(2).max(1);
+    let s2 = bits.div_ceil(4).max(1);
+    // Mix the key first: keys differing in one bit must give unrelated permutations (otherwise
+    // `key ^ 1` would just compose the permutation with `i ^ 1`). Key-dependent odd multipliers make
+    // different keys give genuinely different permutations even for small n, where the fixed-shift
+    // steps are weak.
+    let key = mix32(key);
+    let m1 = (key >> 7) | 1;
+    let m2 = (key.rotate_left(13) ^ 0x2c1b_3c6d) | 1;
+    loop {
+        i ^= key;
+        i = i.wrapping_mul(m1) & w;
+        i ^= i >> s1;
+        i = i.wrapping_add(key >> 16).wrapping_mul(0x6f4f_2a35) & w;
+        i ^= i >> s2;
+        i = i.wrapping_mul(m2) & w;
+        i ^= i >> 1;
+        i ^= i >> s1;
+        if i < n {
+            break;
+        }
+    }
+    // A final key-dependent rotation of 0..n (Kensler's `(i + key) % n`, without the division): it
+    // makes the position of any fixed `i` exactly uniform over keys, which cycle-walking alone is not.
+    let offset = ((key.rotate_left(7) as u64 * n as u64) >> 32) as u32;
+    let j = i.wrapping_add(offset);
+    if j >= n {
+        j - n
+    } else {
+        j
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// SplitMix64 reference outputs for seed 1234567 (the test vector of the reference C
+    /// implementation by Vigna): our `random_bits(seed, i)` must be its `(i+1)`-th output.
+    #[test]
+    fn splitmix64_reference_vector() {
+        let expected: [u64; 5] = [6457827717110365317, 3203168211198807973, 9817491932198370423, 4593380528125082431, 16408922859458223821];
+        for (i, &e) in expected.iter().enumerate() {
+            assert_eq!(random_bits(1234567, i as u32), e, "output {i}");
+        }
+    }
+
+    #[test]
+    fn unit_f32_never_one() {
+        assert_eq!(unit_f32(0), 0.0);
+        assert!(unit_f32(u32::MAX) < 1.0);
+        assert_eq!(unit_f32(u32::MAX), ONE_MINUS_EPSILON);
+        assert_eq!(unit_f32(1 << 31), 0.5);
+    }
+
+    #[test]
+    fn permute_small_and_degenerate() {
+        assert_eq!(permute(0, 0, 123), 0);
+        assert_eq!(permute(5, 0, 123), 0);
+        assert_eq!(permute(7, 1, 99), 0);
+        // i >= n wraps.
+        for key in 0..50 {
+            assert_eq!(permute(13, 5, key), permute(3, 5, key));
+        }
+        // n = 2^32 - 1 and large i: must terminate and stay in range.
+        let p = permute(u32::MAX - 3, u32::MAX, 0xdead_beef);
+        assert!(p < u32::MAX);
+    }
+}

@@ -1,0 +1,232 @@
+//! The five sampling strategies and the 1D / 2D sample functions (see the module doc of `sample` for the
+//! semantics and conventions).
+
+use super::hash::{permute, random_2d_keyed, random_bits, random_f32_keyed, stream_key, ONE_MINUS_EPSILON};
+use super::sobol::{sobol_owen_1d, sobol_owen_2d};
+
+/// How the `n` samples of one integral are placed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Strategy {
+    /// Always the centre of the domain: one deterministic sample repeated (pinhole lens, pixel centre).
+    Center,
+    /// Centres of an `nx x ny` grid of sub-squares: a deterministic midpoint quadrature rule.
+    Grid,
+    /// Independent uniform points.
+    Random,
+    /// One uniform point in each of the `nx x ny` strata.
+    Jittered,
+    /// Owen-scrambled, index-shuffled Sobol (0,2)-sequence.
+    Sobol,
+}
+
+impl Strategy {
+    /// Every strategy, in increasing order of sophistication.
+    pub const ALL: [Strategy; 5] = [Strategy::Center, Strategy::Grid, Strategy::Random, Strategy::Jittered, Strategy::Sobol];
+
+    /// The lowercase name, as used in scene files and on the command line (same as serde).
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::Center => "center",
+            Strategy::Grid => "grid",
+            Strategy::Random => "random",
+            Strategy::Jittered => "jittered",
+            Strategy::Sobol => "sobol",
+        }
+    }
+
+    /// Parse a name, ignoring ASCII case; `"centre"` is accepted for `Center`.
+    pub fn parse(s: &str) -> Option<Strategy> {
+        if s.eq_ignore_ascii_case("centre") {
+            return Some(Strategy::Center);
+        }
+        Strategy::ALL.into_iter().find(|st| st.name().eq_ignore_ascii_case(s))
+    }
+}
+
+impl std::fmt::Display for Strategy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The stratification of `n` samples: `[nx, ny]` with `nx` the largest divisor of `n` that is
+/// `<= sqrt(n)` and `ny = n / nx`, so `nx * ny == n` exactly (a prime `n` gives `1 x n` strips).
+/// `n == 0` is treated as 1. Cost: one division per candidate divisor below `sqrt(n)` (a single one for
+/// squares; about `0.4 sqrt(n)` for `2^odd`; `sqrt(n)` for primes).
+#[inline]
+pub fn grid_shape(n: u32) -> [u32; 2] {
+    let n = n.max(1);
+    let mut nx = n.isqrt();
+    while !n.is_multiple_of(nx) {
+        nx -= 1;
+    }
+    [nx, n / nx]
+}
+
+/// The 32-bit permutation key of a sequence key (both halves folded in; `permute` mixes it again).
+#[inline(always)]
+fn perm_key(key: u64) -> u32 {
+    (key >> 32) as u32 ^ (key as u32).rotate_left(16)
+}
+
+/// `(k + 0.5) / n`, the centre of cell `k` of `n` (correctly rounded; clamped below 1 for `n > 2^23`).
+#[inline(always)]
+fn cell_centre(k: u32, n: u32) -> f32 {
+    ((k as f32 + 0.5) / n as f32).min(ONE_MINUS_EPSILON)
+}
+
+/// `(k + u) / n` with `u` from the high 24 bits of `bits`, computed in 2^-24 fixed point so that the
+/// result lies *exactly* in `[k/n, (k+1)/n)`: float `(k + u) / n` rounds across the cell edge with
+/// probability ~`k * 2^-25` (often, for large n). The result is `q / 2^24` with
+/// `q = floor((k 2^24 + t) / n)` and `t` uniform on `[n - 1, 2^24 - 1]`, which gives
+/// `ceil(k 2^24 / n) <= q <= floor(((k+1) 2^24 - 1) / n)`: every 2^-24 grid point of the cell, each
+/// with probability equal to within `n / 2^24`. Exact for `n <= 2^24`; beyond that the cells are
+/// thinner than the grid and `q` is only kept below 2^24.
+#[inline(always)]
+fn jitter_in_cell(k: u32, n: u32, bits: u32) -> f32 {
+    const ONE: u64 = 1 << 24;
+    let n = n as u64;
+    let span = (ONE + 1).saturating_sub(n);
+    let t = (n - 1) + (((bits >> 8) as u64 * span) >> 24);
+    let q = ((k as u64 * ONE + t) / n).min(ONE - 1);
+    q as f32 * (1.0 / ONE as f32)
+}
+
+/// Sample `index` of an `n`-sample 2D estimate of one integral, for one `stream` and one `dim`.
+/// Returns a point in `[0, 1)^2`. See the module doc for each strategy and for `index >= n`.
+#[inline]
+pub fn sample_2d(strategy: Strategy, seed: u64, stream: u64, dim: u32, index: u32, n: u32) -> [f32; 2] {
+    if strategy == Strategy::Center {
+        return [0.5, 0.5];
+    }
+    sample_2d_keyed(strategy, stream_key(seed, stream, dim), index, n)
+}
+
+/// [`sample_2d`] from a precomputed [`stream_key`]`(seed, stream, dim)`.
+#[inline]
+pub fn sample_2d_keyed(strategy: Strategy, key: u64, index: u32, n: u32) -> [f32; 2] {
+    match strategy {
+        Strategy::Center => [0.5, 0.5],
+        Strategy::Random => random_2d_keyed(key, index),
+        Strategy::Sobol => sobol_owen_2d(key, index),
+        Strategy::Grid | Strategy::Jittered => {
+            let [nx, ny] = grid_shape(n);
+            let s = permute(index, nx * ny, perm_key(key));
+            let (sx, sy) = (s % nx, s / nx);
+            if strategy == Strategy::Grid {
+                [cell_centre(sx, nx), cell_centre(sy, ny)]
+            } else {
+                let h = random_bits(key, index);
+                [jitter_in_cell(sx, nx, (h >> 32) as u32), jitter_in_cell(sy, ny, h as u32)]
+            }
+        }
+    }
+}
+
+/// Sample `index` of an `n`-sample 1D estimate (time, roulette...): center -> 0.5, grid ->
+/// `(k + 0.5) / n`, random -> [`random_f32`](super::random_f32), jittered -> `(k + u) / n`, sobol ->
+/// Owen-scrambled van der Corput; `k = permute(index, n, ..)`. Returns a value in `[0, 1)`.
+#[inline]
+pub fn sample_1d(strategy: Strategy, seed: u64, stream: u64, dim: u32, index: u32, n: u32) -> f32 {
+    if strategy == Strategy::Center {
+        return 0.5;
+    }
+    sample_1d_keyed(strategy, stream_key(seed, stream, dim), index, n)
+}
+
+/// [`sample_1d`] from a precomputed [`stream_key`]`(seed, stream, dim)`.
+#[inline]
+pub fn sample_1d_keyed(strategy: Strategy, key: u64, index: u32, n: u32) -> f32 {
+    match strategy {
+        Strategy::Center => 0.5,
+        Strategy::Random => random_f32_keyed(key, index),
+        Strategy::Sobol => sobol_owen_1d(key, index),
+        Strategy::Grid | Strategy::Jittered => {
+            let n = n.max(1);
+            let k = permute(index, n, perm_key(key));
+            if strategy == Strategy::Grid {
+                cell_centre(k, n)
+            } else {
+                jitter_in_cell(k, n, (random_bits(key, index) >> 32) as u32)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_shape_is_most_square_factorisation() {
+        assert_eq!(grid_shape(0), [1, 1]);
+        assert_eq!(grid_shape(1), [1, 1]);
+        assert_eq!(grid_shape(2), [1, 2]);
+        assert_eq!(grid_shape(7), [1, 7]);
+        assert_eq!(grid_shape(8), [2, 4]);
+        assert_eq!(grid_shape(12), [3, 4]);
+        assert_eq!(grid_shape(36), [6, 6]);
+        assert_eq!(grid_shape(2048), [32, 64]);
+        assert_eq!(grid_shape(u32::MAX), [65535, 65537]);
+        // Brute-force reference for every n up to 2000.
+        for n in 1..2000u32 {
+            let best = (1..=n).filter(|d| n % d == 0 && d * d <= n).max().unwrap();
+            assert_eq!(grid_shape(n), [best, n / best], "n = {n}");
+        }
+    }
+
+    /// The fixed-point jitter stays in its cell exactly, in integer arithmetic, at both extremes of
+    /// the random bits, for every cell of several n (including n beyond the 24-bit grid).
+    #[test]
+    fn jitter_stays_in_cell_exactly() {
+        for n in [1u32, 2, 3, 7, 100, 4096, 4099, 1 << 20, (1 << 24) - 3, 1 << 24] {
+            let ks: Vec<u32> = if n <= 5000 { (0..n).collect() } else { vec![0, 1, 2, n / 3, n / 2, n - 2, n - 1] };
+            for k in ks {
+                for bits in [0u32, 255, 256, 1 << 31, u32::MAX - 256, u32::MAX] {
+                    let x = jitter_in_cell(k, n, bits);
+                    let q = (x * 16_777_216.0) as u64;
+                    assert_eq!(q as f32 / 16_777_216.0, x);
+                    let (lo, hi) = (k as u64 * (1 << 24), (k as u64 + 1) * (1 << 24));
+                    assert!(q * n as u64 >= lo && q * (n as u64) < hi, "n={n} k={k} bits={bits:#x}");
+                }
+            }
+        }
+        // Beyond 2^24 cells: still in [0, 1).
+        for n in [(1u32 << 24) + 1, u32::MAX] {
+            for k in [0, n / 2, n - 1] {
+                let x = jitter_in_cell(k, n, u32::MAX);
+                assert!((0.0..1.0).contains(&x));
+            }
+        }
+        // The whole cell is reachable: extremes of the bits hit its first and last grid points.
+        let (n, k) = (3u32, 1u32);
+        let first = (jitter_in_cell(k, n, 0) * 16_777_216.0) as u64;
+        let last = (jitter_in_cell(k, n, u32::MAX) * 16_777_216.0) as u64;
+        assert_eq!(first, (1u64 << 24).div_ceil(3));
+        assert_eq!(last, ((2u64 << 24) - 1) / 3);
+    }
+
+    #[test]
+    fn names_round_trip() {
+        for s in Strategy::ALL {
+            assert_eq!(Strategy::parse(s.name()), Some(s));
+            assert_eq!(Strategy::parse(&s.name().to_uppercase()), Some(s));
+            assert_eq!(s.to_string(), s.name());
+        }
+        assert_eq!(Strategy::parse("centre"), Some(Strategy::Center));
+        assert_eq!(Strategy::parse("halton"), None);
+        assert_eq!(Strategy::parse(""), None);
+    }
+
+    #[test]
+    fn keyed_equals_unkeyed() {
+        for s in Strategy::ALL {
+            for i in 0..20 {
+                let key = stream_key(3, 77, 5);
+                assert_eq!(sample_2d(s, 3, 77, 5, i, 9), sample_2d_keyed(s, key, i, 9));
+                assert_eq!(sample_1d(s, 3, 77, 5, i, 9), sample_1d_keyed(s, key, i, 9));
+            }
+        }
+    }
+}

@@ -1,0 +1,901 @@
+//! Validation and compilation of a parsed scene file into a flat [`Scene`].
+//!
+//! Every check names the field (`shapes[2].children[0].radius`) and its line and column.
+
+use super::error::{read_text, InputError, Source};
+use super::format::{CameraDef, LightDef, MaterialDef, SceneFile, ShapeDef, TransformDef, S, V3};
+use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PRIMS};
+use crate::accel::{build_bvh, Aabb, BuildOptions};
+use crate::camera::Camera;
+use crate::csg::{self, Csg, CsgTree, Op};
+use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
+use crate::optics::{sigma_from_transmittance, Ior};
+use glam::{Affine3A, EulerRot, Mat3, Quat, Vec3};
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::Path;
+
+type R<T> = Result<T, InputError>;
+
+/// Deepest CSG nesting (and chain of named-solid references) accepted.
+pub const MAX_CSG_DEPTH: usize = 64;
+
+/// Read, parse, validate and compile a scene file.
+pub fn load_scene(path: &Path) -> R<Scene> {
+    let text = read_text(path)?;
+    parse_scene(path, &text)
+}
+
+/// Parse, validate and compile scene text; `path` is used in error messages.
+pub fn parse_scene(path: &Path, text: &str) -> R<Scene> {
+    let src = Source { path, text };
+    let file: SceneFile = toml::from_str(text).map_err(|e| src.from_toml(&e))?;
+    let mut c = Compiler {
+        src: &src,
+        file: &file,
+        material_ids: BTreeMap::new(),
+        materials: Vec::new(),
+        prims: Vec::new(),
+        csg: Csg::new(),
+        lights: Vec::new(),
+    };
+    c.compile(hash_text(text))
+}
+
+fn hash_text(text: &str) -> u64 {
+    // FNV-1a: stable across runs and platforms (std's hasher is not).
+    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+}
+
+struct Compiler<'a> {
+    src: &'a Source<'a>,
+    file: &'a SceneFile,
+    material_ids: BTreeMap<String, u32>,
+    materials: Vec<Material>,
+    prims: Vec<Prim>,
+    csg: Csg,
+    lights: Vec<Light>,
+}
+
+impl Compiler<'_> {
+    fn err(&self, span: Range<usize>, field: impl Into<String>, msg: impl Into<String>) -> InputError {
+        self.src.error(span, field, msg)
+    }
+
+    fn vec3(&self, v: &V3, field: &str) -> R<Vec3> {
+        let a = *v.get_ref();
+        if a.iter().any(|x| !x.is_finite()) {
+            return Err(self.err(v.span(), field, "components must be finite numbers"));
+        }
+        Ok(Vec3::from_array(a))
+    }
+
+    fn color(&self, v: &V3, field: &str, max: Option<f32>) -> R<Vec3> {
+        let c = self.vec3(v, field)?;
+        if c.min_element() < 0.0 {
+            return Err(self.err(v.span(), field, "colour components must not be negative"));
+        }
+        if let Some(m) = max {
+            if c.max_element() > m {
+                return Err(self.err(v.span(), field, format!("reflectance components must be at most {m} (energy conservation)")));
+            }
+        }
+        Ok(c)
+    }
+
+    fn positive(&self, v: &S<f32>, field: &str) -> R<f32> {
+        let x = *v.get_ref();
+        if !(x.is_finite() && x > 0.0) {
+            return Err(self.err(v.span(), field, format!("must be a finite number > 0, got {x}")));
+        }
+        Ok(x)
+    }
+
+    fn req<'b, T>(&self, v: &'b Option<S<T>>, table: Range<usize>, field: &str) -> R<&'b S<T>> {
+        v.as_ref().ok_or_else(|| self.err(table, field, "missing required field"))
+    }
+
+    fn compile(&mut self, hash: u64) -> R<Scene> {
+        let file = self.file;
+        let img = file.image.get_ref();
+        let check_side = |s: &S<i64>, name: &str| -> R<u32> {
+            let v = *s.get_ref();
+            if !(1..=MAX_IMAGE_SIDE).contains(&v) {
+                return Err(self.err(s.span(), format!("image.{name}"), format!("must be in 1..={MAX_IMAGE_SIDE}, got {v}")));
+            }
+            Ok(v as u32)
+        };
+        let width = check_side(&img.width, "width")?;
+        let height = check_side(&img.height, "height")?;
+        let background = match &img.background {
+            Some(b) => self.color(b, "image.background", None)?,
+            None => Vec3::ZERO,
+        };
+        let camera = self.camera(&file.camera, width, height)?;
+
+        for (name, def) in &file.materials {
+            let m = self.material(def, &format!("materials.{name}"))?;
+            self.material_ids.insert(name.clone(), self.materials.len() as u32);
+            self.materials.push(m);
+        }
+        for (i, def) in file.shapes.iter().enumerate() {
+            self.top_shape(def, &format!("shapes[{i}]"))?;
+            if self.prims.len() > MAX_PRIMS {
+                return Err(self.err(def.span(), format!("shapes[{i}]"), format!("more than {MAX_PRIMS} primitives")));
+            }
+        }
+        for (i, def) in file.lights.iter().enumerate() {
+            self.light(def, &format!("lights[{i}]"))?;
+        }
+
+        let shutter = camera.shutter;
+        let mut bounds = Vec::with_capacity(self.prims.len());
+        let (mut bounded, mut unbounded) = (Vec::new(), Vec::new());
+        for (i, p) in self.prims.iter().enumerate() {
+            match prim_bounds(&p.shape, &self.csg) {
+                Some(b) => {
+                    let b = if p.motion == Vec3::ZERO {
+                        b
+                    } else {
+                        let b0 = Aabb::new(b.min + p.motion * shutter[0], b.max + p.motion * shutter[0]);
+                        let b1 = Aabb::new(b.min + p.motion * shutter[1], b.max + p.motion * shutter[1]);
+                        b0.union(b1)
+                    };
+                    bounds.push(b);
+                    bounded.push(i as u32);
+                }
+                None => {
+                    bounds.push(Aabb::EMPTY);
+                    unbounded.push(i as u32);
+                }
+            }
+        }
+        let bvh_bounds: Vec<Aabb> = bounded.iter().map(|&i| bounds[i as usize]).collect();
+        let bvh = build_bvh(&bvh_bounds, &BuildOptions::default());
+
+        let mut features = Features {
+            csg: self.prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })),
+            motion: self.prims.iter().any(|p| p.motion != Vec3::ZERO) && shutter[1] > shutter[0],
+            lens: camera.lens_radius > 0.0,
+            planes: !unbounded.is_empty(),
+            point_lights: self.lights.iter().any(|l| matches!(l, Light::Point { .. })),
+            area_lights: self.lights.iter().any(|l| !matches!(l, Light::Point { .. })),
+            ..Features::default()
+        };
+        // Only materials that some surface uses count.
+        let mut used = vec![false; self.materials.len()];
+        for p in &self.prims {
+            used[p.material as usize] = true;
+        }
+        for l in 0..self.csg.leaf_count() {
+            used[self.csg.leaf(l as u32).material as usize] = true;
+        }
+        for (m, _) in self.materials.iter().zip(&used).filter(|(_, u)| **u) {
+            match m {
+                Material::Dielectric(d) => {
+                    features.dielectric = true;
+                    features.dispersion |= d.ior.is_dispersive();
+                }
+                Material::Glossy { .. } => features.glossy = true,
+                Material::Mirror { .. } => features.mirror = true,
+                _ => {}
+            }
+        }
+        Ok(Scene {
+            width,
+            height,
+            background,
+            camera,
+            materials: std::mem::take(&mut self.materials),
+            prims: std::mem::take(&mut self.prims),
+            bounds,
+            bvh,
+            bounded,
+            unbounded,
+            csg: std::mem::replace(&mut self.csg, Csg::new()),
+            lights: std::mem::take(&mut self.lights),
+            features,
+            hash,
+        })
+    }
+
+    fn camera(&self, def: &S<CameraDef>, width: u32, height: u32) -> R<Camera> {
+        let c = def.get_ref();
+        let position = self.vec3(&c.position, "camera.position")?;
+        let look_at = self.vec3(&c.look_at, "camera.look_at")?;
+        let up = match &c.up {
+            Some(u) => self.vec3(u, "camera.up")?,
+            None => Vec3::Y,
+        };
+        let forward = look_at - position;
+        if forward.length_squared() <= f32::MIN_POSITIVE || !forward.length().is_finite() {
+            return Err(self.err(c.look_at.span(), "camera.look_at", "must differ from camera.position"));
+        }
+        let up_span = c.up.as_ref().map_or(def.span(), |u| u.span());
+        if up.length_squared() <= f32::MIN_POSITIVE {
+            return Err(self.err(up_span, "camera.up", "must not be the zero vector"));
+        }
+        if forward.normalize().cross(up.normalize()).length() < 1e-6 {
+            return Err(self.err(up_span, "camera.up", "must not be parallel to the viewing direction"));
+        }
+        let fov = *c.fov.get_ref();
+        if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
+            return Err(self.err(c.fov.span(), "camera.fov", format!("must be in (0, 180) degrees, got {fov}")));
+        }
+        let aperture = match &c.aperture {
+            Some(a) => {
+                let x = *a.get_ref();
+                if !(x.is_finite() && x >= 0.0) {
+                    return Err(self.err(a.span(), "camera.aperture", format!("must be a finite number >= 0, got {x}")));
+                }
+                x
+            }
+            None => 0.0,
+        };
+        let focus = match &c.focus_distance {
+            Some(f) => self.positive(f, "camera.focus_distance")?,
+            None => forward.length(),
+        };
+        let shutter = match &c.shutter {
+            Some(s) => {
+                let [a, b] = *s.get_ref();
+                if !(a.is_finite() && b.is_finite() && a <= b) {
+                    return Err(self.err(s.span(), "camera.shutter", "must be [open, close] with open <= close"));
+                }
+                [a, b]
+            }
+            None => [0.0, 0.0],
+        };
+        Ok(Camera::new(position, look_at, up, fov, aperture, focus, shutter, width, height))
+    }
+
+    fn material(&self, def: &S<MaterialDef>, field: &str) -> R<Material> {
+        let m = def.get_ref();
+        let kind = m.kind.get_ref().as_str();
+        let f = |name: &str| format!("{field}.{name}");
+        let present: Vec<(&str, Range<usize>)> = [
+            ("albedo", m.albedo.as_ref().map(|x| x.span())),
+            ("checker", m.checker.as_ref().map(|x| x.span())),
+            ("tint", m.tint.as_ref().map(|x| x.span())),
+            ("radiance", m.radiance.as_ref().map(|x| x.span())),
+            ("roughness", m.roughness.as_ref().map(|x| x.span())),
+            ("ior", m.ior.as_ref().map(|x| x.span())),
+            ("cauchy", m.cauchy.as_ref().map(|x| x.span())),
+            ("abbe", m.abbe.as_ref().map(|x| x.span())),
+            ("absorption", m.absorption.as_ref().map(|x| x.span())),
+            ("transmittance", m.transmittance.as_ref().map(|x| x.span())),
+            ("transmittance_distance", m.transmittance_distance.as_ref().map(|x| x.span())),
+            ("thin", m.thin.as_ref().map(|x| x.span())),
+            ("fresnel", m.fresnel.as_ref().map(|x| x.span())),
+        ]
+        .into_iter()
+        .filter_map(|(n, s)| s.map(|s| (n, s)))
+        .collect();
+        let allowed: &[&str] = match kind {
+            "lambert" => &["albedo", "checker"],
+            "mirror" => &["tint"],
+            "glossy" => &["tint", "roughness"],
+            "dielectric" => &["ior", "cauchy", "abbe", "absorption", "transmittance", "transmittance_distance", "thin", "fresnel"],
+            "emissive" => &["radiance"],
+            _ => {
+                return Err(self.err(
+                    m.kind.span(),
+                    f("type"),
+                    format!("unknown material type `{kind}` (lambert, mirror, glossy, dielectric, emissive)"),
+                ))
+            }
+        };
+        for (name, span) in &present {
+            if !allowed.contains(name) {
+                return Err(self.err(
+                    span.clone(),
+                    f(name),
+                    format!("does not apply to a `{kind}` material (allowed: {})", allowed.join(", ")),
+                ));
+            }
+        }
+        let tint = |s: &Self| -> R<Vec3> { m.tint.as_ref().map_or(Ok(Vec3::ONE), |t| s.color(t, &f("tint"), Some(1.0))) };
+        Ok(match kind {
+            "lambert" => {
+                let albedo = match (&m.albedo, &m.checker) {
+                    (Some(a), None) => Texture::Constant(self.color(a, &f("albedo"), Some(1.0))?),
+                    (None, Some(c)) => {
+                        let cd = c.get_ref();
+                        let scale = match &cd.scale {
+                            Some(s) => self.positive(s, &f("checker.scale"))?,
+                            None => 1.0,
+                        };
+                        Texture::Checker {
+                            a: self.color(&cd.a, &f("checker.a"), Some(1.0))?,
+                            b: self.color(&cd.b, &f("checker.b"), Some(1.0))?,
+                            scale,
+                        }
+                    }
+                    (Some(_), Some(c)) => return Err(self.err(c.span(), f("checker"), "give either albedo or checker, not both")),
+                    (None, None) => return Err(self.err(def.span(), f("albedo"), "missing required field (or give `checker`)")),
+                };
+                Material::Lambert { albedo }
+            }
+            "mirror" => Material::Mirror { tint: tint(self)? },
+            "glossy" => {
+                let r = self.req(&m.roughness, def.span(), &f("roughness"))?;
+                let x = *r.get_ref();
+                if !(x.is_finite() && (0.0..=1.0).contains(&x)) {
+                    return Err(self.err(r.span(), f("roughness"), format!("must be in [0, 1], got {x}")));
+                }
+                Material::Glossy { tint: tint(self)?, alpha: x * x }
+            }
+            "dielectric" => {
+                let ior = match (&m.ior, &m.cauchy, &m.abbe) {
+                    (Some(n), None, None) => {
+                        let x = *n.get_ref();
+                        if !(x.is_finite() && (1.0..=10.0).contains(&x)) {
+                            return Err(self.err(n.span(), f("ior"), format!("must be in [1, 10], got {x}")));
+                        }
+                        Ior::Constant(x)
+                    }
+                    (None, Some(c), None) => {
+                        let [a, b] = *c.get_ref();
+                        if !(a.is_finite() && b.is_finite() && a >= 1.0 && a <= 10.0 && b >= 0.0 && b < 1.0) {
+                            return Err(self.err(
+                                c.span(),
+                                f("cauchy"),
+                                "must be [A, B] with A in [1, 10] and B in [0, 1) (B in square micrometres)",
+                            ));
+                        }
+                        Ior::Cauchy { a, b_um2: b }
+                    }
+                    (None, None, Some(c)) => {
+                        let [nd, vd] = *c.get_ref();
+                        if !(nd.is_finite() && vd.is_finite() && nd > 1.0 && nd <= 10.0 && vd >= 5.0) {
+                            return Err(self.err(c.span(), f("abbe"), "must be [nd, Vd] with nd in (1, 10] and Abbe number Vd >= 5"));
+                        }
+                        Ior::Abbe { nd, vd }
+                    }
+                    (None, None, None) => Ior::Constant(1.5),
+                    _ => return Err(self.err(def.span(), f("ior"), "give only one of ior, cauchy, abbe")),
+                };
+                let sigma_a = match (&m.absorption, &m.transmittance) {
+                    (Some(a), None) => self.color(a, &f("absorption"), None)?,
+                    (None, Some(t)) => {
+                        let c = self.color(t, &f("transmittance"), Some(1.0))?;
+                        if c.min_element() <= 0.0 {
+                            return Err(self.err(t.span(), f("transmittance"), "components must be in (0, 1]"));
+                        }
+                        let d = match &m.transmittance_distance {
+                            Some(d) => self.positive(d, &f("transmittance_distance"))?,
+                            None => 1.0,
+                        };
+                        sigma_from_transmittance(c, d)
+                    }
+                    (None, None) => Vec3::ZERO,
+                    (Some(_), Some(t)) => {
+                        return Err(self.err(t.span(), f("transmittance"), "give either absorption or transmittance, not both"))
+                    }
+                };
+                if m.transmittance.is_none() {
+                    if let Some(d) = &m.transmittance_distance {
+                        return Err(self.err(d.span(), f("transmittance_distance"), "only applies together with `transmittance`"));
+                    }
+                }
+                let schlick = match &m.fresnel {
+                    None => false,
+                    Some(s) => match s.get_ref().as_str() {
+                        "exact" => false,
+                        "schlick" => true,
+                        other => return Err(self.err(s.span(), f("fresnel"), format!("expected `exact` or `schlick`, got `{other}`"))),
+                    },
+                };
+                Material::Dielectric(Dielectric { ior, sigma_a, thin: m.thin.as_ref().is_some_and(|t| *t.get_ref()), schlick })
+            }
+            "emissive" => {
+                let r = self.req(&m.radiance, def.span(), &f("radiance"))?;
+                Material::Emissive { radiance: self.color(r, &f("radiance"), None)? }
+            }
+            _ => unreachable!(),
+        })
+    }
+
+    fn material_ref(&self, m: &S<String>, field: &str) -> R<u32> {
+        self.material_ids.get(m.get_ref()).copied().ok_or_else(|| {
+            let known: Vec<&str> = self.material_ids.keys().map(|s| s.as_str()).collect();
+            self.err(
+                m.span(),
+                field,
+                format!(
+                    "no material named `{}` (defined: {})",
+                    m.get_ref(),
+                    if known.is_empty() { "none".to_string() } else { known.join(", ") }
+                ),
+            )
+        })
+    }
+
+    fn transform(&self, t: &Option<S<TransformDef>>, field: &str) -> R<Affine3A> {
+        let Some(t) = t else { return Ok(Affine3A::IDENTITY) };
+        let td = t.get_ref();
+        let scale = match &td.scale {
+            Some(s) => {
+                let v = self.vec3(s, &format!("{field}.transform.scale"))?;
+                if v.abs().min_element() < 1e-12 || v.abs().max_element() > 1e12 {
+                    return Err(self.err(
+                        s.span(),
+                        format!("{field}.transform.scale"),
+                        "scale components must be non-zero and within 1e-12..1e12",
+                    ));
+                }
+                v
+            }
+            None => Vec3::ONE,
+        };
+        let rot = match &td.rotate {
+            Some(r) => {
+                let d = self.vec3(r, &format!("{field}.transform.rotate"))?;
+                Quat::from_euler(EulerRot::ZYX, d.z.to_radians(), d.y.to_radians(), d.x.to_radians())
+            }
+            None => Quat::IDENTITY,
+        };
+        let tr = match &td.translate {
+            Some(v) => self.vec3(v, &format!("{field}.transform.translate"))?,
+            None => Vec3::ZERO,
+        };
+        Ok(Affine3A::from_scale_rotation_translation(scale, rot, tr))
+    }
+
+    fn check_fields(&self, def: &S<ShapeDef>, field: &str, kind: &str, allowed: &[&str]) -> R<()> {
+        for (name, span) in def.get_ref().present() {
+            if !allowed.contains(&name) {
+                return Err(self.err(
+                    span,
+                    format!("{field}.{name}"),
+                    format!("does not apply to a `{kind}` (allowed: {})", allowed.join(", ")),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A shape at the top level of `shapes`: a primitive, or a CSG solid.
+    fn top_shape(&mut self, def: &S<ShapeDef>, field: &str) -> R<()> {
+        let s = def.get_ref();
+        let t = self.transform(&s.transform, field)?;
+        let motion = match &s.motion {
+            Some(m) => self.vec3(m, &format!("{field}.motion"))?,
+            None => Vec3::ZERO,
+        };
+        if let Some(h) = &s.hole {
+            return Err(self.err(h.span(), format!("{field}.hole"), "only children of a `group` can be holes"));
+        }
+        let kind = match (&s.kind, &s.use_solid) {
+            (Some(k), None) => k.get_ref().clone(),
+            (None, Some(_)) => "use".to_string(),
+            (Some(k), Some(_)) => return Err(self.err(k.span(), format!("{field}.type"), "give either `type` or `use`, not both")),
+            (None, None) => return Err(self.err(def.span(), format!("{field}.type"), "missing required field (or `use`)")),
+        };
+        let simple = matches!(kind.as_str(), "sphere" | "plane" | "box" | "quad" | "disk");
+        if simple {
+            let mat_field = format!("{field}.material");
+            let material = self.material_ref(self.req(&s.material, def.span(), &mat_field)?, &mat_field)?;
+            let shape = self.simple_shape(def, field, &kind, t)?;
+            if matches!(shape, Shape::Plane(_)) && motion != Vec3::ZERO {
+                return Err(self.err(s.motion.as_ref().unwrap().span(), format!("{field}.motion"), "an infinite plane cannot move"));
+            }
+            self.prims.push(Prim { shape, material, motion, is_light: false });
+            return Ok(());
+        }
+        let material = match &s.material {
+            Some(m) => Some(self.material_ref(m, &format!("{field}.material"))?),
+            None => None,
+        };
+        // Everything else is a CSG solid (a single cylinder, cone or torus is a one-leaf solid).
+        let mut stack = Vec::new();
+        let tree = self.csg_tree(def, field, Affine3A::IDENTITY, material, 0, &mut stack)?;
+        let _ = t; // the transform was applied inside csg_tree (it reads the def's own transform)
+        let solid = self.csg.add_solid(&tree).map_err(|e| self.err(def.span(), field, format!("{e}")))?;
+        self.prims.push(Prim { shape: Shape::Csg { solid }, material: material.unwrap_or(0), motion, is_light: false });
+        Ok(())
+    }
+
+    fn simple_shape(&self, def: &S<ShapeDef>, field: &str, kind: &str, t: Affine3A) -> R<Shape> {
+        let s = def.get_ref();
+        let sp = def.span();
+        let f = |n: &str| format!("{field}.{n}");
+        Ok(match kind {
+            "sphere" => {
+                self.check_fields(def, field, kind, &["center", "radius", "motion"])?;
+                let c = self.vec3(self.req(&s.center, sp.clone(), &f("center"))?, &f("center"))?;
+                let r = self.positive(self.req(&s.radius, sp.clone(), &f("radius"))?, &f("radius"))?;
+                match similarity_scale(&t) {
+                    Some(k) => Shape::Sphere { center: t.transform_point3(c), radius: r * k },
+                    None => {
+                        Shape::Ellipsoid(Ellipsoid::new(t * Affine3A::from_scale_rotation_translation(Vec3::splat(r), Quat::IDENTITY, c)))
+                    }
+                }
+            }
+            "plane" => {
+                self.check_fields(def, field, kind, &["point", "normal"])?;
+                let p = self.vec3(self.req(&s.point, sp.clone(), &f("point"))?, &f("point"))?;
+                let nd = self.req(&s.normal, sp.clone(), &f("normal"))?;
+                let n = self.unit(nd, &f("normal"))?;
+                let n = normal_matrix(&t).mul_vec3(n).normalize();
+                let p = t.transform_point3(p);
+                Shape::Plane(Plane { normal: n, offset: n.dot(p) })
+            }
+            "box" => {
+                self.check_fields(def, field, kind, &["min", "max", "motion"])?;
+                let (lo, hi) = self.min_max(def, field)?;
+                let half = (hi - lo) * 0.5;
+                let center = (hi + lo) * 0.5;
+                Shape::Box(OBox::new(t * Affine3A::from_translation(center), half))
+            }
+            "quad" => {
+                self.check_fields(def, field, kind, &["origin", "u", "v", "motion"])?;
+                let (o, u, v) = self.parallelogram(def.span(), &s.origin, &s.u, &s.v, field)?;
+                Shape::Quad(Quad::new(t.transform_point3(o), t.transform_vector3(u), t.transform_vector3(v)))
+            }
+            "disk" => {
+                self.check_fields(def, field, kind, &["center", "normal", "radius", "motion"])?;
+                let c = self.vec3(self.req(&s.center, sp.clone(), &f("center"))?, &f("center"))?;
+                let n = self.unit(self.req(&s.normal, sp.clone(), &f("normal"))?, &f("normal"))?;
+                let r = self.positive(self.req(&s.radius, sp.clone(), &f("radius"))?, &f("radius"))?;
+                let k = similarity_scale(&t).ok_or_else(|| {
+                    self.err(s.transform.as_ref().map_or(sp.clone(), |x| x.span()), f("transform"), "a disk needs a uniform scale")
+                })?;
+                Shape::Disk(Disk { center: t.transform_point3(c), normal: normal_matrix(&t).mul_vec3(n).normalize(), radius: r * k })
+            }
+            _ => unreachable!(),
+        })
+    }
+
+    fn unit(&self, v: &V3, field: &str) -> R<Vec3> {
+        let n = self.vec3(v, field)?;
+        if n.length_squared() < 1e-20 {
+            return Err(self.err(v.span(), field, "must not be the zero vector"));
+        }
+        Ok(n.normalize())
+    }
+
+    fn min_max(&self, def: &S<ShapeDef>, field: &str) -> R<(Vec3, Vec3)> {
+        let s = def.get_ref();
+        let lo_d = self.req(&s.min, def.span(), &format!("{field}.min"))?;
+        let hi_d = self.req(&s.max, def.span(), &format!("{field}.max"))?;
+        let lo = self.vec3(lo_d, &format!("{field}.min"))?;
+        let hi = self.vec3(hi_d, &format!("{field}.max"))?;
+        if !(hi.cmpgt(lo).all()) {
+            return Err(self.err(hi_d.span(), format!("{field}.max"), "every component of max must exceed min"));
+        }
+        Ok((lo, hi))
+    }
+
+    fn parallelogram(&self, span: Range<usize>, o: &Option<V3>, u: &Option<V3>, v: &Option<V3>, field: &str) -> R<(Vec3, Vec3, Vec3)> {
+        let f = |n: &str| format!("{field}.{n}");
+        let o = self.vec3(self.req(o, span.clone(), &f("origin"))?, &f("origin"))?;
+        let ud = self.req(u, span.clone(), &f("u"))?;
+        let u = self.vec3(ud, &f("u"))?;
+        let vd = self.req(v, span.clone(), &f("v"))?;
+        let v = self.vec3(vd, &f("v"))?;
+        if u.cross(v).length_squared() <= 1e-30 * (u.length_squared() * v.length_squared()).max(f32::MIN_POSITIVE)
+            || u.cross(v) == Vec3::ZERO
+        {
+            return Err(self.err(vd.span(), f("v"), "u and v must be non-zero and not parallel"));
+        }
+        Ok((o, u, v))
+    }
+
+    /// Build a CSG tree; `t` is the parent's transform, `material` the inherited override.
+    fn csg_tree(
+        &mut self,
+        def: &S<ShapeDef>,
+        field: &str,
+        parent: Affine3A,
+        material: Option<u32>,
+        depth: usize,
+        uses: &mut Vec<String>,
+    ) -> R<CsgTree> {
+        if depth > MAX_CSG_DEPTH {
+            return Err(self.err(def.span(), field, format!("CSG nesting deeper than {MAX_CSG_DEPTH}")));
+        }
+        let s = def.get_ref();
+        let t = parent * self.transform(&s.transform, field)?;
+        let f = |n: &str| format!("{field}.{n}");
+        if depth > 0 {
+            if let Some(m) = &s.motion {
+                return Err(self.err(m.span(), f("motion"), "motion applies to a whole top-level shape, not a CSG child"));
+            }
+        }
+        // Outermost material wins: a node's material overrides its descendants.
+        let material = match (material, &s.material) {
+            (Some(m), _) => Some(m),
+            (None, Some(m)) => Some(self.material_ref(m, &f("material"))?),
+            (None, None) => None,
+        };
+        if let Some(u) = &s.use_solid {
+            let name = u.get_ref();
+            let Some(target) = self.file.solids.get(name) else {
+                let known: Vec<&str> = self.file.solids.keys().map(|k| k.as_str()).collect();
+                return Err(self.err(
+                    u.span(),
+                    f("use"),
+                    format!("no solid named `{name}` (defined: {})", if known.is_empty() { "none".into() } else { known.join(", ") }),
+                ));
+            };
+            if uses.contains(name) {
+                return Err(self.err(
+                    u.span(),
+                    f("use"),
+                    format!("solid `{name}` refers to itself (cycle: {} -> {name})", uses.join(" -> ")),
+                ));
+            }
+            self.check_fields(def, field, "use", &[])?;
+            uses.push(name.clone());
+            let r = self.csg_tree(target, &format!("solids.{name}"), t, material, depth + 1, uses);
+            uses.pop();
+            return r;
+        }
+        let kind_s = self.req(&s.kind, def.span(), &f("type"))?;
+        let kind = kind_s.get_ref().as_str();
+        let mat = |c: &Self| -> R<u32> {
+            material.ok_or_else(|| {
+                c.err(
+                    def.span(),
+                    f("material"),
+                    "missing required field (a CSG leaf needs a material of its own or from an enclosing node)",
+                )
+            })
+        };
+        let sp = def.span();
+        let leaf = |shape: csg::Shape, place: Affine3A, m: u32| CsgTree::Leaf(csg::Leaf::new(shape, t * place, m));
+        Ok(match kind {
+            "sphere" => {
+                self.check_fields(def, field, kind, &["center", "radius", "motion", "hole"])?;
+                let c = self.vec3(self.req(&s.center, sp.clone(), &f("center"))?, &f("center"))?;
+                let r = self.positive(self.req(&s.radius, sp.clone(), &f("radius"))?, &f("radius"))?;
+                leaf(csg::Shape::Sphere, Affine3A::from_scale_rotation_translation(Vec3::splat(r), Quat::IDENTITY, c), mat(self)?)
+            }
+            "box" => {
+                self.check_fields(def, field, kind, &["min", "max", "motion", "hole"])?;
+                let (lo, hi) = self.min_max(def, field)?;
+                leaf(csg::Shape::Box, Affine3A::from_scale_rotation_translation((hi - lo) * 0.5, Quat::IDENTITY, (hi + lo) * 0.5), mat(self)?)
+            }
+            "cylinder" | "cone" => {
+                let allowed: &[&str] = if kind == "cone" { &["center", "radius", "radius_top", "height", "motion", "hole"] } else { &["center", "radius", "height", "motion", "hole"] };
+                self.check_fields(def, field, kind, allowed)?;
+                let c = match &s.center {
+                    Some(c) => self.vec3(c, &f("center"))?,
+                    None => Vec3::ZERO,
+                };
+                let r = self.positive(self.req(&s.radius, sp.clone(), &f("radius"))?, &f("radius"))?;
+                let h = self.positive(self.req(&s.height, sp.clone(), &f("height"))?, &f("height"))?;
+                let shape = if kind == "cone" {
+                    let rt_d = self.req(&s.radius_top, sp.clone(), &f("radius_top"))?;
+                    let rt = *rt_d.get_ref();
+                    if !(rt.is_finite() && rt >= 0.0) {
+                        return Err(self.err(rt_d.span(), f("radius_top"), format!("must be a finite number >= 0, got {rt}")));
+                    }
+                    csg_cone(r, rt)
+                } else {
+                    csg::Shape::Cylinder
+                };
+                // Canonical cylinder/cone: see csg::solid; centre `c` is the middle of the axis (along +y).
+                leaf(shape, csg_axis_placement(c, r, h), mat(self)?)
+            }
+            "torus" => {
+                self.check_fields(def, field, kind, &["center", "major_radius", "minor_radius", "motion", "hole"])?;
+                let c = match &s.center {
+                    Some(c) => self.vec3(c, &f("center"))?,
+                    None => Vec3::ZERO,
+                };
+                let big = self.positive(self.req(&s.major_radius, sp.clone(), &f("major_radius"))?, &f("major_radius"))?;
+                let small = self.positive(self.req(&s.minor_radius, sp.clone(), &f("minor_radius"))?, &f("minor_radius"))?;
+                if small >= big {
+                    return Err(self.err(s.minor_radius.as_ref().unwrap().span(), f("minor_radius"), "must be smaller than major_radius (spindle tori are not supported)"));
+                }
+                leaf(csg_torus(big, small), csg_torus_placement(c), mat(self)?)
+            }
+            "halfspace" => {
+                if depth == 0 {
+                    return Err(self.err(kind_s.span(), f("type"), "a half-space is unbounded: use it inside an intersection or difference (or use a `plane` shape)"));
+                }
+                self.check_fields(def, field, kind, &["point", "normal", "hole"])?;
+                let p = self.vec3(self.req(&s.point, sp.clone(), &f("point"))?, &f("point"))?;
+                let n = self.unit(self.req(&s.normal, sp.clone(), &f("normal"))?, &f("normal"))?;
+                leaf(csg::Shape::HalfSpace, csg_halfspace_placement(p, n), mat(self)?)
+            }
+            "csg" | "group" => {
+                self.check_fields(def, field, kind, &["op", "children", "motion", "hole"])?;
+                let children = s.children.as_ref().filter(|c| !c.is_empty()).ok_or_else(|| self.err(sp.clone(), f("children"), "missing required field (a non-empty list of solids)"))?;
+                if kind == "group" {
+                    if let Some(op) = &s.op {
+                        return Err(self.err(op.span(), f("op"), "a `group` has no op: it is the union of its children minus those marked `hole = true`"));
+                    }
+                    let (mut solids, mut holes) = (Vec::new(), Vec::new());
+                    for (i, c) in children.iter().enumerate() {
+                        let sub = self.csg_tree(c, &format!("{field}.children[{i}]"), t, material, depth + 1, uses)?;
+                        if c.get_ref().hole.as_ref().is_some_and(|h| *h.get_ref()) {
+                            holes.push(sub);
+                        } else {
+                            solids.push(sub);
+                        }
+                    }
+                    if solids.is_empty() {
+                        return Err(self.err(sp, f("children"), "a group needs at least one child that is not a hole"));
+                    }
+                    let body = CsgTree::Node { op: Op::Union, children: solids };
+                    if holes.is_empty() {
+                        body
+                    } else {
+                        CsgTree::Node { op: Op::Difference, children: vec![body, CsgTree::Node { op: Op::Union, children: holes }] }
+                    }
+                } else {
+                    let op_d = self.req(&s.op, sp.clone(), &f("op"))?;
+                    let op = match op_d.get_ref().as_str() {
+                        "union" => Op::Union,
+                        "intersection" => Op::Intersection,
+                        "difference" => Op::Difference,
+                        other => return Err(self.err(op_d.span(), f("op"), format!("expected union, intersection or difference, got `{other}`"))),
+                    };
+                    let mut kids = Vec::with_capacity(children.len());
+                    for (i, c) in children.iter().enumerate() {
+                        if let Some(h) = &c.get_ref().hole {
+                            return Err(self.err(h.span(), format!("{field}.children[{i}].hole"), "`hole` only applies to children of a `group`"));
+                        }
+                        kids.push(self.csg_tree(c, &format!("{field}.children[{i}]"), t, material, depth + 1, uses)?);
+                    }
+                    CsgTree::Node { op, children: kids }
+                }
+            }
+            "plane" | "quad" | "disk" => {
+                return Err(self.err(kind_s.span(), f("type"), format!("a `{kind}` is not a closed solid; CSG takes sphere, box, cylinder, cone, torus, halfspace, csg, group")));
+            }
+            other => {
+                return Err(self.err(
+                    kind_s.span(),
+                    f("type"),
+                    format!("unknown shape type `{other}` (sphere, plane, box, quad, disk, cylinder, cone, torus, csg, group; halfspace inside CSG)"),
+                ))
+            }
+        })
+    }
+
+    fn light(&mut self, def: &S<LightDef>, field: &str) -> R<()> {
+        let l = def.get_ref();
+        let sp = def.span();
+        let f = |n: &str| format!("{field}.{n}");
+        let kind = l.kind.get_ref().as_str();
+        let present: Vec<(&str, Range<usize>)> = [
+            ("position", l.position.as_ref().map(|x| x.span())),
+            ("intensity", l.intensity.as_ref().map(|x| x.span())),
+            ("origin", l.origin.as_ref().map(|x| x.span())),
+            ("u", l.u.as_ref().map(|x| x.span())),
+            ("v", l.v.as_ref().map(|x| x.span())),
+            ("center", l.center.as_ref().map(|x| x.span())),
+            ("normal", l.normal.as_ref().map(|x| x.span())),
+            ("radius", l.radius.as_ref().map(|x| x.span())),
+            ("radiance", l.radiance.as_ref().map(|x| x.span())),
+        ]
+        .into_iter()
+        .filter_map(|(n, s)| s.map(|s| (n, s)))
+        .collect();
+        let allowed: &[&str] = match kind {
+            "point" => &["position", "intensity"],
+            "quad" => &["origin", "u", "v", "radiance"],
+            "disk" => &["center", "normal", "radius", "radiance"],
+            "sphere" => &["center", "radius", "radiance"],
+            other => return Err(self.err(l.kind.span(), f("type"), format!("unknown light type `{other}` (point, quad, disk, sphere)"))),
+        };
+        for (name, span) in &present {
+            if !allowed.contains(name) {
+                return Err(self.err(
+                    span.clone(),
+                    f(name),
+                    format!("does not apply to a `{kind}` light (allowed: {})", allowed.join(", ")),
+                ));
+            }
+        }
+        if kind == "point" {
+            let position = self.vec3(self.req(&l.position, sp.clone(), &f("position"))?, &f("position"))?;
+            let intensity = self.color(self.req(&l.intensity, sp.clone(), &f("intensity"))?, &f("intensity"), None)?;
+            self.lights.push(Light::Point { position, intensity });
+            return Ok(());
+        }
+        let radiance = self.color(self.req(&l.radiance, sp.clone(), &f("radiance"))?, &f("radiance"), None)?;
+        let material = self.materials.len() as u32;
+        self.materials.push(Material::Emissive { radiance });
+        let (light, shape) = match kind {
+            "quad" => {
+                let (o, u, v) = self.parallelogram(sp.clone(), &l.origin, &l.u, &l.v, field)?;
+                let q = Quad::new(o, u, v);
+                (Light::Quad { quad: q, radiance }, Shape::Quad(q))
+            }
+            "disk" => {
+                let c = self.vec3(self.req(&l.center, sp.clone(), &f("center"))?, &f("center"))?;
+                let n = self.unit(self.req(&l.normal, sp.clone(), &f("normal"))?, &f("normal"))?;
+                let r = self.positive(self.req(&l.radius, sp.clone(), &f("radius"))?, &f("radius"))?;
+                let d = Disk { center: c, normal: n, radius: r };
+                (Light::Disk { disk: d, radiance }, Shape::Disk(d))
+            }
+            "sphere" => {
+                let c = self.vec3(self.req(&l.center, sp.clone(), &f("center"))?, &f("center"))?;
+                let r = self.positive(self.req(&l.radius, sp.clone(), &f("radius"))?, &f("radius"))?;
+                (Light::Sphere { center: c, radius: r, radiance }, Shape::Sphere { center: c, radius: r })
+            }
+            _ => unreachable!(),
+        };
+        self.lights.push(light);
+        self.prims.push(Prim { shape, material, motion: Vec3::ZERO, is_light: true });
+        Ok(())
+    }
+}
+
+/// The uniform scale of a similarity transform (rotation x uniform scale), or None.
+pub fn similarity_scale(t: &Affine3A) -> Option<f32> {
+    let m = t.matrix3;
+    let (a, b, c) = (m.x_axis, m.y_axis, m.z_axis);
+    let (la, lb, lc) = (a.length(), b.length(), c.length());
+    let tol = 1e-5 * la.max(lb).max(lc);
+    let ortho = a.dot(b).abs() <= tol * la.max(lb) && a.dot(c).abs() <= tol * la.max(lc) && b.dot(c).abs() <= tol * lb.max(lc);
+    ((la - lb).abs() <= tol && (la - lc).abs() <= tol && ortho).then_some(la)
+}
+
+/// Transforms normals: the inverse transpose of the linear part.
+pub fn normal_matrix(t: &Affine3A) -> Mat3 {
+    Mat3::from(t.matrix3).inverse().transpose()
+}
+
+/// World bounds of a primitive (None for unbounded planes).
+pub fn prim_bounds(shape: &Shape, csg: &Csg) -> Option<Aabb> {
+    Some(match shape {
+        Shape::Sphere { center, radius } => Aabb::new(*center - Vec3::splat(*radius), *center + Vec3::splat(*radius)),
+        Shape::Ellipsoid(e) => affine_box_bounds(&e.world_to_object.inverse(), Vec3::ONE),
+        Shape::Plane(_) => return None,
+        Shape::Quad(q) => {
+            let mut b = Aabb::from_point(q.origin);
+            b.grow(q.origin + q.u);
+            b.grow(q.origin + q.v);
+            b.grow(q.origin + q.u + q.v);
+            b
+        }
+        Shape::Disk(d) => {
+            let n = d.normal;
+            let e = d.radius * (Vec3::ONE - n * n).max(Vec3::ZERO).powf(0.5);
+            Aabb::new(d.center - e, d.center + e)
+        }
+        Shape::Box(b) => affine_box_bounds(&b.world_to_object.inverse(), b.half),
+        Shape::Csg { solid } => {
+            let (lo, hi) = csg.bounds(*solid);
+            Aabb::new(lo, hi)
+        }
+    })
+}
+
+/// Bounds of the box [-half, half] under an affine map.
+pub fn affine_box_bounds(t: &Affine3A, half: Vec3) -> Aabb {
+    let c = Vec3::from(t.translation);
+    let m = t.matrix3;
+    let e = Vec3::from(m.x_axis).abs() * half.x + Vec3::from(m.y_axis).abs() * half.y + Vec3::from(m.z_axis).abs() * half.z;
+    Aabb::new(c - e, c + e)
+}
+
+// Adapters to the canonical CSG shapes (defined in csg::solid).
+fn csg_cone(r_bottom: f32, r_top: f32) -> csg::Shape {
+    csg::Shape::Cone { r0: 1.0, r1: r_top / r_bottom }
+}
+
+/// Canonical cylinders and cones have radius 1 and z in [-1, 1] (axis +z); the scene's axis is +y.
+fn csg_axis_placement(center: Vec3, radius: f32, height: f32) -> Affine3A {
+    Affine3A::from_scale_rotation_translation(Vec3::new(radius, radius, height * 0.5), Quat::from_rotation_arc(Vec3::Z, Vec3::Y), center)
+}
+
+fn csg_torus(major: f32, minor: f32) -> csg::Shape {
+    csg::Shape::Torus { major, minor }
+}
+
+/// The canonical torus lies in the xy plane around +z; the scene's lies in the xz plane around +y.
+fn csg_torus_placement(center: Vec3) -> Affine3A {
+    Affine3A::from_rotation_translation(Quat::from_rotation_arc(Vec3::Z, Vec3::Y), center)
+}
+
+fn csg_halfspace_placement(point: Vec3, normal: Vec3) -> Affine3A {
+    // Canonical half-space: z <= 0 (outward normal +z), rotated so +z becomes `normal`, moved to `point`.
+    Affine3A::from_rotation_translation(Quat::from_rotation_arc(Vec3::Z, normal), point)
+}

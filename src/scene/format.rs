@@ -1,0 +1,148 @@
+//! The scene file format, as serde reads it. Every field is `Spanned` so that validation errors can name
+//! the line and column; every table denies unknown keys. Shapes and lights are flat tables with a `type`
+//! and optional fields: `compile` checks per type which fields are required and which do not apply (a
+//! flat table keeps spans exact, which serde's internally tagged enums do not).
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use toml::Spanned;
+
+pub type S<T> = Spanned<T>;
+pub type V3 = S<[f32; 3]>;
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub image: S<ImageDef>,
+    pub camera: S<CameraDef>,
+    #[serde(default)]
+    pub materials: BTreeMap<String, S<MaterialDef>>,
+    /// Named solids, reusable by `use = "name"` in shapes and CSG children.
+    #[serde(default)]
+    pub solids: BTreeMap<String, S<ShapeDef>>,
+    #[serde(default)]
+    pub shapes: Vec<S<ShapeDef>>,
+    #[serde(default)]
+    pub lights: Vec<S<LightDef>>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct ImageDef {
+    pub width: S<i64>,
+    pub height: S<i64>,
+    pub background: Option<V3>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDef {
+    pub position: V3,
+    pub look_at: V3,
+    pub up: Option<V3>,
+    /// Vertical field of view in degrees.
+    pub fov: S<f32>,
+    /// Lens radius (world units); 0 or absent is a pinhole.
+    pub aperture: Option<S<f32>>,
+    pub focus_distance: Option<S<f32>>,
+    /// Shutter open and close times; objects move by `motion * t`.
+    pub shutter: Option<S<[f32; 2]>>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct CheckerDef {
+    pub a: V3,
+    pub b: V3,
+    pub scale: Option<S<f32>>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialDef {
+    #[serde(rename = "type")]
+    pub kind: S<String>,
+    pub albedo: Option<V3>,
+    pub checker: Option<S<CheckerDef>>,
+    pub tint: Option<V3>,
+    pub radiance: Option<V3>,
+    pub roughness: Option<S<f32>>,
+    pub ior: Option<S<f32>>,
+    pub cauchy: Option<S<[f32; 2]>>,
+    pub abbe: Option<S<[f32; 2]>>,
+    pub absorption: Option<V3>,
+    pub transmittance: Option<V3>,
+    pub transmittance_distance: Option<S<f32>>,
+    pub thin: Option<S<bool>>,
+    pub fresnel: Option<S<String>>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct TransformDef {
+    pub scale: Option<V3>,
+    /// Degrees about x, then y, then z.
+    pub rotate: Option<V3>,
+    pub translate: Option<V3>,
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeDef {
+    #[serde(rename = "type")]
+    pub kind: Option<S<String>>,
+    #[serde(rename = "use")]
+    pub use_solid: Option<S<String>>,
+    pub material: Option<S<String>>,
+    pub center: Option<V3>,
+    pub radius: Option<S<f32>>,
+    pub point: Option<V3>,
+    pub normal: Option<V3>,
+    pub min: Option<V3>,
+    pub max: Option<V3>,
+    pub origin: Option<V3>,
+    pub u: Option<V3>,
+    pub v: Option<V3>,
+    pub height: Option<S<f32>>,
+    pub radius_top: Option<S<f32>>,
+    pub major_radius: Option<S<f32>>,
+    pub minor_radius: Option<S<f32>>,
+    pub motion: Option<V3>,
+    pub transform: Option<S<TransformDef>>,
+    pub op: Option<S<String>>,
+    pub children: Option<Vec<S<ShapeDef>>>,
+    pub hole: Option<S<bool>>,
+}
+
+impl ShapeDef {
+    /// Names and spans of the optional geometric fields that are set (for "does not apply" errors).
+    pub fn present(&self) -> Vec<(&'static str, std::ops::Range<usize>)> {
+        let mut v = Vec::new();
+        macro_rules! check {
+            ($($f:ident),*) => { $( if let Some(x) = &self.$f { v.push((stringify!($f), x.span())); } )* };
+        }
+        check!(center, radius, point, normal, min, max, origin, u, v, height, radius_top, major_radius, minor_radius, motion, op, hole);
+        if let Some(c) = &self.children {
+            if let Some(first) = c.first() {
+                v.push(("children", first.span()));
+            }
+        }
+        v
+    }
+}
+
+#[derive(Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+pub struct LightDef {
+    #[serde(rename = "type")]
+    pub kind: S<String>,
+    pub position: Option<V3>,
+    pub intensity: Option<V3>,
+    pub origin: Option<V3>,
+    pub u: Option<V3>,
+    pub v: Option<V3>,
+    pub center: Option<V3>,
+    pub normal: Option<V3>,
+    pub radius: Option<S<f32>>,
+    pub radiance: Option<V3>,
+}

@@ -1,0 +1,211 @@
+//! Quality profiles: a named, complete choice of sample counts and strategies (`profiles/*.toml`).
+//! Command-line flags override single fields through [`Profile::set`].
+
+use super::error::{read_text, InputError, Source};
+use crate::sample::{Filter, Strategy};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// How a dielectric hit continues: both children weighted by Fresnel, or one picked by Fresnel probability.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Branching {
+    /// Whitted's split: trace reflection and refraction, each weighted by R and T.
+    Split,
+    /// Russian roulette: trace one, chosen with probability R (weights cancel).
+    Roulette,
+}
+
+/// Hard limits that protect the machine; exceeding one is an input error, not an out-of-memory crash.
+pub const MAX_SPP: u32 = 1 << 20;
+pub const MAX_LIGHT_SAMPLES: u32 = 4096;
+pub const MAX_DEPTH: u32 = 1024;
+
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Profile {
+    #[serde(default)]
+    pub name: String,
+    /// Camera samples per pixel.
+    pub spp: u32,
+    pub pixel_strategy: Strategy,
+    #[serde(default = "default_filter")]
+    pub filter: Filter,
+    /// Samples per area light per shading point.
+    pub light_samples: u32,
+    pub light_strategy: Strategy,
+    #[serde(default = "default_strategy")]
+    pub lens_strategy: Strategy,
+    #[serde(default = "default_strategy")]
+    pub time_strategy: Strategy,
+    #[serde(default = "default_strategy")]
+    pub glossy_strategy: Strategy,
+    /// Specular / glossy / diffuse bounces after the camera ray.
+    pub max_depth: u32,
+    /// Diffuse bounces (0: classic distribution ray tracing; > 0: path tracing with Russian roulette).
+    #[serde(default)]
+    pub diffuse_depth: u32,
+    #[serde(default = "default_branching")]
+    pub branching: Branching,
+    /// Paths whose throughput falls below this play Russian roulette (unbiased cut-off).
+    #[serde(default = "default_cutoff")]
+    pub throughput_cutoff: f32,
+    /// Non-physical: shadow rays pass through dielectrics, attenuated by their transmittance.
+    #[serde(default)]
+    pub transmissive_shadows: bool,
+}
+
+fn default_filter() -> Filter {
+    Filter::Box
+}
+fn default_strategy() -> Strategy {
+    Strategy::Jittered
+}
+fn default_branching() -> Branching {
+    Branching::Split
+}
+fn default_cutoff() -> f32 {
+    1e-3
+}
+
+/// The profiles shipped in `profiles/`, embedded so the binary works from any directory.
+pub const BUILTIN: [(&str, &str); 4] = [
+    ("preview", include_str!("../../profiles/preview.toml")),
+    ("final", include_str!("../../profiles/final.toml")),
+    ("reference", include_str!("../../profiles/reference.toml")),
+    ("bench", include_str!("../../profiles/bench.toml")),
+];
+
+impl Profile {
+    /// Parse profile text; `path` is used in error messages.
+    pub fn parse(path: &Path, text: &str) -> Result<Profile, InputError> {
+        let src = Source { path, text };
+        let p: Profile = toml::from_str(text).map_err(|e| src.from_toml(&e))?;
+        p.validate().map_err(|(field, msg)| {
+            let span = find_key(text, field).unwrap_or(0..0);
+            src.error(span, field, msg)
+        })?;
+        Ok(p)
+    }
+
+    /// `--profile NAME|PATH`: a path to a file, else `profiles/NAME.toml` in the working directory, else
+    /// the built-in copy of a shipped profile.
+    pub fn load(name_or_path: &str) -> Result<Profile, InputError> {
+        let as_path = PathBuf::from(name_or_path);
+        if name_or_path.ends_with(".toml") || as_path.is_file() {
+            let text = read_text(&as_path)?;
+            return Profile::parse(&as_path, &text);
+        }
+        let local = PathBuf::from("profiles").join(format!("{name_or_path}.toml"));
+        if local.is_file() {
+            let text = read_text(&local)?;
+            return Profile::parse(&local, &text);
+        }
+        if let Some((_, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
+            return Profile::parse(Path::new(&format!("<built-in profile {name_or_path}>")), text);
+        }
+        Err(InputError {
+            file: local,
+            line: 0,
+            column: 0,
+            field: "profile".into(),
+            message: format!(
+                "no profile named `{name_or_path}` (shipped: {})",
+                BUILTIN.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+            ),
+        })
+    }
+
+    pub fn builtin(name: &str) -> Profile {
+        Profile::load(name).expect("shipped profiles are valid")
+    }
+
+    /// Range checks; returns the field name and the problem.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if self.spp == 0 || self.spp > MAX_SPP {
+            return Err(("spp", format!("must be in 1..={MAX_SPP}, got {}", self.spp)));
+        }
+        if self.light_samples == 0 || self.light_samples > MAX_LIGHT_SAMPLES {
+            return Err(("light_samples", format!("must be in 1..={MAX_LIGHT_SAMPLES}, got {}", self.light_samples)));
+        }
+        if self.max_depth > MAX_DEPTH {
+            return Err(("max_depth", format!("must be at most {MAX_DEPTH}, got {}", self.max_depth)));
+        }
+        if self.diffuse_depth > self.max_depth {
+            return Err(("diffuse_depth", format!("must not exceed max_depth ({}), got {}", self.max_depth, self.diffuse_depth)));
+        }
+        if !(self.throughput_cutoff.is_finite() && (0.0..1.0).contains(&self.throughput_cutoff)) {
+            return Err(("throughput_cutoff", format!("must be in [0, 1), got {}", self.throughput_cutoff)));
+        }
+        Ok(())
+    }
+
+    /// Override one field from the command line (`--set key=value`, `--spp N`, ...).
+    pub fn set(&mut self, key: &str, value: &str) -> Result<(), String> {
+        fn num<T: std::str::FromStr>(key: &str, v: &str) -> Result<T, String> {
+            v.trim().parse().map_err(|_| format!("{key}: `{v}` is not a valid number"))
+        }
+        fn strat(key: &str, v: &str) -> Result<Strategy, String> {
+            Strategy::parse(v.trim()).ok_or_else(|| {
+                let all: Vec<_> = Strategy::ALL.iter().map(|s| s.name()).collect();
+                format!("{key}: unknown strategy `{v}` (one of {})", all.join(", "))
+            })
+        }
+        match key {
+            "spp" => self.spp = num(key, value)?,
+            "light_samples" => self.light_samples = num(key, value)?,
+            "max_depth" => self.max_depth = num(key, value)?,
+            "diffuse_depth" => self.diffuse_depth = num(key, value)?,
+            "throughput_cutoff" => self.throughput_cutoff = num(key, value)?,
+            "transmissive_shadows" => {
+                self.transmissive_shadows = value.trim().parse().map_err(|_| format!("{key}: expected true or false"))?
+            }
+            "pixel_strategy" => self.pixel_strategy = strat(key, value)?,
+            "light_strategy" => self.light_strategy = strat(key, value)?,
+            "lens_strategy" => self.lens_strategy = strat(key, value)?,
+            "time_strategy" => self.time_strategy = strat(key, value)?,
+            "glossy_strategy" => self.glossy_strategy = strat(key, value)?,
+            "strategy" => {
+                let s = strat(key, value)?;
+                self.pixel_strategy = s;
+                self.light_strategy = s;
+                self.lens_strategy = s;
+                self.time_strategy = s;
+                self.glossy_strategy = s;
+            }
+            "branching" => {
+                self.branching = match value.trim() {
+                    "split" => Branching::Split,
+                    "roulette" => Branching::Roulette,
+                    _ => return Err(format!("{key}: expected `split` or `roulette`, got `{value}`")),
+                }
+            }
+            "filter" => {
+                self.filter = match value.trim() {
+                    "box" => Filter::Box,
+                    "tent" => Filter::Tent,
+                    "gaussian" => Filter::Gaussian,
+                    _ => return Err(format!("{key}: expected box, tent or gaussian, got `{value}`")),
+                }
+            }
+            _ => return Err(format!("unknown profile field `{key}`")),
+        }
+        self.validate().map_err(|(f, m)| format!("{f}: {m}"))
+    }
+}
+
+/// Byte span of `key = ...` at the start of a line (for validation errors on plain fields).
+fn find_key(text: &str, key: &str) -> Option<std::ops::Range<usize>> {
+    let mut offset = 0;
+    for line in text.split_inclusive('\n') {
+        let t = line.trim_start();
+        if let Some(rest) = t.strip_prefix(key) {
+            if rest.trim_start().starts_with('=') {
+                let start = offset + (line.len() - t.len());
+                return Some(start..start + key.len());
+            }
+        }
+        offset += line.len();
+    }
+    None
+}

@@ -1,0 +1,142 @@
+//! Lane types shared by every SIMD kernel.
+//!
+//! glam has no structure-of-arrays vectors (`Vec3A` is one SSE register), so a packet of 8 vectors is
+//! three `f32x8`: `Vec3x8`. The lane width is one constant (`LANES`); kernels are written against the
+//! `F32s` alias and carry the `_x8` suffix.
+//!
+//! `wide` picks its backend at compile time from the target features (see `.cargo/config.toml`):
+//! with AVX2+FMA an `f32x8` is one ymm register and `mul_add` is one `vfmadd`.
+
+use glam::Vec3;
+pub use wide::{f32x8, i32x8, u32x8};
+
+/// Lanes per packet.
+pub const LANES: usize = 8;
+/// The lane type of every kernel.
+pub type F32s = f32x8;
+
+/// Round `n` up to a multiple of [`LANES`].
+#[inline]
+pub const fn pad_to_lanes(n: usize) -> usize {
+    n.div_ceil(LANES) * LANES
+}
+
+/// Load 8 consecutive `f32` from `s[i..i + 8]`.
+#[inline(always)]
+pub fn load8(s: &[f32], i: usize) -> f32x8 {
+    let a: [f32; 8] = s[i..i + 8].try_into().unwrap();
+    f32x8::from(a)
+}
+
+/// Store 8 lanes into `s[i..i + 8]`.
+#[inline(always)]
+pub fn store8(s: &mut [f32], i: usize, v: f32x8) {
+    s[i..i + 8].copy_from_slice(&v.to_array());
+}
+
+/// Three `f32x8`: 8 vectors in structure-of-arrays form (96 bytes, 32-byte aligned).
+#[derive(Clone, Copy, Debug)]
+pub struct Vec3x8 {
+    pub x: f32x8,
+    pub y: f32x8,
+    pub z: f32x8,
+}
+
+impl Vec3x8 {
+    #[inline(always)]
+    pub fn new(x: f32x8, y: f32x8, z: f32x8) -> Self {
+        Self { x, y, z }
+    }
+    #[inline(always)]
+    pub fn splat(v: Vec3) -> Self {
+        Self { x: f32x8::splat(v.x), y: f32x8::splat(v.y), z: f32x8::splat(v.z) }
+    }
+    #[inline(always)]
+    pub fn load(xs: &[f32], ys: &[f32], zs: &[f32], i: usize) -> Self {
+        Self { x: load8(xs, i), y: load8(ys, i), z: load8(zs, i) }
+    }
+    #[inline(always)]
+    pub fn dot(self, o: Self) -> f32x8 {
+        self.x.mul_add(o.x, self.y.mul_add(o.y, self.z * o.z))
+    }
+    #[inline(always)]
+    pub fn dot3(self, o: Vec3) -> f32x8 {
+        self.x.mul_add(f32x8::splat(o.x), self.y.mul_add(f32x8::splat(o.y), self.z * f32x8::splat(o.z)))
+    }
+    #[inline(always)]
+    pub fn cross(self, o: Self) -> Self {
+        Self { x: self.y * o.z - self.z * o.y, y: self.z * o.x - self.x * o.z, z: self.x * o.y - self.y * o.x }
+    }
+    #[inline(always)]
+    pub fn scale(self, s: f32x8) -> Self {
+        Self { x: self.x * s, y: self.y * s, z: self.z * s }
+    }
+    /// `self * s + o`, lane-wise, fused.
+    #[inline(always)]
+    pub fn mul_add(self, s: f32x8, o: Self) -> Self {
+        Self { x: self.x.mul_add(s, o.x), y: self.y.mul_add(s, o.y), z: self.z.mul_add(s, o.z) }
+    }
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x.to_array()[i], self.y.to_array()[i], self.z.to_array()[i])
+    }
+}
+
+impl std::ops::Add for Vec3x8 {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Self { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+    }
+}
+
+impl std::ops::Sub for Vec3x8 {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Self { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
+    }
+}
+
+/// A packet of 8 rays. Lanes that carry no ray have `tmax = -1` (never hit anything).
+///
+/// `inv_d` is `1 / d` with IEEE infinities for zero components (slab tests rely on them).
+#[derive(Clone, Copy, Debug)]
+pub struct Ray8 {
+    pub o: Vec3x8,
+    pub d: Vec3x8,
+    pub inv_d: Vec3x8,
+    pub tmax: f32x8,
+}
+
+impl Ray8 {
+    #[inline(always)]
+    pub fn new(o: Vec3x8, d: Vec3x8, tmax: f32x8) -> Self {
+        let one = f32x8::ONE;
+        Self { o, d, inv_d: Vec3x8::new(one / d.x, one / d.y, one / d.z), tmax }
+    }
+}
+
+/// Lane mask helpers: `wide` masks are all-ones / all-zeros lanes of the float type.
+#[inline(always)]
+pub fn any(m: f32x8) -> bool {
+    m.any()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vec3x8_matches_glam() {
+        let a = Vec3::new(1.0, -2.0, 3.5);
+        let b = Vec3::new(-0.25, 4.0, 2.0);
+        let (pa, pb) = (Vec3x8::splat(a), Vec3x8::splat(b));
+        for i in 0..LANES {
+            assert_eq!(pa.dot(pb).to_array()[i], a.dot(b));
+            assert_eq!(pa.cross(pb).lane(i), a.cross(b));
+        }
+        assert_eq!(pad_to_lanes(0), 0);
+        assert_eq!(pad_to_lanes(9), 16);
+    }
+}

@@ -1,0 +1,90 @@
+//! The pipeline driver: the only place that knows the order of the stages. It reads like the diagram:
+//!
+//! ```text
+//! generate -> loop { intersect -> csg_merge -> shade -> shadow } -> accumulate
+//! ```
+
+use super::accumulate::accumulate;
+use super::csg_merge::csg_merge;
+use super::generate::{generate, Tile};
+use super::intersect::intersect;
+use super::shade::{shade, ShadeOut};
+use super::shadow::shadow;
+use super::Wavefront;
+use crate::film::Film;
+use crate::scene::{Profile, Scene};
+use std::ops::Range;
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// What a render needs besides the scene.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    pub profile: Profile,
+    pub seed: u64,
+}
+
+/// One piece of work: a tile of pixels and a range of sample indices.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WorkUnit {
+    pub tile: Tile,
+    pub samples: Range<u32>,
+}
+
+macro_rules! timed {
+    ($acc:expr, $e:expr) => {{
+        let t0 = Instant::now();
+        let r = $e;
+        $acc += t0.elapsed().as_secs_f64();
+        r
+    }};
+}
+
+/// Render one work unit with the worker's wavefront and add it to the film.
+pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut Wavefront, film: &Mutex<Film>) {
+    let (profile, seed) = (&settings.profile, settings.seed);
+    let Wavefront { rays, hits, csg, csg_arena, nee, paths, order, counters, times } = wf;
+    paths.clear();
+    rays[0].clear();
+    timed!(times.generate, generate(scene, profile, seed, unit.tile, unit.samples.clone(), paths, &mut rays[0]));
+    counters.camera_rays += rays[0].len() as u64;
+    counters.samples += paths.len() as u64;
+
+    for depth in 0..=profile.max_depth as usize {
+        let [a, b] = &mut *rays;
+        let (cur, next) = if depth & 1 == 0 { (a, b) } else { (b, a) };
+        if cur.is_empty() {
+            break;
+        }
+        cur.pad();
+        next.clear();
+        nee.clear();
+        timed!(times.intersect, intersect(scene, cur, hits, csg));
+        if scene.features.csg {
+            counters.csg_candidates += csg.len() as u64;
+            timed!(times.csg_merge, csg_merge(scene, cur, csg, hits, csg_arena));
+        }
+        timed!(times.shade, shade(scene, profile, seed, cur, hits, order, ShadeOut { paths, next, nee }));
+        counters.shadow_rays += timed!(times.shadow, shadow(scene, profile, seed, nee, paths, csg_arena));
+        counters.secondary_rays += next.len() as u64;
+    }
+    rays[0].clear();
+    rays[1].clear();
+
+    let mut film = film.lock().unwrap_or_else(|e| e.into_inner());
+    counters.nonfinite_samples += timed!(times.accumulate, accumulate(paths, &mut film));
+}
+
+/// Whether a profile's settings are within what one scene needs (for the summary).
+pub fn describe(profile: &Profile) -> String {
+    format!(
+        "{} spp ({:?}), {} light samples ({:?}), max depth {}, diffuse depth {}, {:?}",
+        profile.spp,
+        profile.pixel_strategy,
+        profile.light_samples,
+        profile.light_strategy,
+        profile.max_depth,
+        profile.diffuse_depth,
+        profile.branching
+    )
+}

@@ -1,0 +1,372 @@
+//! Structure-of-arrays work queues. One plain struct per kind of work item; every field is its own
+//! `Vec`, lengths padded to the lane width so kernels never branch on a tail (padding lanes carry
+//! `tmax = -1`, which no kernel hits). Queues are cleared, never freed: a wavefront reuses them for the
+//! next tile, so after warm-up nothing allocates.
+
+use crate::simd::pad_to_lanes;
+use glam::Vec3;
+
+/// Ray flag: the ray left a specular or glossy surface (emission it finds counts).
+pub const FLAG_SPECULAR: u8 = 1;
+/// Ray flag: the ray left a diffuse surface by a bounce (emission of sampled lights does not count).
+pub const FLAG_DIFFUSE: u8 = 2;
+
+/// The media a ray is inside, innermost last: up to 4 material ids + 1 (0 = empty slot) in a `u64`.
+/// Glass inside water inside glass is three entries; a fifth nested medium is dropped (documented limit).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MediumStack(pub u64);
+
+impl MediumStack {
+    pub const DEPTH: usize = 4;
+    /// Innermost medium's material id, if any.
+    #[inline]
+    pub fn top(self) -> Option<u32> {
+        (0..Self::DEPTH).rev().map(|i| ((self.0 >> (16 * i)) & 0xffff) as u32).find(|&v| v != 0).map(|v| v - 1)
+    }
+    #[inline]
+    pub fn contains(self, m: u32) -> bool {
+        (0..Self::DEPTH).any(|i| ((self.0 >> (16 * i)) & 0xffff) as u32 == m + 1)
+    }
+    /// Enter medium `m` (no-op when full).
+    #[inline]
+    pub fn push(self, m: u32) -> Self {
+        for i in 0..Self::DEPTH {
+            if (self.0 >> (16 * i)) & 0xffff == 0 {
+                return MediumStack(self.0 | ((m as u64 + 1) << (16 * i)));
+            }
+        }
+        self
+    }
+    /// Leave medium `m`: remove its innermost entry, closing the gap.
+    #[inline]
+    pub fn remove(self, m: u32) -> Self {
+        let mut slots = [0u64; Self::DEPTH];
+        for (i, s) in slots.iter_mut().enumerate() {
+            *s = (self.0 >> (16 * i)) & 0xffff;
+        }
+        if let Some(k) = (0..Self::DEPTH).rev().find(|&i| slots[i] == m as u64 + 1) {
+            let mut out = 0u64;
+            let mut j = 0;
+            for (i, &s) in slots.iter().enumerate() {
+                if i != k && s != 0 {
+                    out |= s << (16 * j);
+                    j += 1;
+                }
+            }
+            return MediumStack(out);
+        }
+        self
+    }
+}
+
+/// One ray, array-of-structs form: for building queues and for tests.
+#[derive(Clone, Copy, Debug)]
+pub struct RayItem {
+    pub o: Vec3,
+    pub d: Vec3,
+    pub tmax: f32,
+    pub time: f32,
+    pub lambda: f32,
+    pub throughput: Vec3,
+    /// Index of the camera path (in the wavefront's [`PathTable`]) this ray belongs to.
+    pub path: u32,
+    /// Which branch of the path tree (0 for the main path): keys decorrelated random numbers.
+    pub branch: u32,
+    pub depth: u16,
+    pub diffuse: u16,
+    pub flags: u8,
+    pub media: MediumStack,
+}
+
+/// Rays in flight (camera rays, or the secondary rays of one bounce).
+#[derive(Default)]
+pub struct RayQueue {
+    pub ox: Vec<f32>,
+    pub oy: Vec<f32>,
+    pub oz: Vec<f32>,
+    pub dx: Vec<f32>,
+    pub dy: Vec<f32>,
+    pub dz: Vec<f32>,
+    pub tmax: Vec<f32>,
+    /// Shutter time; filled only for scenes with motion (else empty: no time per ray).
+    pub time: Vec<f32>,
+    /// Wavelength in nm; filled only for scenes with a dispersive material.
+    pub lambda: Vec<f32>,
+    pub tr: Vec<f32>,
+    pub tg: Vec<f32>,
+    pub tb: Vec<f32>,
+    pub path: Vec<u32>,
+    pub branch: Vec<u32>,
+    pub depth: Vec<u16>,
+    pub diffuse: Vec<u16>,
+    pub flags: Vec<u8>,
+    pub media: Vec<MediumStack>,
+    len: usize,
+    /// Whether `time` / `lambda` are carried.
+    pub with_time: bool,
+    pub with_lambda: bool,
+}
+
+impl RayQueue {
+    pub fn new(with_time: bool, with_lambda: bool) -> Self {
+        RayQueue { with_time, with_lambda, ..Default::default() }
+    }
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    /// Length rounded up to the lane width (valid after [`RayQueue::pad`]).
+    #[inline]
+    pub fn padded_len(&self) -> usize {
+        pad_to_lanes(self.len)
+    }
+
+    pub fn clear(&mut self) {
+        macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
+        clr!(ox, oy, oz, dx, dy, dz, tmax, time, lambda, tr, tg, tb, path, branch, depth, diffuse, flags, media);
+        self.len = 0;
+    }
+
+    #[inline]
+    pub fn push(&mut self, r: &RayItem) {
+        // Padding from a previous `pad` is dropped first so pushes stay contiguous.
+        if self.ox.len() != self.len {
+            self.truncate_to_len();
+        }
+        self.ox.push(r.o.x);
+        self.oy.push(r.o.y);
+        self.oz.push(r.o.z);
+        self.dx.push(r.d.x);
+        self.dy.push(r.d.y);
+        self.dz.push(r.d.z);
+        self.tmax.push(r.tmax);
+        if self.with_time {
+            self.time.push(r.time);
+        }
+        if self.with_lambda {
+            self.lambda.push(r.lambda);
+        }
+        self.tr.push(r.throughput.x);
+        self.tg.push(r.throughput.y);
+        self.tb.push(r.throughput.z);
+        self.path.push(r.path);
+        self.branch.push(r.branch);
+        self.depth.push(r.depth);
+        self.diffuse.push(r.diffuse);
+        self.flags.push(r.flags);
+        self.media.push(r.media);
+        self.len += 1;
+    }
+
+    fn truncate_to_len(&mut self) {
+        let n = self.len;
+        macro_rules! tr { ($($f:ident),*) => { $( self.$f.truncate(n); )* }; }
+        tr!(ox, oy, oz, dx, dy, dz, tmax, tr, tg, tb, path, branch, depth, diffuse, flags, media);
+        if self.with_time {
+            self.time.truncate(n);
+        }
+        if self.with_lambda {
+            self.lambda.truncate(n);
+        }
+    }
+
+    /// Pad the lane fields to a multiple of the lane width with inert rays (tmax = -1).
+    pub fn pad(&mut self) {
+        let n = self.padded_len();
+        for v in [&mut self.ox, &mut self.oy, &mut self.oz, &mut self.dx, &mut self.dy, &mut self.dz] {
+            v.resize(n, 0.0);
+        }
+        self.dx.iter_mut().skip(self.len).for_each(|d| *d = 1.0);
+        self.tmax.resize(n, -1.0);
+        if self.with_time {
+            self.time.resize(n, 0.0);
+        }
+    }
+
+    /// The ray at index `i` (tests, debugging and scalar stages).
+    #[inline]
+    pub fn get(&self, i: usize) -> RayItem {
+        RayItem {
+            o: Vec3::new(self.ox[i], self.oy[i], self.oz[i]),
+            d: Vec3::new(self.dx[i], self.dy[i], self.dz[i]),
+            tmax: self.tmax[i],
+            time: if self.with_time { self.time[i] } else { 0.0 },
+            lambda: if self.with_lambda { self.lambda[i] } else { 0.0 },
+            throughput: Vec3::new(self.tr[i], self.tg[i], self.tb[i]),
+            path: self.path[i],
+            branch: self.branch[i],
+            depth: self.depth[i],
+            diffuse: self.diffuse[i],
+            flags: self.flags[i],
+            media: self.media[i],
+        }
+    }
+}
+
+/// Sentinel for "no primitive" / "no CSG leaf".
+pub const NONE: u32 = u32::MAX;
+
+/// Nearest hits of a ray queue, index-aligned with it.
+#[derive(Default)]
+pub struct HitQueue {
+    pub t: Vec<f32>,
+    /// Primitive id, or [`NONE`] for a miss.
+    pub prim: Vec<u32>,
+    /// For CSG hits: the leaf whose surface was hit; else [`NONE`].
+    pub leaf: Vec<u32>,
+    /// For CSG hits: the leaf's normal is reversed (surface of a subtracted solid).
+    pub flip: Vec<bool>,
+}
+
+impl HitQueue {
+    pub fn reset(&mut self, n: usize) {
+        self.t.clear();
+        self.t.resize(n, f32::INFINITY);
+        self.prim.clear();
+        self.prim.resize(n, NONE);
+        self.leaf.clear();
+        self.leaf.resize(n, NONE);
+        self.flip.clear();
+        self.flip.resize(n, false);
+    }
+}
+
+/// Rays whose packet reached the bounds of a CSG solid: (ray index, prim id) pairs for `csg_merge`.
+#[derive(Default)]
+pub struct CsgCandidates {
+    pub ray: Vec<u32>,
+    pub prim: Vec<u32>,
+    /// Scratch: (prim << 32 | ray), sorted so that rays of one solid form packets.
+    pub sorted: Vec<u64>,
+}
+
+impl CsgCandidates {
+    pub fn clear(&mut self) {
+        self.ray.clear();
+        self.prim.clear();
+        self.sorted.clear();
+    }
+    pub fn len(&self) -> usize {
+        self.ray.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.ray.is_empty()
+    }
+}
+
+/// Direct-light requests from shading points (next-event estimation); the shadow stage turns each into
+/// light samples and traces them as any-hit packets.
+#[derive(Default)]
+pub struct NeeQueue {
+    /// Offset origin for shadow rays (already off the surface on the lit side).
+    pub px: Vec<f32>,
+    pub py: Vec<f32>,
+    pub pz: Vec<f32>,
+    /// Shading normal on the side of the incoming ray.
+    pub nx: Vec<f32>,
+    pub ny: Vec<f32>,
+    pub nz: Vec<f32>,
+    /// throughput x BRDF (albedo / pi).
+    pub wr: Vec<f32>,
+    pub wg: Vec<f32>,
+    pub wb: Vec<f32>,
+    pub path: Vec<u32>,
+    /// Random-number stream of this shading point.
+    pub key: Vec<u64>,
+    pub time: Vec<f32>,
+}
+
+impl NeeQueue {
+    pub fn clear(&mut self) {
+        macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
+        clr!(px, py, pz, nx, ny, nz, wr, wg, wb, path, key, time);
+    }
+    pub fn len(&self) -> usize {
+        self.px.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.px.is_empty()
+    }
+    #[inline]
+    pub fn push(&mut self, p: Vec3, n: Vec3, w: Vec3, path: u32, key: u64, time: f32) {
+        self.px.push(p.x);
+        self.py.push(p.y);
+        self.pz.push(p.z);
+        self.nx.push(n.x);
+        self.ny.push(n.y);
+        self.nz.push(n.z);
+        self.wr.push(w.x);
+        self.wg.push(w.y);
+        self.wb.push(w.z);
+        self.path.push(path);
+        self.key.push(key);
+        self.time.push(time);
+    }
+}
+
+/// One entry per camera path of the wavefront: where it lands and what it has gathered.
+#[derive(Default)]
+pub struct PathTable {
+    pub pixel: Vec<u32>,
+    pub sample: Vec<u32>,
+    pub lr: Vec<f32>,
+    pub lg: Vec<f32>,
+    pub lb: Vec<f32>,
+}
+
+impl PathTable {
+    pub fn clear(&mut self) {
+        self.pixel.clear();
+        self.sample.clear();
+        self.lr.clear();
+        self.lg.clear();
+        self.lb.clear();
+    }
+    pub fn len(&self) -> usize {
+        self.pixel.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.pixel.is_empty()
+    }
+    #[inline]
+    pub fn push(&mut self, pixel: u32, sample: u32) -> u32 {
+        self.pixel.push(pixel);
+        self.sample.push(sample);
+        self.lr.push(0.0);
+        self.lg.push(0.0);
+        self.lb.push(0.0);
+        (self.pixel.len() - 1) as u32
+    }
+    #[inline]
+    pub fn add(&mut self, path: u32, c: Vec3) {
+        let i = path as usize;
+        self.lr[i] += c.x;
+        self.lg[i] += c.y;
+        self.lb[i] += c.z;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn medium_stack_nests_and_unwinds() {
+        let s = MediumStack::default();
+        assert_eq!(s.top(), None);
+        let s = s.push(3).push(7).push(3);
+        assert_eq!(s.top(), Some(3));
+        let s2 = s.remove(7);
+        assert_eq!(s2.top(), Some(3));
+        assert!(!s2.contains(7));
+        let s3 = s2.remove(3).remove(3);
+        assert_eq!(s3, MediumStack::default());
+        // Full stack ignores a fifth push.
+        let full = MediumStack::default().push(1).push(2).push(3).push(4);
+        assert_eq!(full.push(9), full);
+    }
+}

@@ -1,0 +1,327 @@
+//! Stage 4: shading. Hits are partitioned by material kind (a stable counting sort of hit indices), then
+//! each kind runs its own loop: Lambert surfaces emit next-event requests (and diffuse bounces when the
+//! profile asks for them); mirrors, glossy and dielectric surfaces spawn the next bounce's rays; emitters
+//! and escaped rays add radiance to their path.
+
+use super::dims;
+use super::queues::{HitQueue, MediumStack, NeeQueue, PathTable, RayItem, RayQueue, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
+use crate::geometry::{normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin, refine_sphere_point};
+use crate::optics::{
+    beer_lambert, fresnel_dielectric, fresnel_schlick, reflect, refract, sample_ggx_reflect, sample_ggx_reflect_weight,
+    sample_hemisphere_cos,
+};
+use crate::sample::{hash_combine, random_f32, sample_2d};
+use crate::scene::{Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape};
+use glam::Vec3;
+use std::f32::consts::FRAC_1_PI;
+
+/// Bucket of rays that hit nothing.
+const MISS_BUCKET: usize = MaterialKind::COUNT;
+
+/// Everything shading needs about one hit, computed once.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceHit {
+    /// Hit point (refined where the shape allows).
+    pub p: Vec3,
+    /// Outward geometric normal of the surface (of the CSG result, for CSG hits).
+    pub n: Vec3,
+    /// `n` turned to face the incoming ray.
+    pub n_facing: Vec3,
+    /// The ray arrives on the outside of the surface.
+    pub front: bool,
+    pub material: u32,
+}
+
+/// Geometry at the nearest hit of ray `r`.
+#[inline]
+pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, flip: bool) -> SurfaceHit {
+    let prim = &scene.prims[prim_id as usize];
+    let shift = prim.motion * r.time;
+    let mut p = r.o + r.d * t;
+    let mut material = prim.material;
+    let n = match &prim.shape {
+        Shape::Sphere { center, radius } => {
+            let c = *center + shift;
+            p = refine_sphere_point(c, *radius, p);
+            normal_sphere(c, p)
+        }
+        Shape::Ellipsoid(e) => normal_ellipsoid(e, p - shift),
+        Shape::Plane(pl) => pl.normal,
+        Shape::Quad(q) => q.normal(),
+        Shape::Disk(d) => d.normal,
+        Shape::Box(b) => normal_obox(b, p - shift),
+        Shape::Csg { .. } => {
+            debug_assert!(leaf != NONE);
+            let l = scene.csg.leaf(leaf);
+            material = l.material;
+            let n = l.normal(p - shift);
+            if flip {
+                -n
+            } else {
+                n
+            }
+        }
+    };
+    let front = r.d.dot(n) < 0.0;
+    SurfaceHit { p, n, n_facing: if front { n } else { -n }, front, material }
+}
+
+/// Random-number stream of one path branch: stratified dimensions index it by sample.
+#[inline]
+pub fn branch_stream(pixel: u32, branch: u32) -> u64 {
+    hash_combine(pixel as u64, branch as u64)
+}
+
+/// Stream of one shading event (for integrals sampled per shading point, e.g. light samples).
+#[inline]
+pub fn event_key(pixel: u32, branch: u32, sample: u32, depth: u16) -> u64 {
+    hash_combine(hash_combine(branch_stream(pixel, branch), sample as u64), depth as u64)
+}
+
+#[inline]
+fn child_branch(branch: u32, depth: u16, which: u32) -> u32 {
+    (hash_combine(hash_combine(branch as u64, depth as u64), which as u64) >> 32) as u32 | 1
+}
+
+/// Index of refraction of a dielectric material at the ray's wavelength (air = 1 for no material).
+#[inline]
+fn ior_of(scene: &Scene, m: Option<u32>, lambda: f32, dispersive: bool) -> f32 {
+    match m.map(|m| &scene.materials[m as usize]) {
+        Some(Material::Dielectric(d)) => {
+            if dispersive {
+                d.ior.at(lambda)
+            } else {
+                d.ior.nominal()
+            }
+        }
+        _ => 1.0,
+    }
+}
+
+pub struct ShadeOut<'a> {
+    pub paths: &'a mut PathTable,
+    pub next: &'a mut RayQueue,
+    pub nee: &'a mut NeeQueue,
+}
+
+#[allow(clippy::too_many_arguments)]
+pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits: &HitQueue, order: &mut Vec<u32>, out: ShadeOut) {
+    let n = rays.len();
+    // Stable counting sort of ray indices by material kind (misses last).
+    let mut counts = [0usize; MaterialKind::COUNT + 2];
+    let bucket = |i: usize| -> usize {
+        match hits.prim[i] {
+            NONE => MISS_BUCKET,
+            p => {
+                let m = if hits.leaf[i] != NONE { scene.csg.leaf(hits.leaf[i]).material } else { scene.prims[p as usize].material };
+                scene.materials[m as usize].kind() as usize
+            }
+        }
+    };
+    for i in 0..n {
+        counts[bucket(i) + 1] += 1;
+    }
+    for k in 1..counts.len() {
+        counts[k] += counts[k - 1];
+    }
+    order.clear();
+    order.resize(n, 0);
+    let mut fill = counts;
+    for i in 0..n {
+        let b = bucket(i);
+        order[fill[b]] = i as u32;
+        fill[b] += 1;
+    }
+
+    let ctx = Ctx { scene, profile, seed };
+    let ShadeOut { paths, next, nee } = out;
+    for b in 0..=MaterialKind::COUNT {
+        for &i in &order[counts[b]..counts[b + 1]] {
+            let i = i as usize;
+            let mut r = rays.get(i);
+            let t = hits.t[i];
+            // Beer-Lambert absorption along the segment just travelled inside a medium.
+            if let Some(m) = r.media.top() {
+                if let Material::Dielectric(d) = &scene.materials[m as usize] {
+                    if d.sigma_a != Vec3::ZERO {
+                        r.throughput *= beer_lambert(d.sigma_a, t * r.d.length());
+                    }
+                }
+            }
+            if b == MISS_BUCKET {
+                paths.add(r.path, r.throughput * scene.background);
+                continue;
+            }
+            let hit = surface_hit(scene, &r, t, hits.prim[i], hits.leaf[i], hits.flip[i]);
+            let (pixel, sample) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
+            match &scene.materials[hit.material as usize] {
+                Material::Emissive { radiance } => {
+                    let is_light = scene.prims[hits.prim[i] as usize].is_light;
+                    // Sampled lights were already counted by next-event estimation at a diffuse vertex.
+                    if hit.front && !(is_light && r.flags & FLAG_DIFFUSE != 0) {
+                        paths.add(r.path, r.throughput * *radiance);
+                    }
+                }
+                Material::Lambert { albedo } => {
+                    let a = albedo.eval(hit.p - scene.prims[hits.prim[i] as usize].motion * r.time);
+                    let w = r.throughput * a;
+                    let p_off = offset_ray_origin(hit.p, hit.n_facing);
+                    if !scene.lights.is_empty() {
+                        nee.push(p_off, hit.n_facing, w * FRAC_1_PI, r.path, event_key(pixel, r.branch, sample, r.depth), r.time);
+                    }
+                    if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
+                        let u = sample_2d(
+                            profile.pixel_strategy,
+                            seed,
+                            branch_stream(pixel, r.branch),
+                            dims::DIFFUSE + r.depth as u32,
+                            sample,
+                            profile.spp,
+                        );
+                        let wi = sample_hemisphere_cos(hit.n_facing, u);
+                        let child = RayItem { o: p_off, d: wi, throughput: w, diffuse: r.diffuse + 1, flags: FLAG_DIFFUSE, ..next_of(&r) };
+                        ctx.spawn(next, child, pixel, sample, 0);
+                    }
+                }
+                Material::Mirror { tint } => {
+                    if (r.depth as u32) < profile.max_depth {
+                        let d = reflect(-r.d.normalize(), hit.n_facing);
+                        let child = RayItem {
+                            o: offset_ray_origin(hit.p, hit.n_facing),
+                            d,
+                            throughput: r.throughput * *tint,
+                            flags: FLAG_SPECULAR,
+                            ..next_of(&r)
+                        };
+                        ctx.spawn(next, child, pixel, sample, 0);
+                    }
+                }
+                Material::Glossy { tint, alpha } => {
+                    if (r.depth as u32) < profile.max_depth {
+                        let wo = -r.d.normalize();
+                        let u = sample_2d(
+                            profile.glossy_strategy,
+                            seed,
+                            branch_stream(pixel, r.branch),
+                            dims::GLOSSY + r.depth as u32,
+                            sample,
+                            profile.spp,
+                        );
+                        if let Some(wi) = sample_ggx_reflect(wo, hit.n_facing, *alpha, u) {
+                            let wgt = sample_ggx_reflect_weight(wo, hit.n_facing, wi, *alpha);
+                            let child = RayItem {
+                                o: offset_ray_origin(hit.p, hit.n_facing),
+                                d: wi,
+                                throughput: r.throughput * *tint * wgt,
+                                flags: FLAG_SPECULAR,
+                                ..next_of(&r)
+                            };
+                            ctx.spawn(next, child, pixel, sample, 0);
+                        }
+                    }
+                }
+                Material::Dielectric(d) => {
+                    if (r.depth as u32) < profile.max_depth {
+                        ctx.dielectric(d, &r, &hit, pixel, sample, next);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A child ray inheriting the parent's bookkeeping, one bounce deeper.
+#[inline]
+fn next_of(r: &RayItem) -> RayItem {
+    RayItem { tmax: f32::INFINITY, depth: r.depth + 1, ..*r }
+}
+
+struct Ctx<'a> {
+    scene: &'a Scene,
+    profile: &'a Profile,
+    seed: u64,
+}
+
+impl Ctx<'_> {
+    /// Queue a child ray, after an unbiased Russian roulette on low throughput.
+    #[inline]
+    fn spawn(&self, next: &mut RayQueue, mut child: RayItem, pixel: u32, sample: u32, which: u32) {
+        let m = child.throughput.max_element();
+        if !(m > 0.0) {
+            return;
+        }
+        let cutoff = self.profile.throughput_cutoff;
+        let diffuse_rr = child.diffuse > 1;
+        let q = if diffuse_rr { m.min(0.95) } else { (m / cutoff).min(1.0) };
+        if q < 1.0 {
+            let key = hash_combine(branch_stream(pixel, child.branch), sample as u64);
+            if random_f32(self.seed, key, dims::ROULETTE + child.depth as u32 * 4 + which, 0) >= q {
+                return;
+            }
+            child.throughput /= q;
+        }
+        next.push(&child);
+    }
+
+    fn dielectric(&self, d: &Dielectric, r: &RayItem, hit: &SurfaceHit, pixel: u32, sample: u32, next: &mut RayQueue) {
+        let scene = self.scene;
+        let disp = scene.features.dispersion;
+        let wo = -r.d.normalize();
+        let cos_i = wo.dot(hit.n_facing).clamp(0.0, 1.0);
+        let this = hit.material;
+        let n_this = ior_of(scene, Some(this), r.lambda, disp);
+        let fres = |cos: f32, eta: f32| if d.schlick { fresnel_schlick(cos, eta) } else { fresnel_dielectric(cos, eta) };
+        let p_refl = offset_ray_origin(hit.p, hit.n_facing);
+        let p_trans = offset_ray_origin(hit.p, -hit.n_facing);
+        let refl_dir = reflect(wo, hit.n_facing);
+
+        let (f, trans): (f32, Option<(Vec3, MediumStack)>) = if d.thin {
+            // A thin sheet: both faces, all inter-reflections summed; transmission goes straight through.
+            let r1 = fres(cos_i, 1.0 / n_this);
+            let rr = if r1 < 1.0 { 2.0 * r1 / (1.0 + r1) } else { 1.0 };
+            (rr, Some((r.d, r.media)))
+        } else {
+            // Which side is which: the medium stack decides the indices on both sides of the interface.
+            let (n1, n2, after) = if hit.front {
+                (ior_of(scene, r.media.top(), r.lambda, disp), n_this, r.media.push(this))
+            } else {
+                let after = r.media.remove(this);
+                (n_this, ior_of(scene, after.top(), r.lambda, disp), after)
+            };
+            let eta = n1 / n2;
+            let f = fres(cos_i, eta);
+            (f, refract(wo, hit.n_facing, eta).map(|dir| (dir, after)))
+        };
+        let f = if trans.is_none() { 1.0 } else { f };
+        let reflected = |thr: Vec3| RayItem { o: p_refl, d: refl_dir, throughput: thr, flags: FLAG_SPECULAR, ..next_of(r) };
+        let transmitted = |thr: Vec3, dir: Vec3, media: MediumStack| RayItem {
+            o: p_trans,
+            d: dir,
+            throughput: thr,
+            flags: FLAG_SPECULAR,
+            media,
+            ..next_of(r)
+        };
+        match self.profile.branching {
+            Branching::Split => {
+                if f > 0.0 {
+                    let c = RayItem { branch: child_branch(r.branch, r.depth, 1), ..reflected(r.throughput * f) };
+                    self.spawn(next, c, pixel, sample, 1);
+                }
+                if let Some((dir, media)) = trans {
+                    if f < 1.0 {
+                        self.spawn(next, transmitted(r.throughput * (1.0 - f), dir, media), pixel, sample, 2);
+                    }
+                }
+            }
+            Branching::Roulette => {
+                let key = hash_combine(branch_stream(pixel, r.branch), sample as u64);
+                let u = random_f32(self.seed, key, dims::FRESNEL + r.depth as u32, 0);
+                match trans {
+                    Some((dir, media)) if u >= f => self.spawn(next, transmitted(r.throughput, dir, media), pixel, sample, 2),
+                    _ => self.spawn(next, reflected(r.throughput), pixel, sample, 1),
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,164 @@
+//! Stage 5: next-event estimation. Each request (a shading point) is expanded into light samples with the
+//! profile's light strategy; the shadow rays are packed 8 at a time (consecutive samples of one point are
+//! coherent) and traced with any-hit traversal; unoccluded samples add their contribution to the path.
+//! Smooth dielectrics block direct light (the light they pass is a caustic), unless the profile opts in to
+//! transmissive shadows.
+
+use super::dims;
+use super::intersect::{in_prim_frame, prim_t_x8};
+use super::queues::{NeeQueue, PathTable};
+use crate::accel::{intersect_aabb_x8, PacketRay};
+use crate::csg::{first_hit, CsgArena};
+use crate::light::{sample_light, samples_for};
+use crate::sample::{hash_combine, sample_2d};
+use crate::scene::{Light, Material, Profile, Scene, Shape};
+use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
+use glam::Vec3;
+
+/// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
+const SHADOW_END: f32 = 1.0 - 1e-4;
+
+struct Packet {
+    o: [[f32; LANES]; 3],
+    d: [[f32; LANES]; 3],
+    tmax: [f32; LANES],
+    time: [f32; LANES],
+    contrib: [Vec3; LANES],
+    path: [u32; LANES],
+    len: usize,
+}
+
+impl Packet {
+    fn new() -> Packet {
+        Packet {
+            o: [[0.0; LANES]; 3],
+            d: [[1.0; LANES]; 3],
+            tmax: [-1.0; LANES],
+            time: [0.0; LANES],
+            contrib: [Vec3::ZERO; LANES],
+            path: [0; LANES],
+            len: 0,
+        }
+    }
+}
+
+pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
+    let mut pk = Packet::new();
+    let mut traced = 0u64;
+    for i in 0..nee.len() {
+        let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
+        let n = Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]);
+        let w = Vec3::new(nee.wr[i], nee.wg[i], nee.wb[i]);
+        for (li, light) in scene.lights.iter().enumerate() {
+            let ns = samples_for(light, profile.light_samples);
+            let stream = hash_combine(nee.key[i], li as u64);
+            let end = if matches!(light, Light::Point { .. }) { 1.0 } else { SHADOW_END };
+            for j in 0..ns {
+                let u = sample_2d(profile.light_strategy, seed, stream, dims::LIGHT, j, ns);
+                let Some(ls) = sample_light(light, p, u) else { continue };
+                let cos = n.dot(ls.wi);
+                if cos <= 0.0 {
+                    continue;
+                }
+                let c = w * ls.weight * (cos / ns as f32);
+                if c.max_element() <= 0.0 {
+                    continue;
+                }
+                let k = pk.len;
+                let d = ls.target - p;
+                for a in 0..3 {
+                    pk.o[a][k] = p[a];
+                    pk.d[a][k] = d[a];
+                }
+                pk.tmax[k] = end;
+                pk.time[k] = nee.time[i];
+                pk.contrib[k] = c;
+                pk.path[k] = nee.path[i];
+                pk.len += 1;
+                if pk.len == LANES {
+                    traced += flush(scene, profile, &mut pk, paths, arena);
+                }
+            }
+        }
+    }
+    if pk.len > 0 {
+        traced += flush(scene, profile, &mut pk, paths, arena);
+    }
+    traced
+}
+
+/// Trace the packet's shadow rays (any hit) and credit the unoccluded ones. Returns rays traced.
+fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
+    let n = pk.len;
+    for l in n..LANES {
+        pk.tmax[l] = -1.0;
+    }
+    let ray = Ray8::new(
+        Vec3x8::new(f32x8::from(pk.o[0]), f32x8::from(pk.o[1]), f32x8::from(pk.o[2])),
+        Vec3x8::new(f32x8::from(pk.d[0]), f32x8::from(pk.d[1]), f32x8::from(pk.d[2])),
+        f32x8::from(pk.tmax),
+    );
+    let time = scene.features.motion.then(|| f32x8::from(pk.time));
+    let occluded = occluded_x8(scene, profile, &ray, time, arena);
+    let bits = occluded.to_bitmask();
+    for l in 0..n {
+        if bits & (1 << l) == 0 {
+            paths.add(pk.path[l], pk.contrib[l]);
+        }
+    }
+    pk.len = 0;
+    n as u64
+}
+
+/// Whether a primitive stops shadow rays.
+#[inline(always)]
+fn blocks(scene: &Scene, profile: &Profile, material: u32) -> bool {
+    !(profile.transmissive_shadows && matches!(scene.materials[material as usize], Material::Dielectric(_)))
+}
+
+/// Any-hit occlusion of 8 shadow rays over (0, tmax). Returns the occluded lanes as a mask.
+pub fn occluded_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena) -> f32x8 {
+    let zero = f32x8::ZERO;
+    let mut occ = zero.simd_gt(f32x8::ONE); // all false
+    for &pid in &scene.unbounded {
+        let prim = &scene.prims[pid as usize];
+        if blocks(scene, profile, prim.material) {
+            let t = prim_t_x8(prim, ray);
+            occ |= t.simd_lt(ray.tmax);
+        }
+    }
+    if occ.to_bitmask() == (1 << LANES) - 1 {
+        return occ;
+    }
+    let from_bvh = scene.bvh.traverse_any_x8(ray, |bi, ray| {
+        let pid = scene.bounded[bi as usize];
+        let prim = &scene.prims[pid as usize];
+        let local = in_prim_frame(ray, prim.motion, time);
+        match prim.shape {
+            Shape::Csg { solid } => {
+                let b = &scene.bounds[pid as usize];
+                let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(ray), ray.tmax);
+                let mut bits = mask.to_bitmask();
+                let mut hit = [0.0f32; LANES];
+                while bits != 0 {
+                    let l = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let (o, d) = (local.o.lane(l), local.d.lane(l));
+                    if let Some(h) = first_hit(&scene.csg, solid, o, d, 0.0, ray.tmax.to_array()[l], arena) {
+                        if blocks(scene, profile, scene.csg.leaf(h.leaf).material) {
+                            hit[l] = f32::from_bits(u32::MAX);
+                        }
+                    }
+                }
+                f32x8::from(hit)
+            }
+            _ => {
+                if !blocks(scene, profile, prim.material) {
+                    return zero.simd_gt(f32x8::ONE);
+                }
+                prim_t_x8(prim, &local).simd_lt(ray.tmax)
+            }
+        }
+    });
+    occ | from_bvh
+}

@@ -1,0 +1,165 @@
+//! Bad scene input: every error names the file, the line and the field; nothing panics.
+
+use std::path::Path;
+use strata::scene::parse_scene;
+
+const BASE: &str = r#"
+[image]
+width = 32
+height = 24
+
+[camera]
+position = [0, 1, 5]
+look_at = [0, 0, 0]
+fov = 40
+
+[materials.m]
+type = "lambert"
+albedo = [0.5, 0.5, 0.5]
+"#;
+
+/// Parse BASE + extra, expect an error; return (line, field, message).
+fn fail(extra: &str) -> (usize, String, String) {
+    let text = format!("{BASE}{extra}");
+    match parse_scene(Path::new("bad.toml"), &text) {
+        Ok(_) => panic!("expected an error for:\n{extra}"),
+        Err(e) => {
+            let shown = e.to_string();
+            assert!(shown.starts_with("bad.toml:"), "{shown}");
+            (e.line, e.field, e.message)
+        }
+    }
+}
+
+fn line_of(extra: &str, needle: &str) -> usize {
+    let text = format!("{BASE}{extra}");
+    text.lines().position(|l| l.contains(needle)).expect("needle") + 1
+}
+
+#[test]
+fn base_scene_is_valid() {
+    let s = parse_scene(Path::new("ok.toml"), BASE).expect("valid");
+    assert_eq!((s.width, s.height), (32, 24));
+}
+
+#[test]
+fn negative_radius_names_line_and_field() {
+    let extra = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1.0\nmaterial = \"m\"\n";
+    let (line, field, msg) = fail(extra);
+    assert_eq!(field, "shapes[0].radius");
+    assert_eq!(line, line_of(extra, "radius = -1.0"));
+    assert!(msg.contains("> 0"), "{msg}");
+}
+
+#[test]
+fn unknown_material_is_named() {
+    let extra = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1.0\nmaterial = \"nope\"\n";
+    let (line, field, msg) = fail(extra);
+    assert_eq!(field, "shapes[0].material");
+    assert_eq!(line, line_of(extra, "\"nope\""));
+    assert!(msg.contains("nope") && msg.contains("defined: m"), "{msg}");
+}
+
+#[test]
+fn unknown_field_is_rejected_with_its_line() {
+    let extra = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1.0\nmaterial = \"m\"\ncolour = 3\n";
+    let (line, field, msg) = fail(extra);
+    assert_eq!(field, "colour");
+    assert_eq!(line, line_of(extra, "colour"));
+    assert!(msg.contains("unknown field"), "{msg}");
+}
+
+#[test]
+fn wrong_type_is_rejected_with_its_line() {
+    let extra = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = \"big\"\nmaterial = \"m\"\n";
+    let (line, _, msg) = fail(extra);
+    assert_eq!(line, line_of(extra, "\"big\""));
+    assert!(msg.contains("invalid type") || msg.contains("expected"), "{msg}");
+}
+
+#[test]
+fn missing_field_is_named() {
+    let extra = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nmaterial = \"m\"\n";
+    let (_, field, msg) = fail(extra);
+    assert_eq!(field, "shapes[0].radius");
+    assert!(msg.contains("missing"), "{msg}");
+}
+
+#[test]
+fn camera_errors() {
+    let bad = BASE.replace("look_at = [0, 0, 0]", "look_at = [0, 1, 5]");
+    let e = parse_scene(Path::new("c.toml"), &bad).unwrap_err();
+    assert_eq!(e.field, "camera.look_at");
+    assert_eq!(e.line, bad.lines().position(|l| l.starts_with("look_at")).unwrap() + 1);
+    let bad = BASE.replace("fov = 40", "fov = 40\nup = [0, 0, 0]");
+    assert_eq!(parse_scene(Path::new("c.toml"), &bad).unwrap_err().field, "camera.up");
+    let bad = BASE.replace("fov = 40", "fov = 40\nup = [0, -1, -5]");
+    assert_eq!(parse_scene(Path::new("c.toml"), &bad).unwrap_err().field, "camera.up");
+    let bad = BASE.replace("fov = 40", "fov = 180");
+    assert_eq!(parse_scene(Path::new("c.toml"), &bad).unwrap_err().field, "camera.fov");
+    let bad = BASE.replace("fov = 40", "fov = nan");
+    assert_eq!(parse_scene(Path::new("c.toml"), &bad).unwrap_err().field, "camera.fov");
+}
+
+#[test]
+fn image_limits_are_errors() {
+    let bad = BASE.replace("width = 32", "width = 0");
+    assert_eq!(parse_scene(Path::new("i.toml"), &bad).unwrap_err().field, "image.width");
+    let bad = BASE.replace("width = 32", "width = 100000000");
+    assert_eq!(parse_scene(Path::new("i.toml"), &bad).unwrap_err().field, "image.width");
+}
+
+#[test]
+fn field_that_does_not_apply_is_rejected() {
+    let extra = "[[shapes]]\ntype = \"box\"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\nradius = 2\nmaterial = \"m\"\n";
+    let (line, field, _) = fail(extra);
+    assert_eq!(field, "shapes[0].radius");
+    assert_eq!(line, line_of(extra, "radius = 2"));
+}
+
+#[test]
+fn degenerate_geometry_is_rejected() {
+    let (_, field, _) = fail("[[shapes]]\ntype = \"box\"\nmin = [0, 0, 0]\nmax = [1, 0, 1]\nmaterial = \"m\"\n");
+    assert_eq!(field, "shapes[0].max");
+    let (_, field, _) = fail("[[shapes]]\ntype = \"quad\"\norigin = [0, 0, 0]\nu = [1, 0, 0]\nv = [2, 0, 0]\nmaterial = \"m\"\n");
+    assert_eq!(field, "shapes[0].v");
+    let (_, field, _) = fail("[[shapes]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 0, 0]\nmaterial = \"m\"\n");
+    assert_eq!(field, "shapes[0].normal");
+    let (_, field, _) = fail("[[lights]]\ntype = \"point\"\nposition = [0, 0, 0]\nintensity = [-1, 0, 0]\n");
+    assert_eq!(field, "lights[0].intensity");
+}
+
+#[test]
+fn material_errors() {
+    let (_, field, _) = fail("[materials.x]\ntype = \"lambert\"\nalbedo = [1.5, 0, 0]\n");
+    assert_eq!(field, "materials.x.albedo");
+    let (_, field, _) = fail("[materials.x]\ntype = \"plastic\"\n");
+    assert_eq!(field, "materials.x.type");
+    let (_, field, _) = fail("[materials.x]\ntype = \"dielectric\"\nior = 0.5\n");
+    assert_eq!(field, "materials.x.ior");
+    let (_, field, _) = fail("[materials.x]\ntype = \"mirror\"\nroughness = 0.5\n");
+    assert_eq!(field, "materials.x.roughness");
+}
+
+#[test]
+fn csg_reference_cycles_and_depth_are_errors() {
+    let cyc = "[solids.a]\nuse = \"b\"\n[solids.b]\nuse = \"a\"\n[[shapes]]\nuse = \"a\"\nmaterial = \"m\"\n";
+    let (_, field, msg) = fail(cyc);
+    assert!(field.ends_with(".use"), "{field}");
+    assert!(msg.contains("cycle"), "{msg}");
+    // 70 nested unions.
+    let mut s = String::from("{ type = \"sphere\", center = [0, 0, 0], radius = 1 }");
+    for _ in 0..70 {
+        s = format!("{{ type = \"csg\", op = \"union\", children = [{s}] }}");
+    }
+    let deep = format!("[[shapes]]\ntype = \"csg\"\nop = \"union\"\nmaterial = \"m\"\nchildren = [{s}]\n");
+    let (_, _, msg) = fail(&deep);
+    assert!(msg.contains("deeper") || msg.contains("depth") || msg.contains("recursion"), "{msg}");
+}
+
+#[test]
+fn syntax_error_has_line() {
+    let text = format!("{BASE}\n[[shapes]\n");
+    let e = parse_scene(Path::new("s.toml"), &text).unwrap_err();
+    assert_eq!(e.line, text.lines().count());
+}
