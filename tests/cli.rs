@@ -18,11 +18,11 @@ fn tmp(name: &str) -> PathBuf {
 #[test]
 fn bad_scene_exits_2_naming_line_and_field() {
     let scene = tmp("bad.toml");
-    std::fs::write(&scene, "[image]\nwidth = 8\nheight = 8\n[camera]\nposition = [0,0,5]\nlook_at = [0,0,0]\nfov = 40\n[[shapes]]\ntype = \"sphere\"\ncenter = [0,0,0]\nradius = -2\nmaterial = \"x\"\n").unwrap();
+    std::fs::write(&scene, "[image]\nwidth = 8\nheight = 8\n[camera]\nposition = [0,0,5]\nlook_at = [0,0,0]\nfov = 40\n[materials.x]\ntype = \"mirror\"\n[[shapes]]\ntype = \"sphere\"\ncenter = [0,0,0]\nradius = -2\nmaterial = \"x\"\n").unwrap();
     let out = strata().args(["render", scene.to_str().unwrap(), "-o", tmp("bad.png").to_str().unwrap()]).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("bad.toml:11:"), "{err}");
+    assert!(err.contains("bad.toml:13:"), "{err}");
     assert!(err.contains("shapes[0].radius"), "{err}");
     assert!(!tmp("bad.png").exists());
 }
