@@ -8,7 +8,7 @@ use super::dims;
 use super::intersect::{in_prim_frame, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
 use crate::accel::{intersect_aabb_x8, PacketRay};
-use crate::csg::{first_hit, CsgArena};
+use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light, samples_for};
 use crate::sample::{hash_combine, sample_2d};
 use crate::scene::{Light, Material, Profile, Scene, Shape};
@@ -136,15 +136,18 @@ pub fn occluded_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f3
         let local = in_prim_frame(ray, prim.motion, time);
         match prim.shape {
             Shape::Csg { solid } => {
+                // Lanes that reach the solid's bounds are solved together by the 8-lane interval merge.
                 let b = &scene.bounds[pid as usize];
                 let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(ray), ray.tmax);
-                let mut bits = mask.to_bitmask();
+                if mask.to_bitmask() == 0 {
+                    return zero.simd_gt(f32x8::ONE);
+                }
+                let masked = Ray8 { tmax: mask.select(ray.tmax, f32x8::splat(-1.0)), ..local };
+                let mut out = [None; LANES];
+                first_hit_x8(&scene.csg, solid, &masked, zero, arena, &mut out);
                 let mut hit = [0.0f32; LANES];
-                while bits != 0 {
-                    let l = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    let (o, d) = (local.o.lane(l), local.d.lane(l));
-                    if let Some(h) = first_hit(&scene.csg, solid, o, d, 0.0, ray.tmax.to_array()[l], arena) {
+                for (l, h) in out.iter().enumerate() {
+                    if let Some(h) = h {
                         if blocks(scene, profile, scene.csg.leaf(h.leaf).material) {
                             hit[l] = f32::from_bits(u32::MAX);
                         }
