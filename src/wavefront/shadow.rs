@@ -10,7 +10,7 @@ use super::queues::{NeeQueue, PathTable};
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light, samples_for};
-use crate::sample::{hash_combine, sample_2d};
+use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Material, Profile, Scene, Shape};
 use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
@@ -45,16 +45,19 @@ impl Packet {
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
     let mut pk = Packet::new();
     let mut traced = 0u64;
+    let area = Sampler2d::new(profile.light_strategy, profile.light_samples);
+    let delta = Sampler2d::new(Strategy::Center, 1);
     for i in 0..nee.len() {
         let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
         let n = Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]);
         let w = Vec3::new(nee.wr[i], nee.wg[i], nee.wb[i]);
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
-            let stream = hash_combine(nee.key[i], li as u64);
-            let end = if matches!(light, Light::Point { .. }) { 1.0 } else { SHADOW_END };
+            let key = stream_key(seed, hash_combine(nee.key[i], li as u64), dims::LIGHT);
+            let (end, sampler) = if matches!(light, Light::Point { .. }) { (1.0, &delta) } else { (SHADOW_END, &area) };
             for j in 0..ns {
-                let u = sample_2d(profile.light_strategy, seed, stream, dims::LIGHT, j, ns);
+                // All ns samples serve this one shading point: strata need no permutation.
+                let u = sampler.sample_unpermuted(key, j);
                 let Some(ls) = sample_light(light, p, u) else { continue };
                 let cos = n.dot(ls.wi);
                 if cos <= 0.0 {
