@@ -17,6 +17,9 @@ use std::path::Path;
 
 type R<T> = Result<T, InputError>;
 
+/// Largest magnitude of a dielectric's `priority`.
+pub const MAX_PRIORITY: i64 = 1_000_000;
+
 /// Deepest CSG nesting (and chain of named-solid references) accepted.
 pub const MAX_CSG_DEPTH: usize = 64;
 
@@ -170,6 +173,7 @@ impl Compiler<'_> {
         for l in 0..self.csg.leaf_count() {
             used[self.csg.leaf(l as u32).material as usize] = true;
         }
+        mark_passable(&mut self.materials, &used);
         for (m, _) in self.materials.iter().zip(&used).filter(|(_, u)| **u) {
             match m {
                 Material::Dielectric(d) => {
@@ -267,6 +271,7 @@ impl Compiler<'_> {
             ("transmittance_distance", m.transmittance_distance.as_ref().map(|x| x.span())),
             ("thin", m.thin.as_ref().map(|x| x.span())),
             ("fresnel", m.fresnel.as_ref().map(|x| x.span())),
+            ("priority", m.priority.as_ref().map(|x| x.span())),
         ]
         .into_iter()
         .filter_map(|(n, s)| s.map(|s| (n, s)))
@@ -275,7 +280,7 @@ impl Compiler<'_> {
             "lambert" => &["albedo", "checker"],
             "mirror" => &["tint"],
             "glossy" => &["tint", "roughness"],
-            "dielectric" => &["ior", "cauchy", "abbe", "absorption", "transmittance", "transmittance_distance", "thin", "fresnel"],
+            "dielectric" => &["ior", "cauchy", "abbe", "absorption", "transmittance", "transmittance_distance", "thin", "fresnel", "priority"],
             "emissive" => &["radiance"],
             _ => {
                 return Err(self.err(
@@ -386,7 +391,23 @@ impl Compiler<'_> {
                         other => return Err(self.err(s.span(), f("fresnel"), format!("expected `exact` or `schlick`, got `{other}`"))),
                     },
                 };
-                Material::Dielectric(Dielectric { ior, sigma_a, thin: m.thin.as_ref().is_some_and(|t| *t.get_ref()), schlick })
+                let priority = match &m.priority {
+                    None => 0,
+                    Some(p) => {
+                        let x = *p.get_ref();
+                        if !(-MAX_PRIORITY..=MAX_PRIORITY).contains(&x) {
+                            return Err(self.err(p.span(), f("priority"), format!("must be an integer in -{MAX_PRIORITY}..={MAX_PRIORITY}, got {x}")));
+                        }
+                        x as i32
+                    }
+                };
+                let thin = m.thin.as_ref().is_some_and(|t| *t.get_ref());
+                if thin {
+                    if let Some(p) = &m.priority {
+                        return Err(self.err(p.span(), f("priority"), "a thin sheet is not a medium: priority does not apply"));
+                    }
+                }
+                Material::Dielectric(Dielectric { ior, sigma_a, thin, schlick, priority, passable: false })
             }
             "emissive" => {
                 let r = self.req(&m.radiance, def.span(), &f("radiance"))?;
@@ -828,6 +849,41 @@ impl Compiler<'_> {
         self.lights.push(light);
         self.prims.push(Prim { shape, material, motion: Vec3::ZERO, is_light: true });
         Ok(())
+    }
+}
+
+/// Derive [`Dielectric::passable`]: which dielectrics a shadow ray may cross without deflection somewhere
+/// in this scene. Conservative (may say yes for a surface that is never a null crossing; the shadow stage
+/// then walks the ray and finds out), never no for one that can be: a thin sheet; a constant index equal
+/// to air's or to another used medium's (an index-matched interface); a priority below the highest among
+/// the used media (its surfaces inside a higher-priority medium are null crossings).
+fn mark_passable(materials: &mut [Material], used: &[bool]) {
+    let media: Vec<&Dielectric> = materials
+        .iter()
+        .zip(used)
+        .filter_map(|(m, &u)| match m {
+            Material::Dielectric(d) if u && !d.thin => Some(d),
+            _ => None,
+        })
+        .collect();
+    let top = media.iter().map(|d| d.priority).max().unwrap_or(0);
+    let constant = |d: &Dielectric| (!d.ior.is_dispersive()).then(|| d.ior.nominal());
+    let indices: Vec<Option<f32>> = media.iter().map(|d| constant(d)).collect();
+    let flags: Vec<bool> = materials
+        .iter()
+        .map(|m| match m {
+            Material::Dielectric(d) => {
+                let n = constant(d);
+                let matched = n.is_some_and(|n| n == 1.0 || indices.iter().filter(|&&o| o == Some(n)).count() > 1);
+                d.thin || matched || d.priority < top
+            }
+            _ => false,
+        })
+        .collect();
+    for (m, f) in materials.iter_mut().zip(flags) {
+        if let Material::Dielectric(d) = m {
+            d.passable = f;
+        }
     }
 }
 

@@ -75,6 +75,9 @@ pub struct MaterialDef {
     pub transmittance_distance: Option<S<f32>>,
     pub thin: Option<S<bool>>,
     pub fresnel: Option<S<String>>,
+    /// Interface priority of a dielectric medium (Schmidt & Budge 2002): where media overlap, the
+    /// higher priority owns the overlap.
+    pub priority: Option<S<i64>>,
 }
 
 #[derive(Deserialize, Debug)]

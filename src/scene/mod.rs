@@ -77,6 +77,13 @@ pub struct Dielectric {
     pub thin: bool,
     /// Schlick's approximation instead of the exact Fresnel equations.
     pub schlick: bool,
+    /// Interface priority (Schmidt & Budge 2002): where media overlap, the one with the higher priority
+    /// is the medium there; the surfaces of outranked media inside it are null crossings.
+    pub priority: i32,
+    /// A shadow ray may cross this material's surfaces without being deflected somewhere in the scene
+    /// (a thin sheet, an index matching air or another medium, or an outranked medium): physical shadow
+    /// rays then walk through it instead of stopping at it. Derived by `compile`.
+    pub passable: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]

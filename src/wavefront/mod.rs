@@ -9,6 +9,7 @@ pub mod accumulate;
 pub mod csg_merge;
 pub mod generate;
 pub mod intersect;
+pub mod medium;
 pub mod pipeline;
 pub mod queues;
 pub mod shade;

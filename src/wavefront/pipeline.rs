@@ -50,7 +50,9 @@ pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut
     counters.camera_rays += rays[0].len() as u64;
     counters.samples += paths.len() as u64;
 
-    for depth in 0..=profile.max_depth as usize {
+    // Bounces are counted per ray (`RayItem::depth`, checked by shade); null crossings of dielectric surfaces
+    // are not bounces, so a path may need more passes than max_depth + 1. The cap is only a safety net.
+    for depth in 0..max_passes(profile) {
         let [a, b] = &mut *rays;
         let (cur, next) = if depth & 1 == 0 { (a, b) } else { (b, a) };
         if cur.is_empty() {
@@ -73,6 +75,11 @@ pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut
 
     let mut film = film.lock().unwrap_or_else(|e| e.into_inner());
     counters.nonfinite_samples += timed!(times.accumulate, accumulate(paths, &mut film));
+}
+
+/// Most passes of the bounce loop: max_depth + 1 bounces plus room for null crossings.
+pub fn max_passes(profile: &Profile) -> usize {
+    4 * (profile.max_depth as usize + 1)
 }
 
 /// Whether a profile's settings are within what one scene needs (for the summary).

@@ -23,6 +23,11 @@ impl MediumStack {
     pub fn top(self) -> Option<u32> {
         (0..Self::DEPTH).rev().map(|i| ((self.0 >> (16 * i)) & 0xffff) as u32).find(|&v| v != 0).map(|v| v - 1)
     }
+    /// Material ids, outermost (entered first) to innermost.
+    #[inline]
+    pub fn iter(self) -> impl Iterator<Item = u32> {
+        (0..Self::DEPTH).map(move |i| ((self.0 >> (16 * i)) & 0xffff) as u32).filter(|&v| v != 0).map(|v| v - 1)
+    }
     #[inline]
     pub fn contains(self, m: u32) -> bool {
         (0..Self::DEPTH).any(|i| ((self.0 >> (16 * i)) & 0xffff) as u32 == m + 1)

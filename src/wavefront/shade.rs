@@ -4,6 +4,7 @@
 //! and escaped rays add radiance to their path.
 
 use super::dims;
+use super::medium;
 use super::queues::{HitQueue, MediumStack, NeeQueue, PathTable, RayItem, RayQueue, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
 use crate::geometry::{normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin, refine_sphere_point};
 use crate::optics::{
@@ -141,7 +142,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
             let mut r = rays.get(i);
             let t = hits.t[i];
             // Beer-Lambert absorption along the segment just travelled inside a medium.
-            if let Some(m) = r.media.top() {
+            if let Some(m) = medium::current(scene, r.media) {
                 if let Material::Dielectric(d) = &scene.materials[m as usize] {
                     if d.sigma_a != Vec3::ZERO {
                         r.throughput *= beer_lambert(d.sigma_a, t * r.d.length());
@@ -220,11 +221,8 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         }
                     }
                 }
-                Material::Dielectric(d) => {
-                    if (r.depth as u32) < profile.max_depth {
-                        ctx.dielectric(d, &r, &hit, pixel, sample, next);
-                    }
-                }
+                // Checks max_depth itself: null crossings are not bounces.
+                Material::Dielectric(d) => ctx.dielectric(d, &r, &hit, pixel, sample, next),
             }
         }
     }
@@ -263,54 +261,69 @@ impl Ctx<'_> {
         next.push(&child);
     }
 
+    /// A smooth dielectric surface: a null crossing passes the ray on unchanged; a real interface reflects
+    /// and refracts by the exact Fresnel equations (or Schlick's), between the media that
+    /// [`medium::cross`] finds on both sides; a thin sheet reflects and transmits without bending.
     fn dielectric(&self, d: &Dielectric, r: &RayItem, hit: &SurfaceHit, pixel: u32, sample: u32, next: &mut RayQueue) {
         let scene = self.scene;
         let disp = scene.features.dispersion;
+        let ior = |m: Option<u32>| ior_of(scene, m, r.lambda, disp);
+        let this = hit.material;
+        let p_trans = offset_ray_origin(hit.p, -hit.n_facing);
+        // Through the surface unbent: the same bounce count, branch and flags (what the ray would have
+        // done without the surface; shadow rays see through such crossings too).
+        let pass = |thr: Vec3, media: MediumStack| RayItem { o: p_trans, throughput: thr, media, tmax: f32::INFINITY, ..*r };
+
+        let (n1, n2, stack) = if d.thin {
+            (ior(medium::current(scene, r.media)), ior(Some(this)), r.media)
+        } else {
+            let c = medium::cross(scene, r.media, this, hit.front);
+            if !c.is_real() {
+                next.push(&pass(r.throughput, c.stack));
+                return;
+            }
+            (ior(c.before), ior(c.after), c.stack)
+        };
+        if n1 == n2 {
+            // Index-matched: no reflection, no bending (exactly what Fresnel and Snell give for eta = 1).
+            next.push(&pass(r.throughput, stack));
+            return;
+        }
+        if (r.depth as u32) >= self.profile.max_depth {
+            return;
+        }
+
         let wo = -r.d.normalize();
         let cos_i = wo.dot(hit.n_facing).clamp(0.0, 1.0);
-        let this = hit.material;
-        let n_this = ior_of(scene, Some(this), r.lambda, disp);
         let fres = |cos: f32, eta: f32| if d.schlick { fresnel_schlick(cos, eta) } else { fresnel_dielectric(cos, eta) };
-        let p_refl = offset_ray_origin(hit.p, hit.n_facing);
-        let p_trans = offset_ray_origin(hit.p, -hit.n_facing);
-        let refl_dir = reflect(wo, hit.n_facing);
-
-        let (f, trans): (f32, Option<(Vec3, MediumStack)>) = if d.thin {
-            // A thin sheet: both faces, all inter-reflections summed; transmission goes straight through.
-            let r1 = fres(cos_i, 1.0 / n_this);
+        let eta = n1 / n2;
+        // Transmitted: (direction, media after, flags).
+        let (f, trans): (f32, Option<(Vec3, MediumStack, u8)>) = if d.thin {
+            // Both faces, all inter-reflections summed; transmission goes straight through.
+            let r1 = fres(cos_i, eta);
             let rr = if r1 < 1.0 { 2.0 * r1 / (1.0 + r1) } else { 1.0 };
-            (rr, Some((r.d, r.media)))
+            (rr, Some((r.d, stack, r.flags)))
         } else {
-            // Which side is which: the medium stack decides the indices on both sides of the interface.
-            let (n1, n2, after) = if hit.front {
-                (ior_of(scene, r.media.top(), r.lambda, disp), n_this, r.media.push(this))
-            } else {
-                let after = r.media.remove(this);
-                (n_this, ior_of(scene, after.top(), r.lambda, disp), after)
-            };
-            let eta = n1 / n2;
-            let f = fres(cos_i, eta);
-            (f, refract(wo, hit.n_facing, eta).map(|dir| (dir, after)))
+            // Under transmissive shadows the shadow stage already carried light through this interface to
+            // diffuse points: a diffuse path that reaches a light through it must not count it again.
+            let flags = if self.profile.transmissive_shadows { r.flags } else { FLAG_SPECULAR };
+            (fres(cos_i, eta), refract(wo, hit.n_facing, eta).map(|dir| (dir, stack, flags)))
         };
         let f = if trans.is_none() { 1.0 } else { f };
+        let p_refl = offset_ray_origin(hit.p, hit.n_facing);
+        let refl_dir = reflect(wo, hit.n_facing);
         let reflected = |thr: Vec3| RayItem { o: p_refl, d: refl_dir, throughput: thr, flags: FLAG_SPECULAR, ..next_of(r) };
-        let transmitted = |thr: Vec3, dir: Vec3, media: MediumStack| RayItem {
-            o: p_trans,
-            d: dir,
-            throughput: thr,
-            flags: FLAG_SPECULAR,
-            media,
-            ..next_of(r)
-        };
+        let transmitted =
+            |thr: Vec3, dir: Vec3, media: MediumStack, flags: u8| RayItem { o: p_trans, d: dir, throughput: thr, flags, media, ..next_of(r) };
         match self.profile.branching {
             Branching::Split => {
                 if f > 0.0 {
                     let c = RayItem { branch: child_branch(r.branch, r.depth, 1), ..reflected(r.throughput * f) };
                     self.spawn(next, c, pixel, sample, 1);
                 }
-                if let Some((dir, media)) = trans {
+                if let Some((dir, media, flags)) = trans {
                     if f < 1.0 {
-                        self.spawn(next, transmitted(r.throughput * (1.0 - f), dir, media), pixel, sample, 2);
+                        self.spawn(next, transmitted(r.throughput * (1.0 - f), dir, media, flags), pixel, sample, 2);
                     }
                 }
             }
@@ -318,7 +331,7 @@ impl Ctx<'_> {
                 let key = hash_combine(branch_stream(pixel, r.branch), sample as u64);
                 let u = random_f32(self.seed, key, dims::FRESNEL + r.depth as u32, 0);
                 match trans {
-                    Some((dir, media)) if u >= f => self.spawn(next, transmitted(r.throughput, dir, media), pixel, sample, 2),
+                    Some((dir, media, flags)) if u >= f => self.spawn(next, transmitted(r.throughput, dir, media, flags), pixel, sample, 2),
                     _ => self.spawn(next, reflected(r.throughput), pixel, sample, 1),
                 }
             }
