@@ -122,10 +122,10 @@ pub fn refract64(d: DVec3, n: DVec3, n1: f64, n2: f64) -> Option<DVec3> {
     Some((eta * d + (eta * ci - (1.0 - st2).sqrt()) * n).normalize())
 }
 
-/// f64 reference: a ray through concentric spheres centred at the origin, with index `index(r)` at
-/// radius `r` (the radii in `radii` are the interfaces). Returns the exit point and direction, or None
-/// on total internal reflection.
-pub fn trace_concentric(radii: &[f64], index: impl Fn(f64) -> f64, mut o: DVec3, mut d: DVec3) -> Option<(DVec3, DVec3)> {
+/// f64 reference: a ray through concentric spheres centred at the origin, with index `index(r, outward)`
+/// at radius `r` for a ray crossing outwards or inwards (the radii in `radii` are the surfaces). Returns
+/// the exit point and direction, or None on total internal reflection.
+pub fn trace_concentric(radii: &[f64], index: impl Fn(f64, bool) -> f64, mut o: DVec3, mut d: DVec3) -> Option<(DVec3, DVec3)> {
     d = d.normalize();
     for _ in 0..64 {
         // Nearest crossing ahead of o.
@@ -149,7 +149,8 @@ pub fn trace_concentric(radii: &[f64], index: impl Fn(f64) -> f64, mut o: DVec3,
         let p = o + d * best;
         let n = p.normalize();
         let (r_before, r_after) = ((p - d * 1e-7).length(), (p + d * 1e-7).length());
-        d = refract64(d, n, index(r_before), index(r_after))?;
+        let out = d.dot(n) > 0.0;
+        d = refract64(d, n, index(r_before, out), index(r_after, out))?;
         o = p;
     }
     None
