@@ -21,6 +21,8 @@ mod lens;
 mod media;
 #[path = "refraction/prism.rs"]
 mod prism;
+#[path = "refraction/shadows.rs"]
+mod shadows;
 
 pub fn scene(text: &str) -> Scene {
     parse_scene(Path::new("test.toml"), text).unwrap_or_else(|e| panic!("{e}"))

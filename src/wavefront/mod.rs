@@ -14,6 +14,7 @@ pub mod pipeline;
 pub mod queues;
 pub mod shade;
 pub mod shadow;
+pub mod transmit;
 
 pub use pipeline::{render_unit, Settings, WorkUnit};
 pub use queues::{CsgCandidates, HitQueue, MediumStack, NeeQueue, PathTable, RayItem, RayQueue};

@@ -65,7 +65,7 @@ impl MediumStack {
 }
 
 /// One ray, array-of-structs form: for building queues and for tests.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct RayItem {
     pub o: Vec3,
     pub d: Vec3,

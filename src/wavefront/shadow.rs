@@ -1,17 +1,20 @@
 //! Stage 5: next-event estimation. Each request (a shading point) is expanded into light samples with the
 //! profile's light strategy; the shadow rays are packed 8 at a time (consecutive samples of one point are
 //! coherent) and traced with any-hit traversal; unoccluded samples add their contribution to the path.
-//! Smooth dielectrics block direct light (the light they pass is a caustic), unless the profile opts in to
-//! transmissive shadows.
+//! Smooth dielectrics block direct light (the light they pass is a caustic), except where they do not
+//! deflect it (null crossings, index-matched media, thin sheets), or everywhere under the profile's opt-in,
+//! non-physical transmissive shadows: lanes whose any-hit test met only such dielectrics are then walked
+//! through them for their transmittance (`transmit.rs`).
 
 use super::dims;
 use super::intersect::{in_prim_frame, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
+use super::transmit::{any_passable, passes, transmittance_x8};
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
-use crate::scene::{Light, Material, Profile, Scene, Shape};
+use crate::scene::{Light, Profile, Scene, Shape};
 use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
 
@@ -102,36 +105,53 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTabl
         f32x8::from(pk.tmax),
     );
     let time = scene.features.motion.then(|| f32x8::from(pk.time));
-    let occluded = occluded_x8(scene, profile, &ray, time, arena);
+    let (occluded, touched) = occlusion_x8(scene, profile, &ray, time, arena);
     let bits = occluded.to_bitmask();
+    let through = touched & !bits & ((1u32 << n) - 1);
+    let tr = if through != 0 {
+        transmittance_x8(scene, profile, &pk.o, &pk.d, &pk.tmax, &pk.time, through, arena)
+    } else {
+        [Vec3::ONE; LANES]
+    };
     for l in 0..n {
         if bits & (1 << l) == 0 {
-            paths.add(pk.path[l], pk.contrib[l]);
+            let c = if through & (1 << l) != 0 { pk.contrib[l] * tr[l] } else { pk.contrib[l] };
+            paths.add(pk.path[l], c);
         }
     }
     pk.len = 0;
     n as u64
 }
 
-/// Whether a primitive stops shadow rays.
+/// Whether a primitive stops shadow rays (else the shadow ray walks through it: `transmit.rs`).
 #[inline(always)]
 fn blocks(scene: &Scene, profile: &Profile, material: u32) -> bool {
-    !(profile.transmissive_shadows && matches!(scene.materials[material as usize], Material::Dielectric(_)))
+    !passes(scene, profile, material)
 }
 
 /// Any-hit occlusion of 8 shadow rays over (0, tmax). Returns the occluded lanes as a mask.
 pub fn occluded_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena) -> f32x8 {
+    occlusion_x8(scene, profile, ray, time, arena).0
+}
+
+/// [`occluded_x8`], and as bits the lanes that met a dielectric shadow rays walk through (whose
+/// transmittance is then needed).
+pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena) -> (f32x8, u32) {
     let zero = f32x8::ZERO;
+    let walk = any_passable(scene, profile);
+    let mut touched = 0u32;
     let mut occ = zero.simd_gt(f32x8::ONE); // all false
     for &pid in &scene.unbounded {
         let prim = &scene.prims[pid as usize];
+        let hit = prim_t_x8(prim, ray).simd_lt(ray.tmax);
         if blocks(scene, profile, prim.material) {
-            let t = prim_t_x8(prim, ray);
-            occ |= t.simd_lt(ray.tmax);
+            occ |= hit;
+        } else {
+            touched |= hit.to_bitmask();
         }
     }
     if occ.to_bitmask() == (1 << LANES) - 1 {
-        return occ;
+        return (occ, 0);
     }
     let from_bvh = scene.bvh.traverse_any_x8(ray, |bi, ray| {
         let pid = scene.bounded[bi as usize];
@@ -153,6 +173,9 @@ pub fn occluded_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f3
                     if let Some(h) = h {
                         if blocks(scene, profile, scene.csg.leaf(h.leaf).material) {
                             hit[l] = f32::from_bits(u32::MAX);
+                        } else {
+                            // A first boundary that lets the ray through: the walk sees the rest of the solid.
+                            touched |= 1 << l;
                         }
                     }
                 }
@@ -160,11 +183,14 @@ pub fn occluded_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f3
             }
             _ => {
                 if !blocks(scene, profile, prim.material) {
+                    if walk {
+                        touched |= prim_t_x8(prim, &local).simd_lt(ray.tmax).to_bitmask();
+                    }
                     return zero.simd_gt(f32x8::ONE);
                 }
                 prim_t_x8(prim, &local).simd_lt(ray.tmax)
             }
         }
     });
-    occ | from_bvh
+    (occ | from_bvh, touched)
 }

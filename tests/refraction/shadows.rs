@@ -1,0 +1,127 @@
+//! Shadow rays through dielectrics, through the shadow stage: blocked by default (physical), attenuated by
+//! Fresnel transmissions and Beer-Lambert under `transmissive_shadows`, and always passing (attenuated by
+//! absorption only) where a surface does not deflect light (index 1, thin sheets).
+
+use super::*;
+use strata::wavefront::shadow::shadow;
+
+/// Direct light from a point light at `light` to the point `p` (normal +y, unit weight), with and without
+/// the scene's dielectric shapes `shapes`: the ratio is the shadow ray's transmittance.
+fn transmittance(shapes: &str, materials: &str, light: Vec3, p: Vec3, transmissive: bool) -> Vec3 {
+    let direct = |with: bool| {
+        let text = format!(
+            "[image]\nwidth = 4\nheight = 4\n[camera]\nposition = [0, 1, 9]\nlook_at = [0, 1, 0]\nfov = 30\n\
+             [materials.floor]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n{materials}\
+             [[shapes]]\ntype = \"quad\"\norigin = [-9, -0.01, 9]\nu = [18, 0, 0]\nv = [0, 0, -18]\nmaterial = \"floor\"\n\
+             {}[[lights]]\ntype = \"point\"\nposition = [{}, {}, {}]\nintensity = [10, 10, 10]\n",
+            if with { shapes } else { "" },
+            light.x,
+            light.y,
+            light.z
+        );
+        let s = scene(&text);
+        let mut profile = split_profile();
+        profile.transmissive_shadows = transmissive;
+        let mut nee = NeeQueue::default();
+        let mut paths = PathTable::default();
+        paths.push(0, 0);
+        nee.push(p, Vec3::Y, Vec3::ONE, 0, 7, 0.0);
+        let mut arena = CsgArena::new();
+        shadow(&s, &profile, 1, &nee, &mut paths, &mut arena);
+        Vec3::new(paths.lr[0], paths.lg[0], paths.lb[0])
+    };
+    let (with, without) = (direct(true), direct(false));
+    assert!(without.min_element() > 0.0, "the point must be lit without the glass");
+    with / without
+}
+
+fn sphere(center: Vec3, radius: f32, material: &str) -> String {
+    format!("[[shapes]]\ntype = \"sphere\"\ncenter = [{}, {}, {}]\nradius = {radius}\nmaterial = \"{material}\"\n", center.x, center.y, center.z)
+}
+
+fn fresnel64(cos_i: f64, n1: f64, n2: f64) -> f64 {
+    let sin_t = n1 / n2 * (1.0 - cos_i * cos_i).sqrt();
+    if sin_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin_t * sin_t).sqrt();
+    let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
+    let rp = (n1 * cos_t - n2 * cos_i) / (n1 * cos_t + n2 * cos_i);
+    0.5 * (rs * rs + rp * rp)
+}
+
+const GLASS: &str = "[materials.glass]\ntype = \"dielectric\"\nior = 1.5\nabsorption = [0.1, 0.4, 0.9]\n";
+const SIGMA: DVec3 = DVec3::new(0.1, 0.4, 0.9);
+
+fn close(got: Vec3, want: DVec3, tol: f64) -> bool {
+    ((v64(got) - want).abs() / want.abs().max(DVec3::splat(1e-12))).max_element() < tol
+}
+
+#[test]
+fn glass_blocks_shadow_rays_by_default() {
+    let t = transmittance(&sphere(Vec3::new(0.0, 2.0, 0.0), 1.0, "glass"), GLASS, Vec3::new(0.0, 5.0, 0.0), Vec3::ZERO, false);
+    assert_eq!(t, Vec3::ZERO);
+}
+
+/// Through the centre of a glass ball: two normal-incidence transmissions and a chord of 2R.
+#[test]
+fn transmissive_shadow_through_a_ball_centre() {
+    let t = transmittance(&sphere(Vec3::new(0.0, 2.0, 0.0), 1.0, "glass"), GLASS, Vec3::new(0.0, 5.0, 0.0), Vec3::ZERO, true);
+    let f0 = fresnel64(1.0, 1.0, 1.5);
+    let want = (-SIGMA * 2.0).exp() * (1.0 - f0) * (1.0 - f0);
+    eprintln!("through the centre: {t:?}, expected {want:?}");
+    assert!(close(t, want, 1e-4), "{t:?} vs {want:?}");
+}
+
+/// Off-centre: the unbent shadow ray meets both surfaces at the same angle theta; the chord is 2R cos theta.
+#[test]
+fn transmissive_shadow_through_a_ball_off_centre() {
+    let (c, r) = (DVec3::new(0.0, 2.0, 0.0), 1.0f64);
+    let (light, p) = (DVec3::new(0.3, 5.0, 0.1), DVec3::new(-1.2, 0.0, -0.05));
+    let d = (light - p).normalize();
+    let w = c - p;
+    let b2 = (w - d * w.dot(d)).length_squared(); // squared distance of the line from the centre
+    let cos = (1.0 - b2 / (r * r)).sqrt();
+    let t = transmittance(&sphere(c.as_vec3(), r as f32, "glass"), GLASS, light.as_vec3(), p.as_vec3(), true);
+    let want = (-SIGMA * 2.0 * r * cos).exp() * (1.0 - fresnel64(cos, 1.0, 1.5)) * (1.0 - fresnel64(cos, 1.5, 1.0));
+    eprintln!("off centre (cos {cos:.4}): {t:?}, expected {want:?}");
+    assert!(cos < 0.9 && cos > (1.0f64 - 1.0 / 2.25).sqrt(), "a steep crossing short of total internal reflection");
+    assert!(close(t, want, 1e-4), "{t:?} vs {want:?}");
+}
+
+/// A shading point inside a water ball, lit from outside: one exit (water to air) and the inside path.
+#[test]
+fn transmissive_shadow_from_inside_a_medium() {
+    let water = "[materials.water]\ntype = \"dielectric\"\nior = 1.33\nabsorption = [0.2, 0.05, 0.01]\n";
+    let (c, r) = (DVec3::new(0.0, 0.5, 0.0), 2.0);
+    let (light, p) = (DVec3::new(0.0, 6.0, 0.0), DVec3::new(0.0, 0.0, 0.0));
+    let t = transmittance(&sphere(c.as_vec3(), r as f32, "water"), water, light.as_vec3(), p.as_vec3(), true);
+    let want = (-DVec3::new(0.2, 0.05, 0.01) * (c.y + r - p.y)).exp() * (1.0 - fresnel64(1.0, 1.33, 1.0));
+    eprintln!("from inside water: {t:?}, expected {want:?}");
+    assert!(close(t, want, 1e-4), "{t:?} vs {want:?}");
+    // Physically the water surface bends the light: blocked.
+    let t = transmittance(&sphere(c.as_vec3(), r as f32, "water"), water, light.as_vec3(), p.as_vec3(), false);
+    assert_eq!(t, Vec3::ZERO);
+}
+
+/// Surfaces that do not deflect light let physical shadow rays through: a ball of index 1 (absorption only)
+/// and a thin pane (its two-face transmission 1 - 2R/(1+R)).
+#[test]
+fn undeflecting_surfaces_pass_physical_shadow_rays() {
+    let clear = "[materials.clear]\ntype = \"dielectric\"\nior = 1.0\nabsorption = [0.3, 0.0, 0.6]\n";
+    let t = transmittance(&sphere(Vec3::new(0.0, 2.0, 0.0), 1.0, "clear"), clear, Vec3::new(0.0, 5.0, 0.0), Vec3::ZERO, false);
+    let want = (-DVec3::new(0.3, 0.0, 0.6) * 2.0).exp();
+    eprintln!("index-1 ball: {t:?}, expected {want:?}");
+    assert!(close(t, want, 1e-4), "{t:?} vs {want:?}");
+
+    let pane = "[materials.pane]\ntype = \"dielectric\"\nior = 1.5\nthin = true\n";
+    let quad = "[[shapes]]\ntype = \"quad\"\norigin = [-2, 2, 2]\nu = [4, 0, 0]\nv = [0, 0.5, -4]\nmaterial = \"pane\"\n";
+    let (light, p) = (DVec3::new(0.0, 5.0, 0.0), DVec3::ZERO);
+    let n = DVec3::new(4.0, 0.0, 0.0).cross(DVec3::new(0.0, 0.5, -4.0)).normalize();
+    let cos = (light - p).normalize().dot(n).abs();
+    let r1 = fresnel64(cos, 1.0, 1.5);
+    let want = 1.0 - 2.0 * r1 / (1.0 + r1);
+    let t = transmittance(quad, pane, light.as_vec3(), p.as_vec3(), false);
+    eprintln!("thin pane: {t:?}, expected {want:.6}");
+    assert!(close(t, DVec3::splat(want), 1e-5), "{t:?} vs {want}");
+}
