@@ -17,6 +17,9 @@ use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
 use crate::optics::Ior;
 use glam::Vec3;
 
+/// Shift of the checker cells, in cells (see [`Texture::eval`]).
+pub const CHECKER_SHIFT: f32 = 1.0 / 1024.0;
+
 /// Surface reflectance that may vary over the surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Texture {
@@ -35,7 +38,10 @@ impl Texture {
         match *self {
             Texture::Constant(c) => c,
             Texture::Checker { a, b, scale } => {
-                let q = (p / scale).floor();
+                // Cells are shifted by 1/1024 of a cell: the common surfaces (a floor at y = 0, a wall at a
+                // multiple of the cell size) lie exactly on a cell boundary, where the parity would flip with
+                // the sign of the hit point's rounding error (noise that depends on the ray's origin).
+                let q = (p / scale + Vec3::splat(CHECKER_SHIFT)).floor();
                 // i64 parity: cells far from the origin stay exact.
                 let s = q.x as i64 + q.y as i64 + q.z as i64;
                 if s.rem_euclid(2) == 0 {
