@@ -89,3 +89,64 @@ pub fn cross(scene: &Scene, stack: MediumStack, m: u32, entering: bool) -> Cross
         Crossing { before, after: current(scene, after), stack: after }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::parse_scene;
+    use std::path::Path;
+
+    /// Materials 0..: air-bubble (prio 2), glass (prio 3), ice (prio 2), water (prio 1) (BTreeMap order).
+    fn scene() -> Scene {
+        let text = "[image]\nwidth = 2\nheight = 2\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov = 30\n\
+            [materials.a_bubble]\ntype = \"dielectric\"\nior = 1.0\npriority = 2\n\
+            [materials.b_glass]\ntype = \"dielectric\"\nior = 1.5\npriority = 3\n\
+            [materials.c_ice]\ntype = \"dielectric\"\nior = 1.31\npriority = 2\n\
+            [materials.d_water]\ntype = \"dielectric\"\nior = 1.33\npriority = 1\n";
+        parse_scene(Path::new("m.toml"), text).unwrap()
+    }
+    const BUBBLE: u32 = 0;
+    const GLASS: u32 = 1;
+    const ICE: u32 = 2;
+    const WATER: u32 = 3;
+
+    #[test]
+    fn current_is_highest_priority_then_last_entered() {
+        let s = scene();
+        let e = MediumStack::default();
+        assert_eq!(current(&s, e), None);
+        assert_eq!(current(&s, e.push(WATER).push(GLASS)), Some(GLASS));
+        assert_eq!(current(&s, e.push(GLASS).push(WATER)), Some(GLASS));
+        // Equal priorities: the last entered.
+        assert_eq!(current(&s, e.push(ICE).push(BUBBLE)), Some(BUBBLE));
+        assert_eq!(current(&s, e.push(BUBBLE).push(ICE)), Some(ICE));
+    }
+
+    #[test]
+    fn crossings_real_and_null() {
+        let s = scene();
+        let e = MediumStack::default();
+        // Air into glass: real.
+        let c = cross(&s, e, GLASS, true);
+        assert_eq!((c.before, c.after, c.is_real()), (None, Some(GLASS), true));
+        // Inside the glass wall, meeting the water's surface: null, but the water is now on the stack.
+        let c2 = cross(&s, c.stack, WATER, true);
+        assert_eq!((c2.before, c2.after, c2.is_real()), (Some(GLASS), Some(GLASS), false));
+        // Leaving the glass into the water: real, glass -> water.
+        let c3 = cross(&s, c2.stack, GLASS, false);
+        assert_eq!((c3.before, c3.after, c3.is_real()), (Some(GLASS), Some(WATER), true));
+        // Into a bubble in the water and out again.
+        let c4 = cross(&s, c3.stack, BUBBLE, true);
+        assert_eq!((c4.before, c4.after), (Some(WATER), Some(BUBBLE)));
+        let c5 = cross(&s, c4.stack, BUBBLE, false);
+        assert_eq!((c5.before, c5.after, c5.stack), (Some(BUBBLE), Some(WATER), c3.stack));
+        // Leaving a medium the ray never entered: taken as inside it.
+        let c6 = cross(&s, e, ICE, false);
+        assert_eq!((c6.before, c6.after, c6.stack), (Some(ICE), None, e));
+        // A second object of the same material overlapping the first: its surfaces are null crossings.
+        let c7 = cross(&s, e.push(GLASS), GLASS, true);
+        assert!(!c7.is_real());
+        let c8 = cross(&s, c7.stack, GLASS, false);
+        assert!(!c8.is_real() && c8.stack == e.push(GLASS));
+    }
+}

@@ -93,7 +93,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     traced
 }
 
-/// Trace the packet's shadow rays (any hit) and credit the unoccluded ones. Returns rays traced.
+/// Trace the packet's shadow rays (any hit) and credit the unoccluded ones, times their transmittance
+/// where they met dielectrics they walk through. Returns rays traced (walk segments included).
 fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
     let n = pk.len;
     for l in n..LANES {
@@ -108,10 +109,10 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTabl
     let (occluded, touched) = occlusion_x8(scene, profile, &ray, time, arena);
     let bits = occluded.to_bitmask();
     let through = touched & !bits & ((1u32 << n) - 1);
-    let tr = if through != 0 {
+    let (tr, walked) = if through != 0 {
         transmittance_x8(scene, profile, &pk.o, &pk.d, &pk.tmax, &pk.time, through, arena)
     } else {
-        [Vec3::ONE; LANES]
+        ([Vec3::ONE; LANES], 0)
     };
     for l in 0..n {
         if bits & (1 << l) == 0 {
@@ -120,7 +121,7 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTabl
         }
     }
     pk.len = 0;
-    n as u64
+    n as u64 + walked
 }
 
 /// Whether a primitive stops shadow rays (else the shadow ray walks through it: `transmit.rs`).

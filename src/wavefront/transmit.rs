@@ -59,7 +59,8 @@ pub fn passes(scene: &Scene, profile: &Profile, material: u32) -> bool {
 }
 
 /// Transmittance of the segments `o + t d`, `t` in `(0, tmax)`, of the lanes set in `lanes`; other lanes
-/// get 0. `time` is each lane's shutter time (moving prims).
+/// get 0. `time` is each lane's shutter time (moving prims). Also returns the number of ray segments
+/// traced (one per lane per surface crossed, plus the last).
 #[allow(clippy::too_many_arguments)]
 pub fn transmittance_x8(
     scene: &Scene,
@@ -70,7 +71,7 @@ pub fn transmittance_x8(
     time: &[f32; LANES],
     lanes: u32,
     arena: &mut CsgArena,
-) -> [Vec3; LANES] {
+) -> ([Vec3; LANES], u64) {
     let start: [Vec3; LANES] = std::array::from_fn(|l| Vec3::new(o[0][l], o[1][l], o[2][l]));
     let end: [Vec3; LANES] = std::array::from_fn(|l| start[l] + Vec3::new(d[0][l], d[1][l], d[2][l]) * tmax[l]);
     let mut cur = start;
@@ -79,7 +80,9 @@ pub fn transmittance_x8(
     let mut blocked = 0u32;
     let mut active = lanes;
     let time8 = scene.features.motion.then(|| f32x8::from(*time));
+    let mut traced = 0u64;
     while active != 0 {
+        traced += active.count_ones() as u64;
         // The rest of each active segment: from the current point to the end, t in (0, 1).
         let seg: [Vec3; LANES] = std::array::from_fn(|l| end[l] - cur[l]);
         let lane_f = |f: &dyn Fn(usize) -> f32| f32x8::from(std::array::from_fn::<f32, LANES, _>(f));
@@ -116,12 +119,13 @@ pub fn transmittance_x8(
             cur[l] = offset_ray_origin(h.p, -h.n_facing);
         }
     }
-    std::array::from_fn(|l| {
+    let tr = std::array::from_fn(|l| {
         if lanes & (1 << l) == 0 || blocked & (1 << l) != 0 {
             return Vec3::ZERO;
         }
         replay(scene, profile, &events[l][..count[l]], (end[l] - start[l]).length())
-    })
+    });
+    (tr, traced)
 }
 
 /// Transmittance of one segment of length `len` from its recorded crossings (see the module doc).

@@ -174,3 +174,38 @@ fn absorbing_slab_render_matches_the_series_of_internal_reflections() {
         assert!((rel - (se * 5.0 / want)).max_element() < 1e-3, "{branching:?}: {mean:?} vs {want:?}");
     }
 }
+
+/// Every shipped glass scene renders without a non-finite sample, under both branching policies and with
+/// transmissive shadows on and off (small images, few samples; the prism with its caustic profile).
+#[test]
+fn shipped_glass_scenes_have_no_nonfinite_samples() {
+    for name in ["glass", "absorption", "nested", "prism"] {
+        let path = format!("{}/scenes/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+        let text: String = std::fs::read_to_string(&path)
+            .unwrap()
+            .lines()
+            .map(|l| match l.split('=').next().map(str::trim) {
+                Some("width") => "width = 40".to_string(),
+                Some("height") if !l.contains('.') => "height = 28".to_string(),
+                _ => l.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        let s = scene(&text);
+        assert_eq!((s.width, s.height), (40, 28), "{name}");
+        for branching in [Branching::Split, Branching::Roulette] {
+            for transmissive in [false, true] {
+                let mut profile = Profile::builtin(if name == "prism" { "caustic" } else { "final" });
+                profile.spp = if name == "prism" { 16 } else { 4 };
+                profile.branching = branching;
+                profile.transmissive_shadows = transmissive;
+                let mut job = RenderJob::new(&s, Settings { profile, seed: 2 });
+                job.threads = 2;
+                let (film, stats) = render_into(&job, Film::new(s.width, s.height));
+                eprintln!("{name} {branching:?} transmissive {transmissive}: {} rays, nonfinite {}", stats.rays.total, stats.nonfinite_samples);
+                assert_eq!(stats.nonfinite_samples, 0, "{name} {branching:?} transmissive {transmissive}");
+                assert!(film.to_rgb().iter().any(|c| c.max_element() > 0.0), "{name}: black image");
+            }
+        }
+    }
+}
