@@ -161,3 +161,21 @@ pub fn trace_concentric(radii: &[f64], index: impl Fn(f64, bool) -> f64, mut o: 
 pub fn v64(v: Vec3) -> DVec3 {
     v.as_dvec3()
 }
+
+/// The `priority` field: range-checked, refused on thin sheets and non-dielectrics, errors name the line.
+#[test]
+fn priority_field_is_validated() {
+    let base = "[image]\nwidth = 2\nheight = 2\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov = 30\n";
+    for (mat, needle) in [
+        ("[materials.g]\ntype = \"dielectric\"\npriority = 5000000\n", "must be an integer in -1000000..=1000000"),
+        ("[materials.g]\ntype = \"dielectric\"\nthin = true\npriority = 2\n", "a thin sheet is not a medium"),
+        ("[materials.g]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\npriority = 2\n", "does not apply"),
+    ] {
+        let e = parse_scene(Path::new("p.toml"), &format!("{base}{mat}")).unwrap_err().to_string();
+        eprintln!("{e}");
+        assert!(e.contains("materials.g.priority") && e.contains(needle) && e.starts_with("p.toml:"), "{e}");
+        assert!(e.contains(&format!(":{}:", base.lines().count() + mat.lines().count())), "line of the field: {e}");
+    }
+    let ok = parse_scene(Path::new("p.toml"), &format!("{base}[materials.g]\ntype = \"dielectric\"\npriority = -3\n"));
+    assert!(ok.is_ok());
+}

@@ -280,7 +280,9 @@ impl Compiler<'_> {
             "lambert" => &["albedo", "checker"],
             "mirror" => &["tint"],
             "glossy" => &["tint", "roughness"],
-            "dielectric" => &["ior", "cauchy", "abbe", "absorption", "transmittance", "transmittance_distance", "thin", "fresnel", "priority"],
+            "dielectric" => {
+                &["ior", "cauchy", "abbe", "absorption", "transmittance", "transmittance_distance", "thin", "fresnel", "priority"]
+            }
             "emissive" => &["radiance"],
             _ => {
                 return Err(self.err(
@@ -341,7 +343,7 @@ impl Compiler<'_> {
                     }
                     (None, Some(c), None) => {
                         let [a, b] = *c.get_ref();
-                        if !(a.is_finite() && b.is_finite() && a >= 1.0 && a <= 10.0 && b >= 0.0 && b < 1.0) {
+                        if !(a.is_finite() && b.is_finite() && (1.0..=10.0).contains(&a) && (0.0..1.0).contains(&b)) {
                             return Err(self.err(
                                 c.span(),
                                 f("cauchy"),
@@ -396,7 +398,11 @@ impl Compiler<'_> {
                     Some(p) => {
                         let x = *p.get_ref();
                         if !(-MAX_PRIORITY..=MAX_PRIORITY).contains(&x) {
-                            return Err(self.err(p.span(), f("priority"), format!("must be an integer in -{MAX_PRIORITY}..={MAX_PRIORITY}, got {x}")));
+                            return Err(self.err(
+                                p.span(),
+                                f("priority"),
+                                format!("must be an integer in -{MAX_PRIORITY}..={MAX_PRIORITY}, got {x}"),
+                            ));
                         }
                         x as i32
                     }

@@ -245,7 +245,7 @@ impl Ctx<'_> {
     #[inline]
     fn spawn(&self, next: &mut RayQueue, mut child: RayItem, pixel: u32, sample: u32, which: u32) {
         let m = child.throughput.max_element();
-        if !(m > 0.0) {
+        if m.is_nan() || m <= 0.0 {
             return;
         }
         let cutoff = self.profile.throughput_cutoff;
@@ -313,8 +313,14 @@ impl Ctx<'_> {
         let p_refl = offset_ray_origin(hit.p, hit.n_facing);
         let refl_dir = reflect(wo, hit.n_facing);
         let reflected = |thr: Vec3| RayItem { o: p_refl, d: refl_dir, throughput: thr, flags: FLAG_SPECULAR, ..next_of(r) };
-        let transmitted =
-            |thr: Vec3, dir: Vec3, media: MediumStack, flags: u8| RayItem { o: p_trans, d: dir, throughput: thr, flags, media, ..next_of(r) };
+        let transmitted = |thr: Vec3, dir: Vec3, media: MediumStack, flags: u8| RayItem {
+            o: p_trans,
+            d: dir,
+            throughput: thr,
+            flags,
+            media,
+            ..next_of(r)
+        };
         match self.profile.branching {
             Branching::Split => {
                 if f > 0.0 {

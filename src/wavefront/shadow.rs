@@ -50,6 +50,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     let mut traced = 0u64;
     let area = Sampler2d::new(profile.light_strategy, profile.light_samples);
     let delta = Sampler2d::new(Strategy::Center, 1);
+    let walk = any_passable(scene, profile);
     for i in 0..nee.len() {
         let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
         let n = Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]);
@@ -82,20 +83,20 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 pk.path[k] = nee.path[i];
                 pk.len += 1;
                 if pk.len == LANES {
-                    traced += flush(scene, profile, &mut pk, paths, arena);
+                    traced += flush(scene, profile, &mut pk, paths, arena, walk);
                 }
             }
         }
     }
     if pk.len > 0 {
-        traced += flush(scene, profile, &mut pk, paths, arena);
+        traced += flush(scene, profile, &mut pk, paths, arena, walk);
     }
     traced
 }
 
 /// Trace the packet's shadow rays (any hit) and credit the unoccluded ones, times their transmittance
 /// where they met dielectrics they walk through. Returns rays traced (walk segments included).
-fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
+fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTable, arena: &mut CsgArena, walk: bool) -> u64 {
     let n = pk.len;
     for l in n..LANES {
         pk.tmax[l] = -1.0;
@@ -106,7 +107,7 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTabl
         f32x8::from(pk.tmax),
     );
     let time = scene.features.motion.then(|| f32x8::from(pk.time));
-    let (occluded, touched) = occlusion_x8(scene, profile, &ray, time, arena);
+    let (occluded, touched) = occlusion_x8(scene, profile, &ray, time, arena, walk);
     let bits = occluded.to_bitmask();
     let through = touched & !bits & ((1u32 << n) - 1);
     let (tr, walked) = if through != 0 {
@@ -114,9 +115,9 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTabl
     } else {
         ([Vec3::ONE; LANES], 0)
     };
-    for l in 0..n {
+    for (l, t) in tr.iter().enumerate().take(n) {
         if bits & (1 << l) == 0 {
-            let c = if through & (1 << l) != 0 { pk.contrib[l] * tr[l] } else { pk.contrib[l] };
+            let c = if through & (1 << l) != 0 { pk.contrib[l] * *t } else { pk.contrib[l] };
             paths.add(pk.path[l], c);
         }
     }
@@ -132,14 +133,13 @@ fn blocks(scene: &Scene, profile: &Profile, material: u32) -> bool {
 
 /// Any-hit occlusion of 8 shadow rays over (0, tmax). Returns the occluded lanes as a mask.
 pub fn occluded_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena) -> f32x8 {
-    occlusion_x8(scene, profile, ray, time, arena).0
+    occlusion_x8(scene, profile, ray, time, arena, any_passable(scene, profile)).0
 }
 
 /// [`occluded_x8`], and as bits the lanes that met a dielectric shadow rays walk through (whose
-/// transmittance is then needed).
-pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena) -> (f32x8, u32) {
+/// transmittance is then needed). `walk`: [`any_passable`] of this scene and profile.
+pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena, walk: bool) -> (f32x8, u32) {
     let zero = f32x8::ZERO;
-    let walk = any_passable(scene, profile);
     let mut touched = 0u32;
     let mut occ = zero.simd_gt(f32x8::ONE); // all false
     for &pid in &scene.unbounded {

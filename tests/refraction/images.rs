@@ -49,13 +49,15 @@ fn index_one_glass_vanishes() {
         let worst = diffs.iter().cloned().fold(0.0, f32::max);
         let mean = diffs.iter().sum::<f32>() / diffs.len() as f32;
         let changed = diffs.iter().filter(|&&d| d > 1e-4).count();
-        eprintln!("index 1 ({branching:?}): mean rel diff {mean:.2e}, worst {worst:.2e}, {changed} of {} pixels differ by > 1e-4", diffs.len());
+        eprintln!(
+            "index 1 ({branching:?}): mean rel diff {mean:.2e}, worst {worst:.2e}, {changed} of {} pixels differ by > 1e-4",
+            diffs.len()
+        );
         assert!(mean < 1e-5, "mean relative difference {mean}");
         assert!(worst < 2e-3, "worst relative difference {worst}");
         assert!(changed * 100 <= diffs.len(), "{changed} pixels changed");
     }
 }
-
 
 const FURNACE_CAMERA: &str = "[image]\nwidth = 32\nheight = 32\nbackground = [1, 1, 1]\n\
 [camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\nfov = 34\n";
@@ -202,7 +204,10 @@ fn shipped_glass_scenes_have_no_nonfinite_samples() {
                 let mut job = RenderJob::new(&s, Settings { profile, seed: 2 });
                 job.threads = 2;
                 let (film, stats) = render_into(&job, Film::new(s.width, s.height));
-                eprintln!("{name} {branching:?} transmissive {transmissive}: {} rays, nonfinite {}", stats.rays.total, stats.nonfinite_samples);
+                eprintln!(
+                    "{name} {branching:?} transmissive {transmissive}: {} rays, nonfinite {}",
+                    stats.rays.total, stats.nonfinite_samples
+                );
                 assert_eq!(stats.nonfinite_samples, 0, "{name} {branching:?} transmissive {transmissive}");
                 assert!(film.to_rgb().iter().any(|c| c.max_element() > 0.0), "{name}: black image");
             }

@@ -79,7 +79,10 @@ fn ball_lens_focuses_at_the_effective_focal_length() {
         let m = heights.len() as f64;
         let a = (m * sxy - sx * sy) / (m * sxx - sx * sx);
         let f0 = (sy - a * sx) / m;
-        eprintln!("ball lens R={radius} n={n}: fitted paraxial focus {f0:.5}, n R / (2 (n - 1)) = {efl:.5} ({:+.3}%)", 100.0 * (f0 / efl - 1.0));
+        eprintln!(
+            "ball lens R={radius} n={n}: fitted paraxial focus {f0:.5}, n R / (2 (n - 1)) = {efl:.5} ({:+.3}%)",
+            100.0 * (f0 / efl - 1.0)
+        );
         assert!((f0 / efl - 1.0).abs() < 5e-3, "paraxial focus {f0} vs {efl}");
         let f_small = axis_crossing_f64(radius as f64, n as f64, 0.01 * radius as f64);
         assert!((f_small / efl - 1.0).abs() < 5e-3, "reference itself off: {f_small} vs {efl}");

@@ -47,7 +47,15 @@ fn glass_in_water() -> String {
 
 #[test]
 fn glass_sphere_inside_water_sphere() {
-    let idx = |r: f64, _out: bool| if r < 0.5 { 1.5 } else if r < 1.0 { 1.33 } else { 1.0 };
+    let idx = |r: f64, _out: bool| {
+        if r < 0.5 {
+            1.5
+        } else if r < 1.0 {
+            1.33
+        } else {
+            1.0
+        }
+    };
     let (a, d) = compare(&glass_in_water(), &[0.5, 1.0], idx, &[0.02, 0.1, 0.2, 0.35, 0.45, 0.7, 0.9]);
     eprintln!("glass in water: worst exit angle {a:.2e} rad, worst exit line offset {d:.2e}");
     assert!(a < TOL && d < TOL, "angle {a}, offset {d}");
@@ -60,7 +68,15 @@ fn air_bubble_inside_glass_sphere() {
          [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1.0\nmaterial = \"glass\"\n\
          [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.4\nmaterial = \"air\"\n"
     );
-    let idx = |r: f64, _out: bool| if r < 0.4 { 1.0 } else if r < 1.0 { 1.5 } else { 1.0 };
+    let idx = |r: f64, _out: bool| {
+        if r < 0.4 {
+            1.0
+        } else if r < 1.0 {
+            1.5
+        } else {
+            1.0
+        }
+    };
     let (a, d) = compare(&text, &[0.4, 1.0], idx, &[0.02, 0.1, 0.2, 0.3, 0.38, 0.9]);
     eprintln!("bubble in glass: worst exit angle {a:.2e} rad, worst exit line offset {d:.2e}");
     assert!(a < TOL && d < TOL, "angle {a}, offset {d}");
@@ -88,12 +104,19 @@ pub const LIQUID_HEIGHTS: [f32; 6] = [0.02, 0.1, 0.25, 0.4, 0.55, 0.7];
 /// glass's (r = 1 and r = 0.8) and the liquid's own surface inside the wall is a null crossing.
 #[test]
 fn liquid_in_glass_with_priorities() {
-    let idx = |r: f64, _out: bool| if r < 0.8 { 1.33 } else if r < 1.0 { 1.5 } else { 1.0 };
+    let idx = |r: f64, _out: bool| {
+        if r < 0.8 {
+            1.33
+        } else if r < 1.0 {
+            1.5
+        } else {
+            1.0
+        }
+    };
     let (a, d) = compare(&liquid_in_glass(Some((2, 1))), &[0.8, 1.0], idx, &LIQUID_HEIGHTS);
     eprintln!("liquid in glass (priorities): worst exit angle {a:.2e} rad, worst exit line offset {d:.2e}");
     assert!(a < TOL && d < TOL, "angle {a}, offset {d}");
 }
-
 
 /// Equal priorities: the overlap belongs to whichever medium the ray entered last, so a ray going in sees
 /// the glass-liquid interface at the liquid's surface (r = 0.81) and a ray going out at the glass's inner
@@ -114,7 +137,15 @@ fn liquid_in_glass_with_equal_priorities_last_entered_wins() {
     eprintln!("liquid in glass (equal priorities): worst exit angle {a:.2e} rad, worst exit line offset {d:.2e}");
     assert!(a < TOL && d < TOL, "angle {a}, offset {d}");
     // ... and that differs measurably from the priority model: the rule is what decides.
-    let prio = |r: f64, _out: bool| if r < 0.8 { 1.33 } else if r < 1.0 { 1.5 } else { 1.0 };
+    let prio = |r: f64, _out: bool| {
+        if r < 0.8 {
+            1.33
+        } else if r < 1.0 {
+            1.5
+        } else {
+            1.0
+        }
+    };
     let (a2, _) = compare(&liquid_in_glass(None), &[0.8, 1.0], prio, &LIQUID_HEIGHTS);
     eprintln!("  against the priority model instead: {a2:.2e} rad");
     assert!(a2 > 3.0 * TOL && a2 > 100.0 * a, "equal priorities should not reproduce the priority model ({a2})");

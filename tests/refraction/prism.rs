@@ -81,9 +81,8 @@ fn prism_spreads_white_light_into_an_ordered_spectrum() {
     profile.spp = 2048;
     let film = images::render(&s, profile, 21);
     let rgb = film.to_rgb();
-    let cols: Vec<DVec3> = (0..w as usize)
-        .map(|x| (0..h as usize).map(|y| rgb[y * w as usize + x].as_dvec3()).sum::<DVec3>() / h as f64)
-        .collect();
+    let cols: Vec<DVec3> =
+        (0..w as usize).map(|x| (0..h as usize).map(|y| rgb[y * w as usize + x].as_dvec3()).sum::<DVec3>() / h as f64).collect();
     let lum: Vec<f64> = cols.iter().map(|c| c.x + c.y + c.z).collect();
     let peak = lum.iter().cloned().fold(0.0, f64::max);
     let band: Vec<usize> = (0..w as usize).filter(|&x| lum[x] > 0.08 * peak).collect();
@@ -112,7 +111,10 @@ fn prism_spreads_white_light_into_an_ordered_spectrum() {
     eprintln!("band: columns {first}..={last} of {w}; blue expected to the {}", if blue_to_the_right { "right" } else { "left" });
     eprintln!("hue in 5 bins of equal light, red end first: {:.0?}; rank correlation with position {rho:.3}", hues);
     // The renderer's own colours of pure wavelengths, for scale.
-    eprintln!("hues of 650, 590, 550, 500, 450 nm: {:.0?}", [650.0, 590.0, 550.0, 500.0, 450.0].map(|l| hue(wavelength_to_rgb(l).as_dvec3())));
+    eprintln!(
+        "hues of 650, 590, 550, 500, 450 nm: {:.0?}",
+        [650.0, 590.0, 550.0, 500.0, 450.0].map(|l| hue(wavelength_to_rgb(l).as_dvec3()))
+    );
     assert!(last - first + 1 >= 8, "the spectrum should spread over several columns");
     for k in 1..bins {
         assert!(hues[k] > hues[k - 1], "hue must increase from red to blue: {hues:?}");

@@ -36,7 +36,10 @@ fn transmittance(shapes: &str, materials: &str, light: Vec3, p: Vec3, transmissi
 }
 
 fn sphere(center: Vec3, radius: f32, material: &str) -> String {
-    format!("[[shapes]]\ntype = \"sphere\"\ncenter = [{}, {}, {}]\nradius = {radius}\nmaterial = \"{material}\"\n", center.x, center.y, center.z)
+    format!(
+        "[[shapes]]\ntype = \"sphere\"\ncenter = [{}, {}, {}]\nradius = {radius}\nmaterial = \"{material}\"\n",
+        center.x, center.y, center.z
+    )
 }
 
 fn fresnel64(cos_i: f64, n1: f64, n2: f64) -> f64 {
