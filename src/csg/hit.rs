@@ -37,7 +37,8 @@ fn fill_crossings(csg: &Csg, s: &Solid, o: &Vec3x8, d: &Vec3x8, arena: &mut CsgA
 /// [`first_hit_x8`] (the ray in every lane), so both agree bit for bit. An unknown solid id gives `None`.
 pub fn first_hit(csg: &Csg, solid: u32, o: Vec3, d: Vec3, tmin: f32, tmax: f32, arena: &mut CsgArena) -> Option<CsgHit> {
     let s = csg.solids.get(solid as usize)?;
-    if !(tmax > tmin) {
+    // Also rejects NaN bounds.
+    if tmax.partial_cmp(&tmin) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     fill_crossings(csg, s, &Vec3x8::splat(o), &Vec3x8::splat(d), arena);

@@ -52,10 +52,16 @@ pub fn tol_base(o_len: f32, d_len: f32) -> f32 {
     COINCIDENT_EPS * o_len.max(1.0) / d_len
 }
 
-/// Last parameter of the group that starts at `t0` (`|t0|` is capped so that `±inf` stays finite-safe).
+/// The tolerance `tol(t)` (`|t|` is capped so that `±inf` gives a finite tolerance, never NaN).
+#[inline(always)]
+pub(crate) fn tol_at(t: f32, base: f32) -> f32 {
+    base + COINCIDENT_EPS * t.abs().min(1e30)
+}
+
+/// Last parameter of the group that starts at `t0`.
 #[inline(always)]
 pub(crate) fn group_end(t0: f32, base: f32) -> f32 {
-    t0 + (base + COINCIDENT_EPS * t0.abs().min(1e30))
+    t0 + tol_at(t0, base)
 }
 
 /// `out = a op b` (appended). Both lists alternate entry/exit starting with an entry.
@@ -115,7 +121,8 @@ fn sweep(a: &[Ev], b: &[Ev], op: Op, flip_b: u32, base: f32, out: &mut Vec<Ev>) 
             // Attribute the boundary to an operand that moved the same way as the result.
             let a_ok = na != in_a && na == nr;
             let b_ok = nb != in_b && (nb ^ is_diff) == nr;
-            let e = if a_ok || !b_ok { a[i0] } else { Ev { t: b[j0].t, tag: b[j0].tag ^ flip_b } };
+            // (One of the two always holds; the fallback only keeps the index inside the group.)
+            let e = if a_ok || (!b_ok && i > i0) { a[i0] } else { Ev { t: b[j0].t, tag: b[j0].tag ^ flip_b } };
             out.push(e);
             in_r = nr;
         }
@@ -147,7 +154,8 @@ impl CsgArena {
     }
 }
 
-/// Run a solid's program on one lane of the crossings table; first boundary in `(tmin, tmax)`.
+/// Run a solid's program on one lane of the crossings table; first boundary in `(tmin, tmax)` (the caller
+/// has checked `tmin < tmax`).
 ///
 /// Intervals that end before `tmin` or start after `tmax` by more than twice the tolerance cannot change
 /// the state in `(tmin, tmax)` and are skipped.
@@ -164,8 +172,8 @@ pub(crate) fn eval_lane(
     let CsgArena { evs, tmp, starts, cross } = arena;
     evs.clear();
     starts.clear();
-    let lo_cut = tmin - 2.0 * (group_end(tmin, base) - tmin);
-    let hi_cut = tmax + 2.0 * (group_end(tmax, base) - tmax);
+    let lo_cut = tmin - 2.0 * tol_at(tmin, base);
+    let hi_cut = tmax + 2.0 * tol_at(tmax, base);
     for ins in prog {
         match *ins {
             Instr::Leaf(k) => {
@@ -189,14 +197,11 @@ pub(crate) fn eval_lane(
                 merge(&left[sa..], right, op, base, tmp);
                 evs.truncate(sa);
                 evs.extend_from_slice(tmp);
-                if std::env::var("DBG").is_ok() {
-                    eprintln!("op {op:?} sa {sa} sb {sb} -> {:?}", &evs[sa..]);
-                }
             }
         }
     }
     for (i, e) in evs.iter().enumerate() {
-        if !(e.t < tmax) {
+        if e.t >= tmax {
             break;
         }
         if e.t > tmin {

@@ -2,8 +2,9 @@
 //!
 //! # Canonical forms (object space)
 //!
-//! Every bounded shape lies in (or on) the cube `[-1, 1]^3`, except the torus (see below). The axis of
-//! every shape of revolution is **+z**. All solids are closed sets (`<=`).
+//! The axis of every shape of revolution is **+z**; all solids are closed sets (`<=`). Object-space bounds:
+//! `[-1, 1]^3` for the sphere, box and cylinder, `[-r, r]^2 × [-1, 1]` with `r = max(r0, r1)` for the cone,
+//! `[-(major + minor), major + minor]^2 × [-minor, minor]` for the torus.
 //!
 //! | shape | solid (object space) |
 //! | --- | --- |
@@ -56,7 +57,8 @@ impl Leaf {
         Leaf { shape, object_to_world, world_to_object, normal_to_world: world_to_object.matrix3.transpose(), material }
     }
 
-    /// The half-space `n . p <= d` (world space, `n` need not be unit; `n` must be non-zero).
+    /// The half-space `n . p <= d` (world space, `n` need not be unit; a zero `n` gives a leaf that never
+    /// produces valid crossings).
     pub fn half_space(n: Vec3, d: f32, material: u32) -> Leaf {
         let len = n.length();
         let unit = n / len;

@@ -1,9 +1,11 @@
 //! The film: per pixel sum, sum of squares and sample count.
 //!
-//! Sums are kept in 128-bit fixed point (2^-32 resolution) rather than floating point, so accumulation is
-//! associative: the image does not depend on the order in which samples arrive (threads, tiles), and two
-//! films of disjoint sample ranges add up to exactly (bit for bit) the film of their union. A sample whose
-//! value is not finite or exceeds [`MAX_SAMPLE_VALUE`] is discarded and counted, never accumulated.
+//! Sums are kept in 128-bit fixed point rather than floating point, so accumulation is associative: the
+//! image does not depend on the order in which samples arrive (threads, tiles), and two films of disjoint
+//! sample ranges add up to exactly (bit for bit) the film of their union. Each sample value v is quantised
+//! once to the integer q = round(v 2^32) (an i64: a fast conversion); the sum adds q and the sum of squares
+//! adds floor(q^2 / 2^32), both exact integer operations. A sample whose value is not finite or whose
+//! magnitude reaches [`MAX_SAMPLE_VALUE`] is discarded and counted, never accumulated.
 
 pub mod output;
 
@@ -11,8 +13,8 @@ use glam::Vec3;
 
 /// Fixed-point scale: one unit is 2^-32.
 pub const FIXED_ONE: f64 = 4_294_967_296.0;
-/// Samples beyond this magnitude are treated as non-finite (keeps the 128-bit sums of squares exact).
-pub const MAX_SAMPLE_VALUE: f32 = 1e12;
+/// Samples at or beyond this magnitude (2^31) are treated as non-finite (keeps q = v 2^32 within an i64).
+pub const MAX_SAMPLE_VALUE: f32 = 2_147_483_648.0;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Pixel {
@@ -26,13 +28,14 @@ impl Pixel {
     #[inline]
     pub fn add(&mut self, v: Vec3) -> bool {
         let a = v.to_array();
-        if !a.iter().all(|x| x.is_finite() && x.abs() <= MAX_SAMPLE_VALUE) {
+        // `abs() < MAX` is false for NaN, so one comparison rejects NaN, infinities and huge values.
+        if !a.iter().all(|x| x.abs() < MAX_SAMPLE_VALUE) {
             return false;
         }
         for c in 0..3 {
-            let x = a[c] as f64;
-            self.sum[c] += (x * FIXED_ONE).round() as i128;
-            self.sum_sq[c] += (x * x * FIXED_ONE).round() as i128;
+            let q = (a[c] as f64 * FIXED_ONE).round() as i64 as i128;
+            self.sum[c] += q;
+            self.sum_sq[c] += (q * q) >> 32;
         }
         self.count += 1;
         true
@@ -128,7 +131,10 @@ mod tests {
         let mut p = Pixel::default();
         assert!(!p.add(Vec3::new(f32::NAN, 0.0, 0.0)));
         assert!(!p.add(Vec3::new(0.0, f32::INFINITY, 0.0)));
-        assert!(!p.add(Vec3::splat(2e12)));
+        assert!(!p.add(Vec3::splat(2.2e9)));
+        assert!(p.add(Vec3::splat(2.1e9)));
+        assert_eq!(p.count, 1);
+        p = Pixel::default();
         assert_eq!(p.count, 0);
         assert_eq!(p.mean(), Vec3::ZERO);
     }

@@ -127,6 +127,58 @@ pub fn sample_2d_keyed(strategy: Strategy, key: u64, index: u32, n: u32) -> [f32
 /// Sample `index` of an `n`-sample 1D estimate (time, roulette...): center -> 0.5, grid ->
 /// `(k + 0.5) / n`, random -> [`random_f32`](super::random_f32), jittered -> `(k + u) / n`, sobol ->
 /// Owen-scrambled van der Corput; `k = permute(index, n, ..)`. Returns a value in `[0, 1)`.
+/// A 2D strategy for a set of `n` samples with the grid shape worked out once: the hot-loop form of
+/// [`sample_2d_keyed`] (which recomputes the shape, an O(sqrt n) divisor search, on every call).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Sampler2d {
+    pub strategy: Strategy,
+    pub n: u32,
+    nx: u32,
+    ny: u32,
+}
+
+impl Sampler2d {
+    pub fn new(strategy: Strategy, n: u32) -> Sampler2d {
+        let n = n.max(1);
+        let [nx, ny] = grid_shape(n);
+        Sampler2d { strategy, n, nx, ny }
+    }
+
+    /// Sample `index` of the set keyed by `key` (see [`stream_key`]); equals `sample_2d_keyed(strategy, key, index, n)`.
+    #[inline]
+    pub fn sample(&self, key: u64, index: u32) -> [f32; 2] {
+        self.sample_impl(key, index, true)
+    }
+
+    /// Sample `index` of a set that one estimate uses whole (e.g. the light samples of one shading point):
+    /// no other dimension shares `index`, so the stratum needs no permutation and is `index` itself.
+    /// Same strata and same distribution as [`Sampler2d::sample`], less hashing.
+    #[inline]
+    pub fn sample_unpermuted(&self, key: u64, index: u32) -> [f32; 2] {
+        self.sample_impl(key, index, false)
+    }
+
+    #[inline(always)]
+    fn sample_impl(&self, key: u64, index: u32, permuted: bool) -> [f32; 2] {
+        match self.strategy {
+            Strategy::Center => [0.5, 0.5],
+            Strategy::Random => random_2d_keyed(key, index),
+            Strategy::Sobol => sobol_owen_2d(key, index),
+            Strategy::Grid | Strategy::Jittered => {
+                let (nx, ny) = (self.nx, self.ny);
+                let s = if permuted { permute(index, nx * ny, perm_key(key)) } else { index % (nx * ny) };
+                let (sx, sy) = (s % nx, s / nx);
+                if self.strategy == Strategy::Grid {
+                    [cell_centre(sx, nx), cell_centre(sy, ny)]
+                } else {
+                    let h = random_bits(key, index);
+                    [jitter_in_cell(sx, nx, (h >> 32) as u32), jitter_in_cell(sy, ny, h as u32)]
+                }
+            }
+        }
+    }
+}
+
 #[inline]
 pub fn sample_1d(strategy: Strategy, seed: u64, stream: u64, dim: u32, index: u32, n: u32) -> f32 {
     if strategy == Strategy::Center {
@@ -157,6 +209,29 @@ pub fn sample_1d_keyed(strategy: Strategy, key: u64, index: u32, n: u32) -> f32 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sampler2d_matches_sample_2d_and_unpermuted_keeps_the_strata() {
+        for strategy in Strategy::ALL {
+            for n in [1u32, 2, 7, 9, 12, 64, 100] {
+                let s = Sampler2d::new(strategy, n);
+                let key = 0x1234_5678_9abc_def0u64 ^ n as u64;
+                let mut cells = vec![0u32; n as usize];
+                for i in 0..n {
+                    assert_eq!(s.sample(key, i), sample_2d_keyed(strategy, key, i, n));
+                    if matches!(strategy, Strategy::Grid | Strategy::Jittered) {
+                        let [nx, ny] = grid_shape(n);
+                        let u = s.sample_unpermuted(key, i);
+                        let (cx, cy) = ((u[0] * nx as f32) as u32, (u[1] * ny as f32) as u32);
+                        cells[(cy * nx + cx) as usize] += 1;
+                    }
+                }
+                if matches!(strategy, Strategy::Grid | Strategy::Jittered) {
+                    assert!(cells.iter().all(|&c| c == 1), "{strategy:?} n={n}: {cells:?}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn grid_shape_is_most_square_factorisation() {

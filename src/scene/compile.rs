@@ -492,6 +492,10 @@ impl Compiler<'_> {
         let tree = self.csg_tree(def, field, Affine3A::IDENTITY, material, 0, &mut stack)?;
         let _ = t; // the transform was applied inside csg_tree (it reads the def's own transform)
         let solid = self.csg.add_solid(&tree).map_err(|e| self.err(def.span(), field, format!("{e}")))?;
+        let (lo, hi) = self.csg.bounds(solid);
+        if !lo.cmple(hi).all() {
+            return Ok(()); // an empty solid (e.g. a disjoint intersection) contributes nothing
+        }
         self.prims.push(Prim { shape: Shape::Csg { solid }, material: material.unwrap_or(0), motion, is_light: false });
         Ok(())
     }

@@ -7,7 +7,7 @@
 use super::dims;
 use super::queues::{MediumStack, PathTable, RayItem, RayQueue};
 use crate::optics::{sample_wavelength, sample_wavelength_pdf, wavelength_to_rgb};
-use crate::sample::{sample_1d, sample_2d, sample_disk_concentric, sample_filter};
+use crate::sample::{sample_1d, sample_disk_concentric, sample_filter, stream_key, Sampler2d};
 use crate::scene::{Profile, Scene};
 use glam::Vec3;
 use std::ops::Range;
@@ -31,18 +31,16 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     let cam = &scene.camera;
     let f = &scene.features;
     let spp = profile.spp;
+    let area = Sampler2d::new(profile.pixel_strategy, spp);
+    let lens_set = Sampler2d::new(profile.lens_strategy, spp);
     for y in tile.y0..tile.y1 {
         for x in tile.x0..tile.x1 {
             let pixel = y * scene.width + x;
             let stream = pixel as u64;
+            let (area_key, lens_key) = (stream_key(seed, stream, dims::PIXEL), stream_key(seed, stream, dims::LENS));
             for s in samples.clone() {
-                let u = sample_2d(profile.pixel_strategy, seed, stream, dims::PIXEL, s, spp);
-                let off = sample_filter(profile.filter, u);
-                let lens = if f.lens {
-                    sample_disk_concentric(sample_2d(profile.lens_strategy, seed, stream, dims::LENS, s, spp))
-                } else {
-                    [0.0, 0.0]
-                };
+                let off = sample_filter(profile.filter, area.sample(area_key, s));
+                let lens = if f.lens { sample_disk_concentric(lens_set.sample(lens_key, s)) } else { [0.0, 0.0] };
                 let (o, d) = cam.ray(x as f32 + 0.5 + off[0], y as f32 + 0.5 + off[1], lens);
                 let time = if f.motion { cam.time(sample_1d(profile.time_strategy, seed, stream, dims::TIME, s, spp)) } else { 0.0 };
                 let (lambda, throughput) = if f.dispersion {

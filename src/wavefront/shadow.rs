@@ -8,9 +8,9 @@ use super::dims;
 use super::intersect::{in_prim_frame, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
 use crate::accel::{intersect_aabb_x8, PacketRay};
-use crate::csg::{first_hit, CsgArena};
+use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light, samples_for};
-use crate::sample::{hash_combine, sample_2d};
+use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Material, Profile, Scene, Shape};
 use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
@@ -45,16 +45,19 @@ impl Packet {
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
     let mut pk = Packet::new();
     let mut traced = 0u64;
+    let area = Sampler2d::new(profile.light_strategy, profile.light_samples);
+    let delta = Sampler2d::new(Strategy::Center, 1);
     for i in 0..nee.len() {
         let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
         let n = Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]);
         let w = Vec3::new(nee.wr[i], nee.wg[i], nee.wb[i]);
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
-            let stream = hash_combine(nee.key[i], li as u64);
-            let end = if matches!(light, Light::Point { .. }) { 1.0 } else { SHADOW_END };
+            let key = stream_key(seed, hash_combine(nee.key[i], li as u64), dims::LIGHT);
+            let (end, sampler) = if matches!(light, Light::Point { .. }) { (1.0, &delta) } else { (SHADOW_END, &area) };
             for j in 0..ns {
-                let u = sample_2d(profile.light_strategy, seed, stream, dims::LIGHT, j, ns);
+                // All ns samples serve this one shading point: strata need no permutation.
+                let u = sampler.sample_unpermuted(key, j);
                 let Some(ls) = sample_light(light, p, u) else { continue };
                 let cos = n.dot(ls.wi);
                 if cos <= 0.0 {
@@ -133,18 +136,21 @@ pub fn occluded_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f3
     let from_bvh = scene.bvh.traverse_any_x8(ray, |bi, ray| {
         let pid = scene.bounded[bi as usize];
         let prim = &scene.prims[pid as usize];
-        let local = in_prim_frame(ray, prim.motion, time);
         match prim.shape {
             Shape::Csg { solid } => {
+                // Lanes that reach the solid's bounds are solved together by the 8-lane interval merge.
                 let b = &scene.bounds[pid as usize];
                 let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(ray), ray.tmax);
-                let mut bits = mask.to_bitmask();
+                if mask.to_bitmask() == 0 {
+                    return zero.simd_gt(f32x8::ONE);
+                }
+                let local = in_prim_frame(ray, prim.motion, time);
+                let masked = Ray8 { tmax: mask.select(ray.tmax, f32x8::splat(-1.0)), ..local };
+                let mut out = [None; LANES];
+                first_hit_x8(&scene.csg, solid, &masked, zero, arena, &mut out);
                 let mut hit = [0.0f32; LANES];
-                while bits != 0 {
-                    let l = bits.trailing_zeros() as usize;
-                    bits &= bits - 1;
-                    let (o, d) = (local.o.lane(l), local.d.lane(l));
-                    if let Some(h) = first_hit(&scene.csg, solid, o, d, 0.0, ray.tmax.to_array()[l], arena) {
+                for (l, h) in out.iter().enumerate() {
+                    if let Some(h) = h {
                         if blocks(scene, profile, scene.csg.leaf(h.leaf).material) {
                             hit[l] = f32::from_bits(u32::MAX);
                         }
@@ -156,7 +162,11 @@ pub fn occluded_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f3
                 if !blocks(scene, profile, prim.material) {
                     return zero.simd_gt(f32x8::ONE);
                 }
-                prim_t_x8(prim, &local).simd_lt(ray.tmax)
+                let t = match time {
+                    Some(_) if prim.motion != Vec3::ZERO => prim_t_x8(prim, &in_prim_frame(ray, prim.motion, time)),
+                    _ => prim_t_x8(prim, ray),
+                };
+                t.simd_lt(ray.tmax)
             }
         }
     });
