@@ -1,7 +1,8 @@
 //! Distribution ray tracing against ground truth: each integral (pixel area, light area, reflected
 //! direction, lens, time) rendered through the whole pipeline and compared with a closed form computed
-//! here in f64 (Lambert's polygon irradiance, the thin-lens circle of confusion, the exposure fraction of
-//! a moving sphere) or with a limit (glossy -> mirror), at small sizes and fixed seeds.
+//! here in f64 (filter-weighted edge coverage, Lambert's polygon irradiance, the thin-lens circle of
+//! confusion, the exposure fraction of a moving sphere) or with a limit (glossy -> mirror), at small
+//! sizes and fixed seeds.
 
 use glam::{DVec3, Vec3};
 use std::path::Path;
@@ -15,6 +16,8 @@ mod glossy;
 mod irradiance;
 #[path = "distribution/lens_time.rs"]
 mod lens_time;
+#[path = "distribution/pixel.rs"]
+mod pixel;
 #[path = "distribution/scenes.rs"]
 mod scenes;
 
