@@ -10,6 +10,8 @@ use strata::render::{render, RenderStats};
 use strata::scene::{parse_scene, Profile, Scene};
 use strata::wavefront::Settings;
 
+#[path = "distribution/diffuse.rs"]
+mod diffuse;
 #[path = "distribution/glossy.rs"]
 mod glossy;
 #[path = "distribution/irradiance.rs"]
