@@ -45,3 +45,28 @@ fn light_sample_profiles_are_the_how_many_samples_series() {
         assert_eq!(strata::sample::grid_shape(n), [k, k]);
     }
 }
+
+/// Lens, time and glossy samples are functions of (seed, pixel, sample, dimension): the same image for
+/// any thread count, tile size and split of the sample range.
+#[test]
+fn lens_time_and_glossy_images_do_not_depend_on_threads_tiles_or_sample_split() {
+    use strata::film::Film;
+    use strata::render::{render_into, RenderJob};
+    for name in ["dof.toml", "motion.toml", "glossy.toml"] {
+        let path = format!("{}/scenes/{name}", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(&path).unwrap().replacen("width = 480", "width = 40", 1).replacen("height = 2", "height = 1", 1);
+        let s = parse_scene(Path::new(name), &text).unwrap();
+        let p = profile(6, "jittered", 2, "jittered");
+        let run = |threads: usize, tile: u32, samples: std::ops::Range<u32>, film: Film| {
+            let mut job = RenderJob::new(&s, Settings { profile: p.clone(), seed: 3 });
+            (job.threads, job.tile, job.samples) = (threads, tile, samples);
+            render_into(&job, film).0
+        };
+        let a = run(1, 16, 0..6, Film::new(s.width, s.height));
+        let b = run(2, 7, 0..6, Film::new(s.width, s.height));
+        let c = run(2, 5, 4..6, run(1, 9, 0..4, Film::new(s.width, s.height)));
+        assert!(a.total_samples() == (s.width * s.height * 6) as u64);
+        assert!(a == b, "{name}: threads / tiles change the image");
+        assert!(a == c, "{name}: splitting the sample range changes the image");
+    }
+}
