@@ -73,8 +73,8 @@ fn loglog_fit_recovers_known_lines() {
     let pts: Vec<(f64, f64)> = [1.0, 4.0, 16.0, 64.0].iter().map(|&x: &f64| (x, 3.0 * x.powf(-1.5))).chain([(256.0, 0.0)]).collect();
     let f = fit_loglog(&pts).unwrap();
     assert!((f.slope + 1.5).abs() < 1e-12 && (f.intercept - 3f64.ln()).abs() < 1e-12);
-    // Least squares, not interpolation: (1, 1), (2, 4), (4, 4) in log2 units -> slope 1/2 (hand-computed:
-    // x = 0, 1, 2; y = 0, 2, 2; sxy = 2, sxx = 2 in ln^2 units -> slope 1).
+    // Least squares, not interpolation: with a = ln 2 the points are (0, 0), (a, 2a), (2a, 2a); means
+    // (a, 4a/3); sxx = 2a^2, sxy = (-a)(-4a/3) + (a)(2a/3) = 2a^2: slope 1.
     let f = fit_loglog(&[(1.0, 1.0), (2.0, 4.0), (4.0, 4.0)]).unwrap();
     assert!((f.slope - 1.0).abs() < 1e-12, "{}", f.slope);
     assert!(fit_loglog(&[(1.0, 1.0)]).is_none());
@@ -172,15 +172,11 @@ fn analytic_reference_matches_the_renderer() {
     // (b) Pixel centre, 256 camera passes x 16 random light samples: the irradiance formula alone.
     let mut b = configure(&base, &IntegralSet::of(&[Integral::Light]), Strategy::Random, 16, false).unwrap();
     b.spp = 256;
-    for (profile, footprint) in [(a, Footprint::Filter(profile_filter(&base))), (b, Footprint::Centre)] {
+    for (profile, footprint) in [(a, Footprint::Filter(base.filter)), (b, Footprint::Centre)] {
         let (film, _, _) = render_once(&scene, profile, 99, 0);
         let exact = form.image(footprint);
         check_z_scores(&film, &exact, &format!("{footprint:?}"));
     }
-}
-
-fn profile_filter(p: &Profile) -> strata::sample::Filter {
-    p.filter
 }
 
 fn check_z_scores(film: &Film, exact: &[DVec3], what: &str) {
@@ -349,7 +345,10 @@ fn cli_writes_csv_plot_and_sheet() {
 #[test]
 fn reference_cache_is_reused_only_when_fresh() {
     let dir = tmp_dir("cache");
-    let scene_text = std::fs::read_to_string(root().join("scenes/soft_shadows.toml")).unwrap().replace("width = 160", "width = 20").replace("height = 120", "height = 14");
+    let scene_text = std::fs::read_to_string(root().join("scenes/soft_shadows.toml"))
+        .unwrap()
+        .replace("width = 160", "width = 20")
+        .replace("height = 120", "height = 14");
     let scene = dir.join("scene.toml");
     std::fs::write(&scene, &scene_text).unwrap();
     let (s, d) = (scene.to_str().unwrap(), dir.join("out"));

@@ -243,12 +243,12 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
 
 fn print_table(summary: &[Summary], plan: &Plan) {
     println!(
-        "\n{:<9} {:>6} {:>10} {:>12} {:>11} {:>11} {:>11}   (mean over {} seeds)",
+        "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12}   (mean over {} seeds)",
         "strategy", "spp", "seconds", "rays", "mse", "relmse", "efficiency", plan.seeds
     );
     for s in summary {
         println!(
-            "{:<9} {:>6} {:>10.4} {:>12.0} {:>11.3e} {:>11.3e} {:>11.3e}",
+            "{:<9} {:>6} {:>10.4} {:>12.0} {:>12.3e} {:>12.3e} {:>12.3e}",
             s.strategy.name(),
             s.n,
             s.seconds,

@@ -6,7 +6,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// The column names, in order.
-pub const COLUMNS: [&str; 10] = ["strategy", "spp", "seed", "seconds", "rays", "mse", "relmse", "efficiency", "camera_spp", "light_samples"];
+pub const COLUMNS: [&str; 10] =
+    ["strategy", "spp", "seed", "seconds", "rays", "mse", "relmse", "efficiency", "camera_spp", "light_samples"];
 
 /// The CSV text (header and one line per run; floats in shortest round-trip form, `inf` for an
 /// infinite efficiency).

@@ -47,11 +47,8 @@ pub struct LogLogFit {
 /// Least-squares fit of `ln y` against `ln x`. Points with a non-positive or non-finite coordinate are
 /// skipped (a zero error has no logarithm); None if fewer than two distinct `x` remain.
 pub fn fit_loglog(points: &[(f64, f64)]) -> Option<LogLogFit> {
-    let pts: Vec<(f64, f64)> = points
-        .iter()
-        .filter(|(x, y)| x.is_finite() && y.is_finite() && *x > 0.0 && *y > 0.0)
-        .map(|(x, y)| (x.ln(), y.ln()))
-        .collect();
+    let pts: Vec<(f64, f64)> =
+        points.iter().filter(|(x, y)| x.is_finite() && y.is_finite() && *x > 0.0 && *y > 0.0).map(|(x, y)| (x.ln(), y.ln())).collect();
     let n = pts.len() as f64;
     if pts.len() < 2 {
         return None;

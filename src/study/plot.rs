@@ -83,6 +83,13 @@ where
         .configure_mesh()
         .x_desc(x_desc)
         .y_desc("MSE")
+        // Few labels and faint minor lines: plotters' log mesh draws a line per minor tick, which over
+        // a narrow range turns into a grey band.
+        .x_labels(8)
+        .y_labels(8)
+        .max_light_lines(3)
+        .bold_line_style(RGBColor(200, 200, 200))
+        .light_line_style(RGBColor(238, 238, 238))
         .x_label_formatter(&|v| format!("{v:.3}").trim_end_matches('0').trim_end_matches('.').to_string())
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .label_style(("sans-serif", 13))
@@ -140,10 +147,17 @@ pub fn write(path: &Path, summary: &[Summary], strategies: &[Strategy], what: &s
     save_rgb(path, PLOT_SIZE.0, PLOT_SIZE.1, buf)
 }
 
-/// Save an 8-bit RGB buffer as PNG, atomically.
+/// Save an 8-bit RGB buffer as PNG, atomically, with the strongest compression (these images are
+/// meant to be committed next to a README).
 pub fn save_rgb(path: &Path, w: u32, h: u32, buf: Vec<u8>) -> Result<(), String> {
-    let img = image::RgbImage::from_raw(w, h, buf).ok_or("image size mismatch")?;
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    use image::ImageEncoder;
+    if buf.len() != (w * h * 3) as usize {
+        return Err("image size mismatch".into());
+    }
     crate::film::output::write_atomic(path, |tmp| {
-        img.save_with_format(tmp, image::ImageFormat::Png).map_err(|e| format!("{}: {e}", path.display()))
+        let file = std::fs::File::create(tmp).map_err(|e| format!("{}: {e}", path.display()))?;
+        let enc = PngEncoder::new_with_quality(std::io::BufWriter::new(file), CompressionType::Best, FilterType::Adaptive);
+        enc.write_image(&buf, w, h, image::ExtendedColorType::Rgb8).map_err(|e| format!("{}: {e}", path.display()))
     })
 }

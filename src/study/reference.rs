@@ -111,8 +111,16 @@ pub fn cache_paths(out_dir: &Path, key_text: &str) -> (PathBuf, PathBuf) {
     (out_dir.join(format!("{stem}.exr")), out_dir.join(format!("{stem}.txt")))
 }
 
-fn rendered(scene: &Scene, profile: &Profile, integrals: &IntegralSet, n: u32, out_dir: &Path, threads: usize) -> Result<Reference, RefError> {
-    let ref_profile = configure(profile, integrals, Strategy::Jittered, n, false).map_err(|e| RefError::Input(format!("--reference-spp: {e}")))?;
+fn rendered(
+    scene: &Scene,
+    profile: &Profile,
+    integrals: &IntegralSet,
+    n: u32,
+    out_dir: &Path,
+    threads: usize,
+) -> Result<Reference, RefError> {
+    let ref_profile =
+        configure(profile, integrals, Strategy::Jittered, n, false).map_err(|e| RefError::Input(format!("--reference-spp: {e}")))?;
     let key = cache_key_text(scene, &ref_profile);
     let (exr, txt) = cache_paths(out_dir, &key);
     let what = if light_only(integrals) { "light samples" } else { "samples per pixel" };
