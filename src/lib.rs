@@ -30,4 +30,5 @@ pub mod render;
 pub mod sample;
 pub mod scene;
 pub mod simd;
+pub mod study;
 pub mod wavefront;
