@@ -55,11 +55,10 @@ fn validate_intersect(scene: &Scene, qs: &[RayQueue]) {
     assert!(((simd_sum - scalar_sum) / scalar_sum).abs() < 1e-5);
 }
 
-// A list of one scene for now: more bench scenes join it.
-#[allow(clippy::single_element_loop)]
 fn bench_intersect(c: &mut Criterion) {
     let pool = support::pool();
-    for (name, spp) in [("bench_spheres.toml", 1)] {
+    {
+        let (name, spp) = ("bench_spheres.toml", 1);
         let scene = support::scene(name);
         let qs = support::camera_queues(&scene, spp);
         validate_intersect(&scene, &qs);

@@ -70,8 +70,7 @@ pub fn sample_light(light: &Light, p: Vec3, u: [f32; 2]) -> Option<LightSample> 
 fn area_sample(p: Vec3, y: Vec3, n_light: Vec3, area: f32, radiance: Vec3) -> Option<LightSample> {
     let v = y - p;
     let d2 = v.length_squared();
-    // Also rejects NaN.
-    if d2.is_nan() || d2 <= 0.0 {
+    if !(d2 > 0.0) {
         return None;
     }
     let wi = v / d2.sqrt();

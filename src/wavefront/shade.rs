@@ -249,7 +249,7 @@ impl Ctx<'_> {
     #[inline]
     fn spawn(&self, next: &mut RayQueue, mut child: RayItem, pixel: u32, sample: u32, which: u32) {
         let m = child.throughput.max_element();
-        if m.is_nan() || m <= 0.0 {
+        if !(m > 0.0) {
             return;
         }
         let cutoff = self.profile.throughput_cutoff;
