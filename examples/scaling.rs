@@ -10,6 +10,8 @@
 //! behaviour): the same `seconds` (wall time of the render, scene loading excluded) and rays that
 //! `strata render --profile bench --stats-json` reports. Each configuration is rendered `--reps` times and
 //! the fastest run is kept, because the machine is shared and other load only ever slows a run down.
+//! Beside wall-clock rates the tables give rays per CPU-second of the render (from `/proc/self/stat`):
+//! on a loaded machine the wall time measures the load, the CPU time much less so.
 //!
 //! Sphere scenes come from `scenes/tools/gen_bench_spheres.py N` (python3), parsed from memory with
 //! `parse_scene`: a million spheres is ~95 MB of TOML, over the 16 MiB limit of scene *files*, so no
@@ -58,13 +60,40 @@ fn profile(o: &Opts) -> Profile {
     p
 }
 
+/// CPU seconds (user + system, all threads) of this process so far, from `/proc/self/stat` (Linux; in
+/// units of USER_HZ = 100 per second); `None` elsewhere.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name in parentheses: state is field 3, utime 14, stime 15.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+/// One render's statistics and the CPU seconds it consumed.
+struct Run {
+    stats: RenderStats,
+    cpu: Option<f64>,
+}
+
 /// The fastest of `reps` renders (all of them give the same image and ray counts).
-fn best(scene: &Scene, o: &Opts, threads: usize) -> RenderStats {
+fn best(scene: &Scene, o: &Opts, threads: usize) -> Run {
     let settings = Settings { profile: profile(o), seed: 1 };
     (0..o.reps)
-        .map(|_| render(scene, settings.clone(), threads).1)
-        .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
+        .map(|_| {
+            let c0 = cpu_seconds();
+            let stats = render(scene, settings.clone(), threads).1;
+            let cpu = c0.and_then(|c0| cpu_seconds().map(|c1| c1 - c0));
+            Run { stats, cpu }
+        })
+        .min_by(|a, b| a.stats.seconds.total_cmp(&b.stats.seconds))
         .expect("reps >= 1")
+}
+
+/// Rays per CPU-second, in millions ("-" without a CPU clock).
+fn per_cpu(r: &Run) -> String {
+    r.cpu.filter(|&c| c > 0.0).map_or("-".into(), |c| m(r.stats.rays.total as f64 / c))
 }
 
 fn gen_spheres(n: u64) -> Result<String, String> {
@@ -138,60 +167,71 @@ fn run(o: &Opts) -> Result<(), String> {
     println!("profile bench: {} spp, max depth {}, best of {} runs\n", p.spp, p.max_depth, o.reps);
 
     println!("## Threads\n");
-    println!("| scene | rays (M) | 1 thread: s | M rays/s | 2 threads: s | M rays/s | speed-up | second thread adds |");
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "| scene | rays (M) | 1 thread: s | M rays/s | M rays / CPU s | 2 threads: s | M rays/s | M rays / CPU s | \
+         speed-up | second thread adds |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for file in ["bench_spheres.toml", "showcase.toml"] {
         let (scene, _) = load(file, &read_scene(file)?)?;
         let one = best(&scene, o, 1);
         let two = best(&scene, o, 2);
-        let s = one.seconds / two.seconds;
+        let s = one.stats.seconds / two.stats.seconds;
         println!(
-            "| {file} | {} | {:.3} | {} | {:.3} | {} | {s:.2}x | {:.0}% |",
-            m(two.rays.total as f64),
-            one.seconds,
-            m(one.rays_per_second),
-            two.seconds,
-            m(two.rays_per_second),
+            "| {file} | {} | {:.3} | {} | {} | {:.3} | {} | {} | {s:.2}x | {:.0}% |",
+            m(two.stats.rays.total as f64),
+            one.stats.seconds,
+            m(one.stats.rays_per_second),
+            per_cpu(&one),
+            two.stats.seconds,
+            m(two.stats.rays_per_second),
+            per_cpu(&two),
             (s - 1.0) * 100.0
         );
     }
 
     println!("\n## Primitive count (bench_spheres layout, 640x480, 2 threads)\n");
-    println!("| spheres | TOML MB | parse + BVH s | render s | rays (M) | M rays/s | render s / render s at 1e2 |");
-    println!("|---:|---:|---:|---:|---:|---:|---:|");
+    println!("| spheres | TOML MB | parse + BVH s | render s | rays (M) | M rays/s | M rays / CPU s | CPU s / CPU s at 1e2 |");
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
     let mut base = None;
     let mut n = 100u64;
     while n <= o.max_prims {
         let text = gen_spheres(n)?;
         let (scene, load_s) = load(&format!("<gen_bench_spheres.py {n}>"), &text)?;
-        let st = best(&scene, o, 2);
-        let b = *base.get_or_insert(st.seconds);
+        let r = best(&scene, o, 2);
+        let st = &r.stats;
+        // Per ray: the ray count changes a little with N (shadow rays follow the visible surfaces).
+        let cost = r.cpu.filter(|&c| c > 0.0).unwrap_or(st.seconds) / st.rays.total as f64;
+        let b = *base.get_or_insert(cost);
         println!(
-            "| {n} | {:.1} | {load_s:.2} | {:.3} | {} | {} | {:.2} |",
+            "| {n} | {:.1} | {load_s:.2} | {:.3} | {} | {} | {} | {:.2} |",
             text.len() as f64 / 1e6,
             st.seconds,
             m(st.rays.total as f64),
             m(st.rays_per_second),
-            st.seconds / b
+            per_cpu(&r),
+            cost / b
         );
         n *= 10;
     }
 
     println!("\n## Resolution (bench_spheres.toml, 2 threads)\n");
-    println!("| resolution | pixels (M) | render s | rays (M) | M rays/s | s per M pixels |");
-    println!("|---|---:|---:|---:|---:|---:|");
+    println!("| resolution | pixels (M) | render s | rays (M) | M rays/s | M rays / CPU s | CPU s per M pixels |");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
     let text = read_scene("bench_spheres.toml")?;
     for (w, h) in [(160, 120), (320, 240), (640, 480), (1280, 960), (2560, 1920)] {
         let (scene, _) = load("bench_spheres.toml", &with_resolution(&text, w, h))?;
-        let st = best(&scene, o, 2);
+        let r = best(&scene, o, 2);
+        let st = &r.stats;
         let px = (w * h) as f64;
         println!(
-            "| {w}x{h} | {:.3} | {:.3} | {} | {} | {:.3} |",
+            "| {w}x{h} | {:.3} | {:.3} | {} | {} | {} | {:.3} |",
             px / 1e6,
             st.seconds,
             m(st.rays.total as f64),
             m(st.rays_per_second),
-            st.seconds / (px / 1e6)
+            per_cpu(&r),
+            r.cpu.filter(|&c| c > 0.0).unwrap_or(st.seconds) / (px / 1e6)
         );
     }
     Ok(())

@@ -25,10 +25,9 @@ for a in "$@"; do
   esac
 done
 mkdir -p "$OUT"
-rm -f "$OUT"/*.json "$OUT"/*.jsonl "$OUT"/*.wall "$OUT"/*.log
-
-now() { date +%s.%N; }
-elapsed() { python3 -c "import sys; print(f'{float(sys.argv[2]) - float(sys.argv[1]):.3f}')" "$1" "$(now)"; }
+rm -f "$OUT"/*.json "$OUT"/*.jsonl "$OUT"/*.log
+# timed FILE COMMAND...: wall and CPU seconds of the whole process into FILE (JSON).
+timed() { local f=$1; shift; python3 "$HERE/cputime.py" "$f" -- "$@"; }
 
 cargo build --release --quiet
 STRATA=target/release/strata
@@ -45,10 +44,8 @@ cat "$OUT/machine.txt"
 
 strata() { # case scene profile [extra flags...]
   local case=$1 scene=$2 profile=$3; shift 3
-  local t0; t0=$(now)
-  "$STRATA" render "$scene" --profile "$profile" --threads "$THREADS" -q \
+  timed "$OUT/$case.strata.time" "$STRATA" render "$scene" --profile "$profile" --threads "$THREADS" -q \
     -o "$OUT/$case.strata.${EXT:-png}" --stats-json "$OUT/$case.strata.json" "$@"
-  elapsed "$t0" > "$OUT/$case.strata.wall"
   echo "strata $case: $(python3 -c "import json,sys; s=json.load(open(sys.argv[1])); print(f\"{s['seconds']:.2f} s, {s['rays']['total']/1e6:.1f}M rays\")" "$OUT/$case.strata.json")"
 }
 
@@ -57,11 +54,10 @@ strata glass_csg "$HERE/scenes/glass_csg.toml" "$HERE/profiles/pov_match.toml"
 if command -v povray >/dev/null 2>&1; then
   python3 "$HERE/pov_scene.py" "$HERE/scenes/glass_csg.toml" "$HERE/profiles/pov_match.toml" \
     "$OUT/glass_csg.pov" "$OUT/glass_csg.ini" "$OUT/glass_csg.pov.png" "$THREADS"
-  t0=$(now)
   # POV-Ray writes its statistics to stderr; the progress lines go too, keep the log whole.
-  povray "$OUT/glass_csg.ini" > "$OUT/glass_csg.pov.log" 2>&1 || { echo "povray failed: see $OUT/glass_csg.pov.log" >&2; exit 1; }
-  elapsed "$t0" > "$OUT/glass_csg.pov.wall"
-  echo "povray glass_csg: done ($(cat "$OUT/glass_csg.pov.wall") s wall)"
+  timed "$OUT/glass_csg.pov.time" povray "$OUT/glass_csg.ini" > "$OUT/glass_csg.pov.log" 2>&1 \
+    || { echo "povray failed: see $OUT/glass_csg.pov.log" >&2; exit 1; }
+  echo "povray glass_csg: done"
   python3 "$HERE/png_diff.py" "$OUT/glass_csg.strata.png" "$OUT/glass_csg.pov.png" > "$OUT/glass_csg.pov_diff.json"
 else
   echo "SKIPPED POV-Ray: povray is not installed (apt-get install -y povray)"
@@ -69,7 +65,13 @@ fi
 
 # --- (b) Mitsuba 3 -----------------------------------------------------------------------------
 if [ -z "${DRJIT_LIBLLVM_PATH:-}" ]; then
-  DRJIT_LIBLLVM_PATH=$(ls /usr/lib/x86_64-linux-gnu/libLLVM-*.so /usr/lib/llvm-*/lib/libLLVM.so 2>/dev/null | head -n1 || true)
+  # The newest libLLVM (Dr.Jit needs LLVM >= 15; an older one may be installed beside it).
+  DRJIT_LIBLLVM_PATH=$(python3 -c "
+import glob, re
+libs = glob.glob('/usr/lib/x86_64-linux-gnu/libLLVM-*.so') + glob.glob('/usr/lib/llvm-*/lib/libLLVM.so')
+ver = lambda p: int(re.search(r'(?:LLVM-|llvm-)(\d+)', p).group(1))
+libs = [p for p in libs if ver(p) >= 15]
+print(max(libs, key=ver) if libs else '')")
   export DRJIT_LIBLLVM_PATH
 fi
 HAVE_MITSUBA=1
@@ -83,11 +85,9 @@ for kind in path direct; do
   case=spheres_$kind
   EXT=exr strata "$case" "$HERE/scenes/spheres_area.toml" "$HERE/profiles/mitsuba_$kind.toml" --spp "$MITSUBA_SPP"
   if [ "$HAVE_MITSUBA" = 1 ]; then
-    t0=$(now)
-    python3 "$HERE/mitsuba_scene.py" render "$HERE/scenes/spheres_area.toml" "$HERE/profiles/mitsuba_$kind.toml" \
+    timed "$OUT/$case.mitsuba.time" python3 "$HERE/mitsuba_scene.py" render "$HERE/scenes/spheres_area.toml" "$HERE/profiles/mitsuba_$kind.toml" \
       --threads "$THREADS" --spp "$MITSUBA_SPP" --exr "$OUT/$case.mitsuba.exr" --json "$OUT/$case.mitsuba.json" > /dev/null
-    elapsed "$t0" > "$OUT/$case.mitsuba.wall"
-    echo "mitsuba $case: done ($(cat "$OUT/$case.mitsuba.wall") s wall)"
+    echo "mitsuba $case: done"
     if [ "$QUALITY" = 1 ]; then
       ref="$OUT/$case.ref$REF_SPP.exr"
       if ! [ -f "$ref" ]; then

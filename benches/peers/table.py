@@ -4,9 +4,16 @@
     table.py OUT
 
 Files read (each optional; a missing one is a skipped peer): `{case}.strata.json` (`strata render
---stats-json`), `{case}.strata.wall` and `{case}.pov.wall` / `{case}.mitsuba.wall` (process wall
-seconds), `{case}.pov.log` (POV-Ray's statistics), `{case}.mitsuba.json` (mitsuba_scene.py), and
+--stats-json`), `{case}.{strata,pov,mitsuba}.time` (process wall and CPU seconds, cputime.py),
+`{case}.pov.log` (POV-Ray's statistics), `{case}.mitsuba.json` (mitsuba_scene.py), and
 `{case}.quality.jsonl` (mitsuba_scene.py compare), `{case}.pov_diff.json`, `machine.txt`.
+
+Columns: "render s" is each renderer's own render time (Strata: `seconds` of the stats, scene loading
+excluded; POV-Ray: Trace Time; Mitsuba: the fastest warm `mi.render` call, JIT excluded); "CPU s" the
+CPU seconds of that phase where the renderer exposes them (POV-Ray: its trace CPU-seconds; Mitsuba:
+getrusage around the warm render) or of the whole process (Strata: parse + BVH + render + writing the
+image; the first two take milliseconds here); "M rays / CPU s" x threads estimates the rate on
+otherwise idle cores.
 """
 import json
 import os
@@ -40,7 +47,9 @@ def parse_pov(log):
     samples = num(r"Samples:\s+(\d+)")
     if trace is None or rays is None or shadow is None:
         return None
-    return {"seconds": trace, "rays": rays + shadow, "camera_and_secondary": rays, "shadow": shadow, "samples": samples}
+    cpu = num(r"Trace Time:.*\n.*with ([\d.]+) CPU-seconds total")
+    return {"seconds": trace, "cpu": cpu, "rays": rays + shadow, "camera_and_secondary": rays, "shadow": shadow,
+            "samples": samples}
 
 
 def fmt(x, nd=2):
@@ -56,16 +65,18 @@ def main():
         if s is None:
             continue
         s = json.loads(s)
-        s_wall = read(os.path.join(out, f"{case}.strata.wall"))
-        strata = {"seconds": s["seconds"], "rays": s["rays"]["total"], "wall": float(s_wall) if s_wall else None}
+        s_time = read(os.path.join(out, f"{case}.strata.time"))
+        s_time = json.loads(s_time) if s_time else {}
+        strata = {"seconds": s["seconds"], "rays": s["rays"]["total"], "wall": s_time.get("wall"), "cpu": s_time.get("cpu")}
         rows.append((title, "Strata", strata, f"own counters: camera {s['rays']['camera'] / 1e6:.2f}M, "
                      f"secondary {s['rays']['secondary'] / 1e6:.2f}M, shadow {s['rays']['shadow'] / 1e6:.2f}M"))
-        p_wall = read(os.path.join(out, f"{case}.{peer}.wall"))
+        p_time = read(os.path.join(out, f"{case}.{peer}.time"))
+        p_wall = json.loads(p_time)["wall"] if p_time else None
         if peer == "pov":
             log = read(os.path.join(out, f"{case}.pov.log"))
             p = parse_pov(log) if log else None
             if p:
-                p["wall"] = float(p_wall) if p_wall else None
+                p["wall"] = p_wall
                 rows.append((title, "POV-Ray 3.7", p, f"own counters: Rays {p['camera_and_secondary'] / 1e6:.2f}M "
                              f"(camera + reflected + refracted; {p['samples'] / 1e6:.2f}M AA samples) "
                              f"+ Shadow Ray Tests {p['shadow'] / 1e6:.2f}M"))
@@ -80,7 +91,7 @@ def main():
             m = read(os.path.join(out, f"{case}.mitsuba.json"))
             if m:
                 m = json.loads(m)
-                mit = {"seconds": m["seconds"], "rays": m["rays_estimated"], "wall": float(p_wall) if p_wall else None}
+                mit = {"seconds": m["seconds"], "rays": m["rays_estimated"], "wall": p_wall, "cpu": m.get("cpu_seconds")}
                 rows.append((title, f"Mitsuba {m['version']} {m['variant']}", mit,
                              f"estimated: {m['paths'] / 1e6:.1f}M paths x {m['rays_per_path']:.3f} rays/path "
                              f"({m['shadow_rays_per_path']:.3f} shadow) from a counting replay; "
@@ -97,20 +108,25 @@ def main():
                                  f"{r.get('ref_spp', '?')} spp Mitsuba reference (image mean {r['mean']:.4f}, "
                                  f"reference mean {r['ref_mean']:.4f}).")
 
-    print("| scene | renderer | render s | process wall s | rays (M) | M rays/s | Strata time / peer time | rays counted by |")
-    print("|---|---|---:|---:|---:|---:|---:|---|")
-    strata_time = {}
+    print("| scene | renderer | render s | CPU s | process wall s | rays (M) | M rays/s | M rays / CPU s | "
+          "Strata time / peer time | rays counted by |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---|")
+    strata_time, strata_cpu = {}, {}
     for title, who, r, how in rows:
         if r is None:
-            print(f"| {title} | {who} | - | - | - | - | - | {how} |")
+            print(f"| {title} | {who} | - | - | - | - | - | - | - | {how} |")
             continue
         if who == "Strata":
-            strata_time[title] = r["seconds"]
+            strata_time[title], strata_cpu[title] = r["seconds"], r.get("cpu")
             ratio = "1"
         else:
             ratio = fmt(strata_time[title] / r["seconds"], 3) if title in strata_time else "-"
-        print(f"| {title} | {who} | {fmt(r['seconds'])} | {fmt(r['wall'])} | {fmt(r['rays'] / 1e6, 1)} | "
-              f"{fmt(r['rays'] / r['seconds'] / 1e6)} | {ratio} | {how} |")
+            if strata_cpu.get(title) and r.get("cpu"):
+                ratio += f" (CPU {strata_cpu[title] / r['cpu']:.3f})"
+        cpu = r.get("cpu")
+        per_cpu = fmt(r["rays"] / cpu / 1e6) if cpu else "-"
+        print(f"| {title} | {who} | {fmt(r['seconds'])} | {fmt(cpu)} | {fmt(r['wall'])} | {fmt(r['rays'] / 1e6, 1)} | "
+              f"{fmt(r['rays'] / r['seconds'] / 1e6)} | {per_cpu} | {ratio} | {how} |")
     for n in notes:
         print(f"\n- {n}")
     m = read(os.path.join(out, "machine.txt"))
