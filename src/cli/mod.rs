@@ -1,6 +1,7 @@
 //! Command-line interface. Exit codes: 0 success, 1 a failure while running (e.g. writing output),
 //! 2 bad input (scene, profile, flags), 130 interrupted (the accumulated image is still written).
 
+pub mod merge_cmd;
 pub mod render_cmd;
 
 use clap::{Parser, Subcommand};
@@ -17,6 +18,8 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene to PNG or EXR.
     Render(render_cmd::RenderArgs),
+    /// Sum the films of sample ranges into one image (and film), exactly; --status lists the ranges.
+    Merge(merge_cmd::MergeArgs),
 }
 
 /// An error with its exit code.
@@ -38,6 +41,7 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Render(a) => render_cmd::run(a),
+        Command::Merge(a) => merge_cmd::run(a),
     };
     match r {
         Ok(code) => ExitCode::from(code),

@@ -5,6 +5,8 @@
 //! films of disjoint sample ranges add up to exactly (bit for bit) the film of their union. A sample whose
 //! value is not finite or exceeds [`MAX_SAMPLE_VALUE`] is discarded and counted, never accumulated.
 
+pub mod checksum;
+pub mod file;
 pub mod output;
 
 use glam::Vec3;
