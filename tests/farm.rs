@@ -174,7 +174,10 @@ fn cli_merge_of_ranges_is_bit_identical_to_one_render() {
     ok(render(&sc, &["-o", s(&p("b.exr")), "--film", s(&p("b.film")), "--samples", "1..4", "--threads", "2"]));
     ok(render(&sc, &["-o", s(&p("c.exr")), "--film", s(&p("c.film")), "--samples", "4..6"]));
     // Given out of order on purpose.
-    let o = ok(strata().args(["merge", s(&p("c.film")), s(&p("a.film")), s(&p("b.film")), "-o", s(&p("m.exr")), "--film", s(&p("m.film"))]).output().unwrap());
+    let o = ok(strata()
+        .args(["merge", s(&p("c.film")), s(&p("a.film")), s(&p("b.film")), "-o", s(&p("m.exr")), "--film", s(&p("m.film"))])
+        .output()
+        .unwrap());
     assert!(String::from_utf8_lossy(&o.stdout).contains("samples 0..6"));
     assert!(bytes(&p("m.exr")) == bytes(&p("full.exr")), "merged EXR differs from the one-process EXR");
     assert!(bytes(&p("m.film")) == bytes(&p("full.film")), "merged film differs from the one-process film");
@@ -246,13 +249,15 @@ fn cli_ctrl_c_writes_a_film_that_resumes_exactly() {
     let d = dir("sigint");
     let sc = d.join("big.toml");
     // ~0.5 s of work on one thread: long enough to be interrupted after the first checkpoint.
-    std::fs::write(&sc, scene_text().replace(&format!("width = {W}"), "width = 160").replace(&format!("height = {H}"), "height = 100")).unwrap();
+    std::fs::write(&sc, scene_text().replace(&format!("width = {W}"), "width = 160").replace(&format!("height = {H}"), "height = 100"))
+        .unwrap();
     let p = |n: &str| d.join(n);
     let args = |out: &Path| {
-        let mut a: Vec<String> = ["render", s(&sc), "--profile", "final", "--spp", "64", "--threads", "1", "--seed", "3", "-q", "-o", s(out)]
-            .iter()
-            .map(|x| x.to_string())
-            .collect();
+        let mut a: Vec<String> =
+            ["render", s(&sc), "--profile", "final", "--spp", "64", "--threads", "1", "--seed", "3", "-q", "-o", s(out)]
+                .iter()
+                .map(|x| x.to_string())
+                .collect();
         a.extend(["--film", s(&p("run.film")), "--checkpoint-every", "0.05"].iter().map(|x| x.to_string()));
         a
     };
@@ -331,7 +336,10 @@ fn cli_merge_refuses_mismatched_films_and_writes_nothing() {
     // --allow-gaps merges a gap into an image, but never into a film (it records one contiguous range).
     ok(strata().args(["merge", s(&p("a.film")), s(&p("e.film")), "-o", s(&p("gaps.exr")), "--allow-gaps"]).output().unwrap());
     refused(
-        &strata().args(["merge", s(&p("a.film")), s(&p("e.film")), "-o", s(&p("g.exr")), "--allow-gaps", "--film", s(&p("g.film"))]).output().unwrap(),
+        &strata()
+            .args(["merge", s(&p("a.film")), s(&p("e.film")), "-o", s(&p("g.exr")), "--allow-gaps", "--film", s(&p("g.film"))])
+            .output()
+            .unwrap(),
         &["cannot write a merged film"],
     );
     // --status on a damaged film names it and exits 2.

@@ -8,6 +8,8 @@ use crate::film::file::{check_film_writable, read_film, write_film, FilmFile, Fi
 use crate::film::output::{check_writable, write_image};
 use crate::render::unit_count;
 use clap::Args;
+use std::fmt::Write as _;
+use std::io::Write as _;
 use std::ops::Range;
 use std::path::PathBuf;
 
@@ -172,6 +174,13 @@ fn missing_ranges(spp: u32, present: &[Range<u32>]) -> Vec<Range<u32>> {
 
 /// `strata merge --status`: one line per film, then the ranges present, partial and missing.
 fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
+    // Printed at once at the end, ignoring a closed pipe (`strata merge --status ... | head`).
+    let mut out = String::new();
+    macro_rules! say {
+        ($($t:tt)*) => {{
+            let _ = writeln!(out, $($t)*);
+        }};
+    }
     let mut ok: Vec<(PathBuf, FilmHeader)> = Vec::new();
     let mut failed = false;
     let width = paths.iter().map(|p| p.display().to_string().len()).max().unwrap_or(0);
@@ -179,7 +188,7 @@ fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
         match read_film(p) {
             Err(e) => {
                 failed = true;
-                println!("{:width$}  unreadable: {e}", p.display());
+                say!("{:width$}  unreadable: {e}", p.display());
             }
             Ok(f) => {
                 let h = f.header;
@@ -187,13 +196,13 @@ fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
                     let d = h0.identity_differences(&h, (&p0.display().to_string(), &p.display().to_string()));
                     if !d.is_empty() {
                         failed = true;
-                        println!("{:width$}  from a different render than {}: {}", p.display(), p0.display(), d.join("; "));
+                        say!("{:width$}  from a different render than {}: {}", p.display(), p0.display(), d.join("; "));
                         continue;
                     }
                 }
                 let pct = 100.0 * h.units_done() as f64 / h.completed.len().max(1) as f64;
                 let state = if h.is_complete() { "complete".to_string() } else { format!("partial {pct:.1}%") };
-                println!(
+                say!(
                     "{:width$}  samples {:>11}  {state} ({} of {} work units)",
                     p.display(),
                     range_text(&h.samples),
@@ -206,27 +215,29 @@ fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
     }
     if let Some((_, h0)) = ok.first() {
         let spp = h0.spp;
-        println!("render: {}x{}, scene {:016x}, seed {}, spp {spp}", h0.width, h0.height, h0.scene_hash, h0.seed);
+        say!("render: {}x{}, scene {:016x}, seed {}, spp {spp}", h0.width, h0.height, h0.scene_hash, h0.seed);
         let complete: Vec<Range<u32>> = ok.iter().filter(|(_, h)| h.is_complete()).map(|(_, h)| h.samples.clone()).collect();
         let partial: Vec<&(PathBuf, FilmHeader)> = ok.iter().filter(|(_, h)| !h.is_complete()).collect();
         let all: Vec<Range<u32>> = ok.iter().map(|(_, h)| h.samples.clone()).collect();
-        let list = |rs: &[Range<u32>]| if rs.is_empty() { "none".to_string() } else { rs.iter().map(range_text).collect::<Vec<_>>().join(", ") };
+        let list =
+            |rs: &[Range<u32>]| if rs.is_empty() { "none".to_string() } else { rs.iter().map(range_text).collect::<Vec<_>>().join(", ") };
         let mut sorted = complete.clone();
         sorted.sort_by_key(|r| r.start);
-        println!("present (complete): {}", list(&sorted));
+        say!("present (complete): {}", list(&sorted));
         if !partial.is_empty() {
             let v: Vec<String> = partial.iter().map(|(p, h)| format!("{} ({})", range_text(&h.samples), p.display())).collect();
-            println!("partial: {}", v.join(", "));
+            say!("partial: {}", v.join(", "));
         }
         let missing = missing_ranges(spp, &all);
-        println!("missing: {}", list(&missing));
+        say!("missing: {}", list(&missing));
         let done: u32 = complete.iter().map(|r| r.len() as u32).sum();
         let overlaps = overlap_lines(&ok);
         for o in &overlaps {
-            println!("overlap: {o}");
+            say!("overlap: {o}");
         }
-        println!("complete samples: {done} of {spp}{}", if done == spp && overlaps.is_empty() { " (ready to merge)" } else { "" });
+        say!("complete samples: {done} of {spp}{}", if done == spp && overlaps.is_empty() { " (ready to merge)" } else { "" });
     }
+    let _ = std::io::stdout().write_all(out.as_bytes());
     Ok(if failed { 2 } else { 0 })
 }
 

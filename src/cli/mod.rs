@@ -1,5 +1,6 @@
 //! Command-line interface. Exit codes: 0 success, 1 a failure while running (e.g. writing output),
-//! 2 bad input (scene, profile, flags), 130 interrupted (the accumulated image is still written).
+//! 2 bad input (scene, profile, flags), 130 interrupted by SIGINT or SIGTERM (the accumulated image and its
+//! film are still written).
 
 pub mod merge_cmd;
 pub mod render_cmd;

@@ -283,7 +283,7 @@ impl Progress {
             b.set_position(done as u64);
             b
         });
-        let tenths = if total == 0 { 10 } else { done * 10 / total };
+        let tenths = (done * 10).checked_div(total).unwrap_or(10);
         Progress { bar, label: label.to_string(), quiet, logged_tenths: AtomicUsize::new(tenths), start: Instant::now() }
     }
 

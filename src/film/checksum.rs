@@ -37,7 +37,8 @@ pub fn xxh64(data: &[u8]) -> u64 {
             }
             i += 32;
         }
-        let mut h = v[0].rotate_left(1).wrapping_add(v[1].rotate_left(7)).wrapping_add(v[2].rotate_left(12)).wrapping_add(v[3].rotate_left(18));
+        let mut h =
+            v[0].rotate_left(1).wrapping_add(v[1].rotate_left(7)).wrapping_add(v[2].rotate_left(12)).wrapping_add(v[3].rotate_left(18));
         for acc in v {
             h = merge_round(h, acc);
         }

@@ -106,10 +106,7 @@ impl FilmHeader {
             d.push(format!("image size: {a} {}x{}, {b} {}x{}", self.width, self.height, other.width, other.height));
         }
         if self.scene_hash != other.scene_hash {
-            d.push(format!(
-                "scene: {a} {:016x}, {b} {:016x} (the scene file's text differs)",
-                self.scene_hash, other.scene_hash
-            ));
+            d.push(format!("scene: {a} {:016x}, {b} {:016x} (the scene file's text differs)", self.scene_hash, other.scene_hash));
         }
         if self.seed != other.seed {
             d.push(format!("seed: {a} {}, {b} {}", self.seed, other.seed));
@@ -220,11 +217,8 @@ pub fn decode(bytes: &[u8]) -> Result<FilmFile, String> {
     let profile_len = c.u32() as usize;
 
     // The size the header implies (u128: a corrupted header must not overflow the arithmetic).
-    let expected = FIXED_HEADER as u128
-        + profile_len as u128
-        + n_units.div_ceil(8) as u128
-        + width as u128 * height as u128 * PIXEL_BYTES as u128
-        + 8;
+    let expected =
+        FIXED_HEADER as u128 + profile_len as u128 + n_units.div_ceil(8) as u128 + width as u128 * height as u128 * PIXEL_BYTES as u128 + 8;
     let stored_sum = u64::from_le_bytes(bytes[len - 8..].try_into().unwrap());
     if xxh64(&bytes[..len - 8]) != stored_sum {
         return Err(if expected != len as u128 {
@@ -255,7 +249,8 @@ pub fn decode(bytes: &[u8]) -> Result<FilmFile, String> {
     if profile_len > MAX_PROFILE_RECORD {
         return bad(format!("profile record of {profile_len} bytes"));
     }
-    let profile = String::from_utf8(c.take(profile_len).to_vec()).map_err(|_| "inconsistent header: profile record is not UTF-8".to_string())?;
+    let profile =
+        String::from_utf8(c.take(profile_len).to_vec()).map_err(|_| "inconsistent header: profile record is not UTF-8".to_string())?;
     if xxh64(profile.as_bytes()) != profile_hash {
         return bad("profile hash does not match the profile record".into());
     }
