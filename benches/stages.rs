@@ -61,7 +61,8 @@ fn validate_intersect(scene: &Scene, qs: &[RayQueue]) {
 
 fn bench_intersect(c: &mut Criterion) {
     let pool = support::pool();
-    for (name, spp) in [("bench_spheres.toml", 1)] {
+    {
+        let (name, spp) = ("bench_spheres.toml", 1);
         let scene = support::scene(name);
         let qs = support::camera_queues(&scene, spp);
         validate_intersect(&scene, &qs);

@@ -98,8 +98,9 @@ pub fn render_into(job: &RenderJob, film: Film) -> (Film, RenderStats) {
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let totals = Mutex::new((Counters::default(), StageTimes::default()));
-    let t0 = Instant::now();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
+    // The clock starts after the pool exists: thread start-up is not render time.
+    let t0 = Instant::now();
     pool.broadcast(|_| {
         let mut wf = Wavefront::new(&scene.features);
         loop {

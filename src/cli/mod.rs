@@ -2,6 +2,7 @@
 //! 2 bad input (scene, profile, flags), 130 interrupted (the accumulated image is still written).
 
 pub mod render_cmd;
+pub mod study_cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -17,6 +18,8 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene to PNG or EXR.
     Render(render_cmd::RenderArgs),
+    /// Measure error, time and efficiency of sampling strategies against a reference (CSV, plot, sheet).
+    Study(study_cmd::StudyArgs),
 }
 
 /// An error with its exit code.
@@ -38,6 +41,7 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Render(a) => render_cmd::run(a),
+        Command::Study(a) => study_cmd::run(a),
     };
     match r {
         Ok(code) => ExitCode::from(code),

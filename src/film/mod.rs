@@ -32,8 +32,8 @@ impl Pixel {
         if !a.iter().all(|x| x.abs() < MAX_SAMPLE_VALUE) {
             return false;
         }
-        for c in 0..3 {
-            let q = (a[c] as f64 * FIXED_ONE).round() as i64 as i128;
+        for (c, &x) in a.iter().enumerate() {
+            let q = (x as f64 * FIXED_ONE).round() as i64 as i128;
             self.sum[c] += q;
             self.sum_sq[c] += (q * q) >> 32;
         }

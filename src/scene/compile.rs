@@ -336,7 +336,7 @@ impl Compiler<'_> {
                     }
                     (None, Some(c), None) => {
                         let [a, b] = *c.get_ref();
-                        if !(a.is_finite() && b.is_finite() && a >= 1.0 && a <= 10.0 && b >= 0.0 && b < 1.0) {
+                        if !(a.is_finite() && b.is_finite() && (1.0..=10.0).contains(&a) && (0.0..1.0).contains(&b)) {
                             return Err(self.err(
                                 c.span(),
                                 f("cauchy"),
