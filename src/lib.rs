@@ -18,6 +18,9 @@
 //!   film -> PNG / EXR + summary (rays per kind, rays/s, time per stage)
 //! ```
 
+// `!(x > 0.0)` is deliberate throughout: it is also true for NaN, which must take the rejecting branch.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod accel;
 pub mod camera;
 pub mod cli;
@@ -30,4 +33,5 @@ pub mod render;
 pub mod sample;
 pub mod scene;
 pub mod simd;
+pub mod study;
 pub mod wavefront;

@@ -78,7 +78,11 @@ fn area_sample(p: Vec3, y: Vec3, n_light: Vec3, area: f32, radiance: Vec3) -> Op
     if cos_l <= 0.0 {
         return None; // one-sided emitters: the receiver is behind the light
     }
-    Some(LightSample { target: offset_ray_origin(y, -n_light), wi, weight: radiance * (cos_l * area / d2) })
+    // The receiver is on the emitting side (`n_light` points to it): the target moves off the light
+    // towards it, so the shadow segment never has to cross the light's own surface. (Offsetting to the
+    // back made grazing shadow rays cross the light plane before `SHADOW_END`: walls beside a ceiling
+    // light came out black near the ceiling.)
+    Some(LightSample { target: offset_ray_origin(y, n_light), wi, weight: radiance * (cos_l * area / d2) })
 }
 
 /// How many samples a light gets per shading point (delta lights need one).

@@ -6,6 +6,10 @@
 //! so a render stopped early has (nearly) the same number of samples in every pixel. Neither the order nor
 //! the number of threads changes the image: every random number is a function of (seed, pixel, sample,
 //! dimension) and the film adds in exact fixed point.
+//!
+//! A render can start from a film that already holds some units ([`render_resumable`]: resume) and can
+//! hand out consistent snapshots while it runs ([`Checkpoint`]): a snapshot holds exactly the units it
+//! marks complete, so resuming from it never counts a unit twice or misses one.
 
 use crate::film::Film;
 use crate::scene::Scene;
@@ -14,8 +18,8 @@ use crate::wavefront::{render_unit, Counters, Settings, StageTimes, Wavefront, W
 use serde::Serialize;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::Mutex;
-use std::time::Instant;
+use std::sync::{Mutex, RwLock};
+use std::time::{Duration, Instant};
 
 /// Tile side in pixels.
 pub const TILE: u32 = 16;
@@ -59,21 +63,44 @@ pub struct RenderJob<'a> {
     pub samples: Range<u32>,
     pub tile: u32,
     pub cancel: Option<&'a AtomicBool>,
-    /// Called after each finished work unit with (done, total).
+    /// Called after each finished work unit with (done, total); `done` counts units resumed from the film.
     pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
+    /// Periodic consistent snapshots of the film.
+    pub checkpoint: Option<Checkpoint<'a>>,
+}
+
+/// Every `every`, a worker pauses the others between units and calls `write(film, completed)` with a
+/// copy of the film and one flag per work unit ([`work_units`] order): the film holds exactly the
+/// flagged units.
+#[derive(Clone, Copy)]
+pub struct Checkpoint<'a> {
+    pub every: Duration,
+    pub write: &'a (dyn Fn(&Film, &[bool]) + Sync),
 }
 
 impl<'a> RenderJob<'a> {
     pub fn new(scene: &'a Scene, settings: Settings) -> Self {
         let spp = settings.profile.spp;
-        RenderJob { scene, settings, threads: 0, samples: 0..spp, tile: TILE, cancel: None, progress: None }
+        RenderJob { scene, settings, threads: 0, samples: 0..spp, tile: TILE, cancel: None, progress: None, checkpoint: None }
     }
+}
+
+/// Samples per work unit for a tile side.
+fn batch_size(tile: u32) -> u32 {
+    (WAVEFRONT_PATHS / (tile * tile)).max(1)
+}
+
+/// `work_units(..).len()` without building the list.
+pub fn unit_count(width: u32, height: u32, tile: u32, samples: Range<u32>) -> usize {
+    let tile = tile.max(1);
+    let batches = samples.len().div_ceil(batch_size(tile) as usize);
+    width.div_ceil(tile) as usize * height.div_ceil(tile) as usize * batches
 }
 
 /// The work units of a render, in the order they are taken.
 pub fn work_units(width: u32, height: u32, tile: u32, samples: Range<u32>) -> Vec<WorkUnit> {
     let tile = tile.max(1);
-    let batch = (WAVEFRONT_PATHS / (tile * tile)).max(1);
+    let batch = batch_size(tile);
     let mut units = Vec::new();
     let mut s = samples.start;
     while s < samples.end {
@@ -91,15 +118,35 @@ pub fn work_units(width: u32, height: u32, tile: u32, samples: Range<u32>) -> Ve
 
 /// Render into `film` (which may already hold other samples). Returns the statistics of this call.
 pub fn render_into(job: &RenderJob, film: Film) -> (Film, RenderStats) {
+    let n = unit_count(job.scene.width, job.scene.height, job.tile, job.samples.clone());
+    let (film, _, stats) = render_resumable(job, film, vec![false; n]);
+    (film, stats)
+}
+
+/// Render the work units not flagged in `completed` (one flag per unit of [`work_units`]) into `film`,
+/// which holds exactly the flagged ones. Returns the film, the flags after this call (all set unless
+/// cancelled) and the statistics of this call.
+pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (Film, Vec<bool>, RenderStats) {
     let scene = job.scene;
     let units = work_units(scene.width, scene.height, job.tile, job.samples.clone());
+    assert_eq!(completed.len(), units.len(), "one completion flag per work unit");
+    let todo: Vec<usize> = (0..units.len()).filter(|&i| !completed[i]).collect();
+    let resumed = units.len() - todo.len();
+    let flags: Vec<AtomicBool> = completed.iter().map(|&c| AtomicBool::new(c)).collect();
     let threads = if job.threads == 0 { rayon::current_num_threads() } else { job.threads };
     let film = Mutex::new(film);
+    // Workers hold `gate` for reading while a unit goes into the film and gets its flag; a snapshot
+    // takes it for writing, so it never sees a unit accumulated but not flagged (or the reverse).
+    // `pause` keeps workers from starting units while a snapshot waits, whatever the lock's fairness.
+    let gate = RwLock::new(());
+    let pause = AtomicBool::new(false);
+    let next_checkpoint = Mutex::new(job.checkpoint.map(|c| Instant::now() + c.every));
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let totals = Mutex::new((Counters::default(), StageTimes::default()));
-    let t0 = Instant::now();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
+    // The clock starts after the pool exists: thread start-up is not render time.
+    let t0 = Instant::now();
     pool.broadcast(|_| {
         let mut wf = Wavefront::new(&scene.features);
         loop {
@@ -107,13 +154,33 @@ pub fn render_into(job: &RenderJob, film: Film) -> (Film, RenderStats) {
                 break;
             }
             let i = next.fetch_add(1, Ordering::Relaxed);
-            if i >= units.len() {
+            if i >= todo.len() {
                 break;
             }
-            render_unit(scene, &job.settings, &units[i], &mut wf, &film);
+            while pause.load(Ordering::Acquire) {
+                std::thread::sleep(Duration::from_micros(200));
+            }
+            {
+                let _unit = gate.read().unwrap_or_else(|e| e.into_inner());
+                render_unit(scene, &job.settings, &units[todo[i]], &mut wf, &film);
+                flags[todo[i]].store(true, Ordering::Relaxed);
+            }
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             if let Some(p) = job.progress {
-                p(d, units.len());
+                p(resumed + d, units.len());
+            }
+            if let (Some(cp), Ok(mut due)) = (job.checkpoint, next_checkpoint.try_lock()) {
+                if due.is_some_and(|t| Instant::now() >= t) {
+                    pause.store(true, Ordering::Release);
+                    let (snapshot, snapshot_flags) = {
+                        let _all = gate.write().unwrap_or_else(|e| e.into_inner());
+                        let f = film.lock().unwrap_or_else(|e| e.into_inner()).clone();
+                        (f, flags.iter().map(|f| f.load(Ordering::Relaxed)).collect::<Vec<bool>>())
+                    };
+                    pause.store(false, Ordering::Release);
+                    (cp.write)(&snapshot, &snapshot_flags);
+                    *due = Some(Instant::now() + cp.every);
+                }
             }
         }
         let mut t = totals.lock().unwrap();
@@ -123,6 +190,7 @@ pub fn render_into(job: &RenderJob, film: Film) -> (Film, RenderStats) {
     let seconds = t0.elapsed().as_secs_f64();
     let (c, times) = totals.into_inner().unwrap();
     let film = film.into_inner().unwrap();
+    let completed: Vec<bool> = flags.into_iter().map(|f| f.into_inner()).collect();
     let rays = RayCounts { camera: c.camera_rays, secondary: c.secondary_rays, shadow: c.shadow_rays, total: c.total_rays() };
     let stats = RenderStats {
         width: scene.width,
@@ -137,10 +205,10 @@ pub fn render_into(job: &RenderJob, film: Film) -> (Film, RenderStats) {
         nonfinite_samples: c.nonfinite_samples,
         csg_candidates: c.csg_candidates,
         stage_seconds: times,
-        completed: done.load(Ordering::Relaxed) == units.len(),
+        completed: completed.iter().all(|&c| c),
         features: scene.features,
     };
-    (film, stats)
+    (film, completed, stats)
 }
 
 /// Render a whole image with default options.

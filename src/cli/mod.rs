@@ -1,7 +1,10 @@
 //! Command-line interface. Exit codes: 0 success, 1 a failure while running (e.g. writing output),
-//! 2 bad input (scene, profile, flags), 130 interrupted (the accumulated image is still written).
+//! 2 bad input (scene, profile, flags), 130 interrupted by SIGINT or SIGTERM (the accumulated image and its
+//! film are still written).
 
+pub mod merge_cmd;
 pub mod render_cmd;
+pub mod study_cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -17,6 +20,10 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene to PNG or EXR.
     Render(render_cmd::RenderArgs),
+    /// Measure error, time and efficiency of sampling strategies against a reference (CSV, plot, sheet).
+    Study(study_cmd::StudyArgs),
+    /// Sum the films of sample ranges into one image (and film), exactly; --status lists the ranges.
+    Merge(merge_cmd::MergeArgs),
 }
 
 /// An error with its exit code.
@@ -38,6 +45,8 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Render(a) => render_cmd::run(a),
+        Command::Study(a) => study_cmd::run(a),
+        Command::Merge(a) => merge_cmd::run(a),
     };
     match r {
         Ok(code) => ExitCode::from(code),

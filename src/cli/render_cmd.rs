@@ -1,16 +1,20 @@
-//! `strata render`.
+//! `strata render`, including sample ranges, film files, checkpoints and resume (see `docs/farm.md`).
 
 use super::Failure;
+use crate::film::file::{check_film_writable, profile_record, read_film, write_film, FilmHeader};
 use crate::film::output::{check_writable, write_image};
 use crate::film::Film;
-use crate::render::{render_into, RenderJob, RenderStats};
+use crate::render::{render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
 use crate::scene::{load_scene, Profile, Scene};
 use crate::wavefront::Settings;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 #[derive(Args, Debug, Clone)]
 pub struct RenderArgs {
@@ -52,6 +56,19 @@ pub struct RenderArgs {
     /// No progress bar or summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Render only the sample indices A..B (0 <= A < B <= spp); combine ranges with `strata merge`.
+    #[arg(long, value_name = "A..B")]
+    pub samples: Option<String>,
+    /// Also write the raw film (exact sums, sample range, completed work units) for resume and merge.
+    #[arg(long, value_name = "PATH")]
+    pub film: Option<PathBuf>,
+    /// Write the film every SECONDS while rendering (to --film, else back to the --resume film).
+    #[arg(long, value_name = "SECONDS")]
+    pub checkpoint_every: Option<f64>,
+    /// Continue the render saved in FILM (a checkpoint or the film of an interrupted render): completed
+    /// work units are skipped, and the result is bit-identical to an uninterrupted render.
+    #[arg(long, value_name = "FILM")]
+    pub resume: Option<PathBuf>,
 }
 
 /// Load the profile named on the command line and apply the overrides.
@@ -88,6 +105,38 @@ pub fn default_output(scene: &Path, ext: &str) -> PathBuf {
     PathBuf::from(format!("{stem}.{ext}"))
 }
 
+/// Parse `--samples A..B` against the profile's spp.
+pub fn parse_samples(text: &str, spp: u32) -> Result<Range<u32>, Failure> {
+    let bad = || Failure::input(format!("--samples {text}: expected A..B with 0 <= A < B <= spp ({spp})"));
+    let (a, b) = text.split_once("..").ok_or_else(bad)?;
+    let (a, b): (u32, u32) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
+    if a < b && b <= spp {
+        Ok(a..b)
+    } else {
+        Err(bad())
+    }
+}
+
+/// The film written when a render is interrupted and no --film or --resume names one: beside the image.
+fn interrupt_film_path(out: &Path) -> PathBuf {
+    out.with_extension("film")
+}
+
+/// Why a film cannot be resumed by this render, if it cannot.
+fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
+    let mut d = film.identity_differences(this, ("film", "this render"));
+    if film.samples != this.samples {
+        d.push(format!(
+            "sample range: film {}..{}, this render {}..{} (pass --samples {}..{})",
+            film.samples.start, film.samples.end, this.samples.start, this.samples.end, film.samples.start, film.samples.end
+        ));
+    }
+    if film.tile != this.tile {
+        d.push(format!("tile: film {}, this render {} (pass --tile {})", film.tile, this.tile, film.tile));
+    }
+    (!d.is_empty()).then(|| d.join("; "))
+}
+
 pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     let scene = load_scene(&a.scene).map_err(Failure::input)?;
     let profile = resolve_profile(&a)?;
@@ -97,11 +146,52 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     if a.tile == 0 || a.tile > 1024 {
         return Err(Failure::input("--tile must be in 1..=1024"));
     }
+    let samples = match &a.samples {
+        Some(t) => parse_samples(t, profile.spp)?,
+        None => 0..profile.spp,
+    };
     let out = a.output.clone().unwrap_or_else(|| default_output(&a.scene, "png"));
     check_writable(&out).map_err(Failure::input)?;
     if let Some(j) = &a.stats_json {
         check_writable_any(j).map_err(Failure::input)?;
     }
+    // Where the film goes: --film, else back into the film being resumed.
+    let film_path = a.film.clone().or_else(|| a.resume.clone());
+    if let Some(f) = &film_path {
+        check_film_writable(f).map_err(Failure::input)?;
+    }
+    let checkpoint_every = match a.checkpoint_every {
+        None => None,
+        Some(s) if s.is_finite() && s > 0.0 && s < 1e9 => Some(Duration::from_secs_f64(s)),
+        Some(s) => return Err(Failure::input(format!("--checkpoint-every {s}: expected a positive number of seconds"))),
+    };
+    if checkpoint_every.is_some() && film_path.is_none() {
+        return Err(Failure::input("--checkpoint-every needs --film PATH (where the checkpoints go) or --resume FILM"));
+    }
+
+    let n_units = unit_count(scene.width, scene.height, a.tile, samples.clone());
+    let mut header = FilmHeader {
+        width: scene.width,
+        height: scene.height,
+        spp: profile.spp,
+        samples: samples.clone(),
+        tile: a.tile,
+        scene_hash: scene.hash,
+        seed: a.seed,
+        profile: profile_record(&profile),
+        completed: vec![false; n_units],
+    };
+    let mut film = Film::new(scene.width, scene.height);
+    if let Some(r) = &a.resume {
+        let saved = read_film(r).map_err(Failure::input)?;
+        if let Some(why) = resume_mismatch(&saved.header, &header) {
+            return Err(Failure::input(format!("{}: cannot resume: the film is from a different render: {why}", r.display())));
+        }
+        header.completed = saved.header.completed;
+        film = saved.film;
+    }
+    let resumed_units = header.units_done();
+    let start_completed = std::mem::take(&mut header.completed);
 
     let cancel = Arc::new(AtomicBool::new(false));
     {
@@ -114,33 +204,113 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         });
     }
     let settings = Settings { profile, seed: a.seed };
-    let bar = if a.quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
-    bar.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} tiles (eta {eta})").unwrap());
-    let progress = |d: usize, n: usize| {
-        bar.set_length(n as u64);
-        bar.set_position(d as u64);
+    let label = format!("samples {}..{}", samples.start, samples.end);
+    let progress = Progress::new(&label, a.quiet, n_units, resumed_units);
+    let report = |d: usize, n: usize| progress.update(d, n);
+    let write_checkpoint = |f: &Film, completed: &[bool]| {
+        let path = film_path.as_deref().expect("checkpoints need a film path");
+        let h = FilmHeader { completed: completed.to_vec(), ..header.clone() };
+        if let Err(e) = write_film(path, &h, f) {
+            progress.println(&format!("warning: checkpoint not written: {e}"));
+        }
     };
     let mut job = RenderJob::new(&scene, settings);
     job.threads = a.threads;
     job.tile = a.tile;
+    job.samples = samples.clone();
     job.cancel = Some(&cancel);
-    job.progress = Some(&progress);
-    let (film, stats) = render_into(&job, Film::new(scene.width, scene.height));
-    bar.finish_and_clear();
+    job.progress = Some(&report);
+    job.checkpoint = checkpoint_every.map(|every| Checkpoint { every, write: &write_checkpoint });
+    let (film, completed, stats) = render_resumable(&job, film, start_completed);
+    let header = FilmHeader { completed, ..header.clone() };
+    progress.finish();
 
     write_image(&out, film.width, film.height, &film.to_rgb()).map_err(Failure::runtime)?;
+    // An interrupted render always leaves its film, so that it can be resumed.
+    let film_out = film_path.clone().or_else(|| (!stats.completed).then(|| interrupt_film_path(&out)));
+    if let Some(f) = &film_out {
+        write_film(f, &header, &film).map_err(Failure::runtime)?;
+    }
     if !a.quiet {
         print_summary(&a.scene, &scene, &job, &stats, &out);
+        let resumed = match &a.resume {
+            Some(r) => format!(", resumed {resumed_units} of {n_units} work units from {}", r.display()),
+            None => String::new(),
+        };
+        println!("  {label} of {}{resumed}", header.spp);
+        if let Some(f) = &film_out {
+            println!("  wrote film {}", f.display());
+        }
     }
     if let Some(j) = &a.stats_json {
         let text = serde_json::to_string_pretty(&stats).map_err(Failure::runtime)?;
         crate::film::output::write_atomic(j, |tmp| std::fs::write(tmp, text).map_err(|e| e.to_string())).map_err(Failure::runtime)?;
     }
     if !stats.completed {
-        eprintln!("interrupted: wrote the {} samples accumulated so far to {}", film.total_samples(), out.display());
+        let f = film_out.as_deref().unwrap_or(&out);
+        eprintln!(
+            "interrupted: wrote the {} samples accumulated so far to {} and the film to {} ({} of {n_units} work units); \
+             continue with the same command and --resume {}",
+            film.total_samples(),
+            out.display(),
+            f.display(),
+            header.units_done(),
+            f.display()
+        );
         return Ok(130);
     }
     Ok(0)
+}
+
+/// Progress of this process's sample range: a bar on a terminal, else a line per 10% (for job logs).
+struct Progress {
+    bar: Option<ProgressBar>,
+    label: String,
+    quiet: bool,
+    logged_tenths: AtomicUsize,
+    start: Instant,
+}
+
+impl Progress {
+    fn new(label: &str, quiet: bool, total: usize, done: usize) -> Progress {
+        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
+            let b = ProgressBar::new(total as u64);
+            b.set_style(
+                ProgressStyle::with_template("{prefix} {spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} work units (eta {eta})")
+                    .unwrap(),
+            );
+            b.set_prefix(label.to_string());
+            b.set_position(done as u64);
+            b
+        });
+        let tenths = (done * 10).checked_div(total).unwrap_or(10);
+        Progress { bar, label: label.to_string(), quiet, logged_tenths: AtomicUsize::new(tenths), start: Instant::now() }
+    }
+
+    fn update(&self, done: usize, total: usize) {
+        if let Some(b) = &self.bar {
+            b.set_position(done as u64);
+        } else if !self.quiet && total > 0 {
+            let tenths = done * 10 / total;
+            if self.logged_tenths.fetch_max(tenths, Ordering::Relaxed) < tenths {
+                let secs = self.start.elapsed().as_secs_f64();
+                eprintln!("{}: {}% ({done}/{total} work units, {secs:.1} s)", self.label, tenths * 10);
+            }
+        }
+    }
+
+    fn println(&self, m: &str) {
+        match &self.bar {
+            Some(b) => b.suspend(|| eprintln!("{m}")),
+            None => eprintln!("{m}"),
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+    }
 }
 
 fn check_writable_any(path: &Path) -> Result<(), String> {

@@ -7,6 +7,8 @@
 //! adds floor(q^2 / 2^32), both exact integer operations. A sample whose value is not finite or whose
 //! magnitude reaches [`MAX_SAMPLE_VALUE`] is discarded and counted, never accumulated.
 
+pub mod checksum;
+pub mod file;
 pub mod output;
 
 use glam::Vec3;

@@ -79,9 +79,22 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[Vec3]) -> Result
             img.save_with_format(tmp, image::ImageFormat::Png).map_err(|e| format!("{}: {e}", path.display()))
         }
         ImageFormat::Exr => {
-            let data: Vec<f32> = rgb.iter().flat_map(|c| c.to_array()).collect();
-            let img = image::Rgb32FImage::from_raw(width, height, data).ok_or("image size mismatch")?;
-            img.save_with_format(tmp, image::ImageFormat::OpenExr).map_err(|e| format!("{}: {e}", path.display()))
+            // Written with exr directly rather than through `image`: exr compresses blocks in parallel
+            // and, with the default unspecified line order, writes them in completion order, so the same
+            // pixels gave different bytes from run to run once an image has more than one 64x64 tile.
+            // Increasing line order makes exr write the blocks sorted: same pixels, same bytes.
+            use exr::prelude::{Encoding, Image, Layer, LayerAttributes, LineOrder, SpecificChannels, Vec2, WritableImage};
+            let w = width as usize;
+            if rgb.len() != w * height as usize {
+                return Err("image size mismatch".into());
+            }
+            let encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+            let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+                let c = rgb[p.y() * w + p.x()];
+                (c.x, c.y, c.z)
+            });
+            let layer = Layer::new((w, height as usize), LayerAttributes::default(), encoding, channels);
+            Image::from_layer(layer).write().to_file(tmp).map_err(|e| format!("{}: {e}", path.display()))
         }
     })
 }

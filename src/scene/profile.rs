@@ -40,6 +40,12 @@ pub struct Profile {
     pub time_strategy: Strategy,
     #[serde(default = "default_strategy")]
     pub glossy_strategy: Strategy,
+    /// Directions of diffuse bounces (cosine-weighted); only used when `diffuse_depth > 0`.
+    #[serde(default = "default_strategy")]
+    pub diffuse_strategy: Strategy,
+    /// Wavelength of a camera sample; only used by scenes with a dispersive index.
+    #[serde(default = "default_strategy")]
+    pub wavelength_strategy: Strategy,
     /// Specular / glossy / diffuse bounces after the camera ray.
     pub max_depth: u32,
     /// Diffuse bounces (0: classic distribution ray tracing; > 0: path tracing with Russian roulette).
@@ -165,6 +171,8 @@ impl Profile {
             "lens_strategy" => self.lens_strategy = strat(key, value)?,
             "time_strategy" => self.time_strategy = strat(key, value)?,
             "glossy_strategy" => self.glossy_strategy = strat(key, value)?,
+            "diffuse_strategy" => self.diffuse_strategy = strat(key, value)?,
+            "wavelength_strategy" => self.wavelength_strategy = strat(key, value)?,
             "strategy" => {
                 let s = strat(key, value)?;
                 self.pixel_strategy = s;
@@ -172,6 +180,8 @@ impl Profile {
                 self.lens_strategy = s;
                 self.time_strategy = s;
                 self.glossy_strategy = s;
+                self.diffuse_strategy = s;
+                self.wavelength_strategy = s;
             }
             "branching" => {
                 self.branching = match value.trim() {

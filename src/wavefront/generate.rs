@@ -44,7 +44,8 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 let (o, d) = cam.ray(x as f32 + 0.5 + off[0], y as f32 + 0.5 + off[1], lens);
                 let time = if f.motion { cam.time(sample_1d(profile.time_strategy, seed, stream, dims::TIME, s, spp)) } else { 0.0 };
                 let (lambda, throughput) = if f.dispersion {
-                    let l = sample_wavelength(sample_1d(profile.pixel_strategy, seed, stream, dims::WAVELENGTH, s, spp));
+                    // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.
+                    let l = sample_wavelength(sample_1d(profile.wavelength_strategy, seed, stream, dims::WAVELENGTH, s, spp));
                     (l, wavelength_to_rgb(l) / sample_wavelength_pdf(l))
                 } else {
                     (0.0, Vec3::ONE)

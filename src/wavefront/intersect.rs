@@ -89,7 +89,6 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
         scene.bvh.traverse_closest_x8(&mut ray, |bi, ray| {
             let pid = scene.bounded[bi as usize];
             let prim = &scene.prims[pid as usize];
-            let local = in_prim_frame(ray, prim.motion, time);
             if let Shape::Csg { .. } = prim.shape {
                 let b = &scene.bounds[pid as usize];
                 // The swept bounds already cover the motion: test the world-space packet.
@@ -103,7 +102,11 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
                 }
                 return;
             }
-            let t = prim_t_x8(prim, &local);
+            // Only moving prims pay for a packet in their own frame (no copy for static ones).
+            let t = match time {
+                Some(_) if prim.motion != Vec3::ZERO => prim_t_x8(prim, &in_prim_frame(ray, prim.motion, time)),
+                _ => prim_t_x8(prim, ray),
+            };
             record(ray, &mut ids, t, pid);
         });
         for &pid in &scene.unbounded {

@@ -171,8 +171,10 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         nee.push(p_off, hit.n_facing, w * FRAC_1_PI, r.path, event_key(pixel, r.branch, sample, r.depth), r.time);
                     }
                     if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
+                        // Its own strategy: borrowing the pixel strategy made `center` pixels bounce
+                        // every path in the one direction (0.5, 0.5) maps to, a biased estimate.
                         let u = sample_2d(
-                            profile.pixel_strategy,
+                            profile.diffuse_strategy,
                             seed,
                             branch_stream(pixel, r.branch),
                             dims::DIFFUSE + r.depth as u32,

@@ -157,7 +157,6 @@ pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f
     let from_bvh = scene.bvh.traverse_any_x8(ray, |bi, ray| {
         let pid = scene.bounded[bi as usize];
         let prim = &scene.prims[pid as usize];
-        let local = in_prim_frame(ray, prim.motion, time);
         match prim.shape {
             Shape::Csg { solid } => {
                 // Lanes that reach the solid's bounds are solved together by the 8-lane interval merge.
@@ -166,6 +165,7 @@ pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f
                 if mask.to_bitmask() == 0 {
                     return zero.simd_gt(f32x8::ONE);
                 }
+                let local = in_prim_frame(ray, prim.motion, time);
                 let masked = Ray8 { tmax: mask.select(ray.tmax, f32x8::splat(-1.0)), ..local };
                 let mut out = [None; LANES];
                 first_hit_x8(&scene.csg, solid, &masked, zero, arena, &mut out);
@@ -189,7 +189,11 @@ pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f
                     }
                     return zero.simd_gt(f32x8::ONE);
                 }
-                prim_t_x8(prim, &local).simd_lt(ray.tmax)
+                let t = match time {
+                    Some(_) if prim.motion != Vec3::ZERO => prim_t_x8(prim, &in_prim_frame(ray, prim.motion, time)),
+                    _ => prim_t_x8(prim, ray),
+                };
+                t.simd_lt(ray.tmax)
             }
         }
     });

@@ -1,0 +1,248 @@
+//! How Strata scales on this machine (issue 8, item 5): rays/s at 1 and 2 threads, render time against
+//! the number of primitives (1e2 .. 1e6 spheres) and against the resolution. Prints markdown tables
+//! (docs/scaling.md holds a measured copy).
+//!
+//! ```text
+//! cargo run --release --example scaling [-- --reps 2 --spp 16 --max-prims 1000000]
+//! ```
+//!
+//! Every number is a [`RenderStats`] of one render with the `bench` profile (fixed counts, no adaptive
+//! behaviour): the same `seconds` (wall time of the render, scene loading excluded) and rays that
+//! `strata render --profile bench --stats-json` reports. Each configuration is rendered `--reps` times and
+//! the fastest run is kept, because the machine is shared and other load only ever slows a run down.
+//! Beside wall-clock rates the tables give rays per CPU-second of the render (from `/proc/self/stat`):
+//! on a loaded machine the wall time measures the load, the CPU time much less so.
+//!
+//! Sphere scenes come from `scenes/tools/gen_bench_spheres.py N` (python3), parsed from memory with
+//! `parse_scene`: a million spheres is ~95 MB of TOML, over the 16 MiB limit of scene *files*, so no
+//! file is written. The generator keeps its 40 x 40 area, so density grows with N.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode};
+use std::time::Instant;
+use strata::render::{render, RenderStats};
+use strata::scene::{parse_scene, Profile, Scene};
+use strata::wavefront::Settings;
+
+struct Opts {
+    reps: usize,
+    spp: Option<u32>,
+    max_prims: u64,
+}
+
+fn parse_args() -> Result<Opts, String> {
+    let mut o = Opts { reps: 2, spp: None, max_prims: 1_000_000 };
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut i = 0;
+    while i < args.len() {
+        let val = args.get(i + 1).ok_or_else(|| format!("{} needs a value", args[i]))?;
+        let num = |v: &str| v.parse::<u64>().map_err(|_| format!("{}: `{v}` is not a number", args[i]));
+        match args[i].as_str() {
+            "--reps" => o.reps = num(val)?.max(1) as usize,
+            "--spp" => o.spp = Some(num(val)? as u32),
+            "--max-prims" => o.max_prims = num(val)?,
+            other => return Err(format!("unknown option `{other}` (--reps N, --spp N, --max-prims N)")),
+        }
+        i += 2;
+    }
+    Ok(o)
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn profile(o: &Opts) -> Profile {
+    let mut p = Profile::builtin("bench");
+    if let Some(s) = o.spp {
+        p.spp = s;
+    }
+    p
+}
+
+/// CPU seconds (user + system, all threads) of this process so far, from `/proc/self/stat` (Linux; in
+/// units of USER_HZ = 100 per second); `None` elsewhere.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name in parentheses: state is field 3, utime 14, stime 15.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+/// One render's statistics and the CPU seconds it consumed.
+struct Run {
+    stats: RenderStats,
+    cpu: Option<f64>,
+}
+
+/// The fastest of `reps` renders (all of them give the same image and ray counts).
+fn best(scene: &Scene, o: &Opts, threads: usize) -> Run {
+    let settings = Settings { profile: profile(o), seed: 1 };
+    (0..o.reps)
+        .map(|_| {
+            let c0 = cpu_seconds();
+            let stats = render(scene, settings.clone(), threads).1;
+            let cpu = c0.and_then(|c0| cpu_seconds().map(|c1| c1 - c0));
+            Run { stats, cpu }
+        })
+        .min_by(|a, b| a.stats.seconds.total_cmp(&b.stats.seconds))
+        .expect("reps >= 1")
+}
+
+/// Rays per CPU-second, in millions ("-" without a CPU clock).
+fn per_cpu(r: &Run) -> String {
+    r.cpu.filter(|&c| c > 0.0).map_or("-".into(), |c| m(r.stats.rays.total as f64 / c))
+}
+
+fn gen_spheres(n: u64) -> Result<String, String> {
+    let script = root().join("scenes/tools/gen_bench_spheres.py");
+    let out = Command::new("python3")
+        .arg(&script)
+        .arg(n.to_string())
+        .output()
+        .map_err(|e| format!("cannot run python3 {}: {e}", script.display()))?;
+    if !out.status.success() {
+        return Err(format!("{} failed: {}", script.display(), String::from_utf8_lossy(&out.stderr)));
+    }
+    String::from_utf8(out.stdout).map_err(|e| e.to_string())
+}
+
+fn load(name: &str, text: &str) -> Result<(Scene, f64), String> {
+    let t0 = Instant::now();
+    let scene = parse_scene(Path::new(name), text).map_err(|e| e.to_string())?;
+    Ok((scene, t0.elapsed().as_secs_f64()))
+}
+
+fn read_scene(file: &str) -> Result<String, String> {
+    let p = root().join("scenes").join(file);
+    std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))
+}
+
+/// `text` with the `[image]` size replaced (the generated and shipped scenes write one `width =` and
+/// one `height =` line).
+fn with_resolution(text: &str, w: u32, h: u32) -> String {
+    text.lines()
+        .map(|l| {
+            if l.starts_with("width = ") {
+                format!("width = {w}")
+            } else if l.starts_with("height = ") {
+                format!("height = {h}")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+fn m(x: f64) -> String {
+    format!("{:.2}", x / 1e6)
+}
+
+fn machine() {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))
+        .unwrap_or_else(|| "unknown".into());
+    let commit = Command::new("git")
+        .args(["rev-parse", "--short", "HEAD"])
+        .current_dir(root())
+        .output()
+        .ok()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_default();
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!(
+        "commit {commit}, cpu {cpu}, {} hardware threads, load average {}",
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(0),
+        load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
+    );
+}
+
+fn run(o: &Opts) -> Result<(), String> {
+    machine();
+    let p = profile(o);
+    println!("profile bench: {} spp, max depth {}, best of {} runs\n", p.spp, p.max_depth, o.reps);
+
+    println!("## Threads\n");
+    println!(
+        "| scene | rays (M) | 1 thread: s | M rays/s | M rays / CPU s | 2 threads: s | M rays/s | M rays / CPU s | \
+         speed-up | second thread adds |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for file in ["bench_spheres.toml", "showcase.toml"] {
+        let (scene, _) = load(file, &read_scene(file)?)?;
+        let one = best(&scene, o, 1);
+        let two = best(&scene, o, 2);
+        let s = one.stats.seconds / two.stats.seconds;
+        println!(
+            "| {file} | {} | {:.3} | {} | {} | {:.3} | {} | {} | {s:.2}x | {:.0}% |",
+            m(two.stats.rays.total as f64),
+            one.stats.seconds,
+            m(one.stats.rays_per_second),
+            per_cpu(&one),
+            two.stats.seconds,
+            m(two.stats.rays_per_second),
+            per_cpu(&two),
+            (s - 1.0) * 100.0
+        );
+    }
+
+    println!("\n## Primitive count (bench_spheres layout, 640x480, 2 threads)\n");
+    println!("| spheres | TOML MB | parse + BVH s | render s | rays (M) | M rays/s | M rays / CPU s | CPU s / CPU s at 1e2 |");
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let mut base = None;
+    let mut n = 100u64;
+    while n <= o.max_prims {
+        let text = gen_spheres(n)?;
+        let (scene, load_s) = load(&format!("<gen_bench_spheres.py {n}>"), &text)?;
+        let r = best(&scene, o, 2);
+        let st = &r.stats;
+        // Per ray: the ray count changes a little with N (shadow rays follow the visible surfaces).
+        let cost = r.cpu.filter(|&c| c > 0.0).unwrap_or(st.seconds) / st.rays.total as f64;
+        let b = *base.get_or_insert(cost);
+        println!(
+            "| {n} | {:.1} | {load_s:.2} | {:.3} | {} | {} | {} | {:.2} |",
+            text.len() as f64 / 1e6,
+            st.seconds,
+            m(st.rays.total as f64),
+            m(st.rays_per_second),
+            per_cpu(&r),
+            cost / b
+        );
+        n *= 10;
+    }
+
+    println!("\n## Resolution (bench_spheres.toml, 2 threads)\n");
+    println!("| resolution | pixels (M) | render s | rays (M) | M rays/s | M rays / CPU s | CPU s per M pixels |");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    let text = read_scene("bench_spheres.toml")?;
+    for (w, h) in [(160, 120), (320, 240), (640, 480), (1280, 960), (2560, 1920)] {
+        let (scene, _) = load("bench_spheres.toml", &with_resolution(&text, w, h))?;
+        let r = best(&scene, o, 2);
+        let st = &r.stats;
+        let px = (w * h) as f64;
+        println!(
+            "| {w}x{h} | {:.3} | {:.3} | {} | {} | {} | {:.3} |",
+            px / 1e6,
+            st.seconds,
+            m(st.rays.total as f64),
+            m(st.rays_per_second),
+            per_cpu(&r),
+            r.cpu.filter(|&c| c > 0.0).unwrap_or(st.seconds) / (px / 1e6)
+        );
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    match parse_args().and_then(|o| run(&o)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("scaling: {e}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -1,0 +1,266 @@
+//! `strata merge`: sum the films of sample ranges into one image (and film), exactly; `--status` lists
+//! which ranges are present and which are missing.
+//!
+//! Every check runs before anything is written, so a refused merge leaves existing outputs untouched.
+
+use super::Failure;
+use crate::film::file::{check_film_writable, read_film, write_film, FilmFile, FilmHeader};
+use crate::film::output::{check_writable, write_image};
+use crate::render::unit_count;
+use clap::Args;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::ops::Range;
+use std::path::PathBuf;
+
+#[derive(Args, Debug, Clone)]
+pub struct MergeArgs {
+    /// Film files written by `strata render --film` (any order).
+    #[arg(required = true, value_name = "FILM")]
+    pub films: Vec<PathBuf>,
+    /// Output image: .png (sRGB 8-bit) or .exr (linear float).
+    #[arg(short, long, required_unless_present = "status")]
+    pub output: Option<PathBuf>,
+    /// Also write the merged film (possible when the ranges are complete and contiguous).
+    #[arg(long, value_name = "MERGED")]
+    pub film: Option<PathBuf>,
+    /// Merge even when ranges leave gaps or films are incomplete: the image then has fewer samples.
+    #[arg(long)]
+    pub allow_gaps: bool,
+    /// List the sample ranges present and missing and each film's completeness; write nothing.
+    #[arg(long, conflicts_with_all = ["output", "film", "allow_gaps"])]
+    pub status: bool,
+}
+
+pub fn run(a: MergeArgs) -> Result<u8, Failure> {
+    if a.status {
+        return status(&a.films);
+    }
+    let out = a.output.clone().expect("clap requires -o without --status");
+    check_writable(&out).map_err(Failure::input)?;
+    if let Some(f) = &a.film {
+        check_film_writable(f).map_err(Failure::input)?;
+    }
+    let mut films = Vec::new();
+    for p in &a.films {
+        films.push((p.clone(), read_film(p).map_err(Failure::input)?));
+    }
+    check_same_render(&films).map_err(Failure::input)?;
+    films.sort_by_key(|(_, f)| (f.header.samples.start, f.header.samples.end));
+    check_overlaps(&films).map_err(Failure::input)?;
+
+    let mut problems = Vec::new();
+    for (p, f) in &films {
+        if !f.header.is_complete() {
+            problems.push(format!(
+                "{} is incomplete ({} of {} work units of samples {}); finish it with `strata render ... --resume {}`",
+                p.display(),
+                f.header.units_done(),
+                f.header.completed.len(),
+                range_text(&f.header.samples),
+                p.display()
+            ));
+        }
+    }
+    for w in films.windows(2) {
+        let (pa, a_) = (&w[0].0, &w[0].1.header.samples);
+        let (pb, b_) = (&w[1].0, &w[1].1.header.samples);
+        if a_.end < b_.start {
+            problems.push(format!(
+                "gap: samples {}..{} are in no film (between {} {} and {} {})",
+                a_.end,
+                b_.start,
+                pa.display(),
+                range_text(a_),
+                pb.display(),
+                range_text(b_)
+            ));
+        }
+    }
+    if !problems.is_empty() {
+        if !a.allow_gaps {
+            return Err(Failure::input(format!("cannot merge: {} (use --allow-gaps to merge anyway)", problems.join("; "))));
+        }
+        if a.film.is_some() {
+            return Err(Failure::input(format!(
+                "cannot write a merged film: {}; a film records one complete, contiguous range",
+                problems.join("; ")
+            )));
+        }
+    }
+
+    let first = &films[0].1.header;
+    let range = first.samples.start..films.iter().map(|(_, f)| f.header.samples.end).max().unwrap();
+    let mut merged = films[0].1.film.clone();
+    for (_, f) in &films[1..] {
+        merged.merge(&f.film);
+    }
+    write_image(&out, merged.width, merged.height, &merged.to_rgb()).map_err(Failure::runtime)?;
+    if let Some(fp) = &a.film {
+        let completed = vec![true; unit_count(first.width, first.height, first.tile, range.clone())];
+        let h = FilmHeader { samples: range.clone(), completed, ..first.clone() };
+        write_film(fp, &h, &merged).map_err(Failure::runtime)?;
+    }
+    let ranges: Vec<String> = films.iter().map(|(_, f)| range_text(&f.header.samples)).collect();
+    println!(
+        "merged {} films: samples {} of spp {} ({} samples in all); wrote {}{}",
+        films.len(),
+        if problems.is_empty() { range_text(&range) } else { ranges.join(", ") },
+        first.spp,
+        merged.total_samples(),
+        out.display(),
+        a.film.as_ref().map(|f| format!(" and {}", f.display())).unwrap_or_default()
+    );
+    for p in &problems {
+        eprintln!("warning: {p}");
+    }
+    Ok(0)
+}
+
+fn range_text(r: &Range<u32>) -> String {
+    format!("{}..{}", r.start, r.end)
+}
+
+/// All films must come from one render: size, scene, seed, spp, profile.
+fn check_same_render(films: &[(PathBuf, FilmFile)]) -> Result<(), String> {
+    let (p0, f0) = &films[0];
+    for (p, f) in &films[1..] {
+        let d = f0.header.identity_differences(&f.header, (&p0.display().to_string(), &p.display().to_string()));
+        if !d.is_empty() {
+            return Err(format!("cannot merge: {} and {} are from different renders: {}", p0.display(), p.display(), d.join("; ")));
+        }
+    }
+    Ok(())
+}
+
+/// Films sorted by range start; any two that share a sample index are an error naming both.
+fn check_overlaps(films: &[(PathBuf, FilmFile)]) -> Result<(), String> {
+    for (i, (pa, a)) in films.iter().enumerate() {
+        for (pb, b) in &films[i + 1..] {
+            let (ra, rb) = (&a.header.samples, &b.header.samples);
+            if rb.start < ra.end {
+                return Err(format!(
+                    "cannot merge: overlap: {} {} and {} {} share samples {}..{}",
+                    pa.display(),
+                    range_text(ra),
+                    pb.display(),
+                    range_text(rb),
+                    rb.start,
+                    ra.end.min(rb.end)
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Sample ranges of 0..spp covered by no film.
+fn missing_ranges(spp: u32, present: &[Range<u32>]) -> Vec<Range<u32>> {
+    let mut sorted = present.to_vec();
+    sorted.sort_by_key(|r| r.start);
+    let mut missing = Vec::new();
+    let mut at = 0;
+    for r in sorted {
+        if r.start > at {
+            missing.push(at..r.start);
+        }
+        at = at.max(r.end);
+    }
+    if at < spp {
+        missing.push(at..spp);
+    }
+    missing
+}
+
+/// `strata merge --status`: one line per film, then the ranges present, partial and missing.
+fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
+    // Printed at once at the end, ignoring a closed pipe (`strata merge --status ... | head`).
+    let mut out = String::new();
+    macro_rules! say {
+        ($($t:tt)*) => {{
+            let _ = writeln!(out, $($t)*);
+        }};
+    }
+    let mut ok: Vec<(PathBuf, FilmHeader)> = Vec::new();
+    let mut failed = false;
+    let width = paths.iter().map(|p| p.display().to_string().len()).max().unwrap_or(0);
+    for p in paths {
+        match read_film(p) {
+            Err(e) => {
+                failed = true;
+                say!("{:width$}  unreadable: {e}", p.display());
+            }
+            Ok(f) => {
+                let h = f.header;
+                if let Some((p0, h0)) = ok.first() {
+                    let d = h0.identity_differences(&h, (&p0.display().to_string(), &p.display().to_string()));
+                    if !d.is_empty() {
+                        failed = true;
+                        say!("{:width$}  from a different render than {}: {}", p.display(), p0.display(), d.join("; "));
+                        continue;
+                    }
+                }
+                let pct = 100.0 * h.units_done() as f64 / h.completed.len().max(1) as f64;
+                let state = if h.is_complete() { "complete".to_string() } else { format!("partial {pct:.1}%") };
+                say!(
+                    "{:width$}  samples {:>11}  {state} ({} of {} work units)",
+                    p.display(),
+                    range_text(&h.samples),
+                    h.units_done(),
+                    h.completed.len()
+                );
+                ok.push((p.clone(), h));
+            }
+        }
+    }
+    if let Some((_, h0)) = ok.first() {
+        let spp = h0.spp;
+        say!("render: {}x{}, scene {:016x}, seed {}, spp {spp}", h0.width, h0.height, h0.scene_hash, h0.seed);
+        let complete: Vec<Range<u32>> = ok.iter().filter(|(_, h)| h.is_complete()).map(|(_, h)| h.samples.clone()).collect();
+        let partial: Vec<&(PathBuf, FilmHeader)> = ok.iter().filter(|(_, h)| !h.is_complete()).collect();
+        let all: Vec<Range<u32>> = ok.iter().map(|(_, h)| h.samples.clone()).collect();
+        let list =
+            |rs: &[Range<u32>]| if rs.is_empty() { "none".to_string() } else { rs.iter().map(range_text).collect::<Vec<_>>().join(", ") };
+        let mut sorted = complete.clone();
+        sorted.sort_by_key(|r| r.start);
+        say!("present (complete): {}", list(&sorted));
+        if !partial.is_empty() {
+            let v: Vec<String> = partial.iter().map(|(p, h)| format!("{} ({})", range_text(&h.samples), p.display())).collect();
+            say!("partial: {}", v.join(", "));
+        }
+        let missing = missing_ranges(spp, &all);
+        say!("missing: {}", list(&missing));
+        let done: u32 = complete.iter().map(|r| r.len() as u32).sum();
+        let overlaps = overlap_lines(&ok);
+        for o in &overlaps {
+            say!("overlap: {o}");
+        }
+        say!("complete samples: {done} of {spp}{}", if done == spp && overlaps.is_empty() { " (ready to merge)" } else { "" });
+    }
+    let _ = std::io::stdout().write_all(out.as_bytes());
+    Ok(if failed { 2 } else { 0 })
+}
+
+fn overlap_lines(films: &[(PathBuf, FilmHeader)]) -> Vec<String> {
+    let mut v = Vec::new();
+    for (i, (pa, a)) in films.iter().enumerate() {
+        for (pb, b) in &films[i + 1..] {
+            if a.samples.start < b.samples.end && b.samples.start < a.samples.end {
+                v.push(format!("{} {} and {} {}", pa.display(), range_text(&a.samples), pb.display(), range_text(&b.samples)));
+            }
+        }
+    }
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::missing_ranges;
+
+    #[test]
+    fn missing_ranges_are_the_complement() {
+        assert_eq!(missing_ranges(10, &[2..4, 6..8]), vec![0..2, 4..6, 8..10]);
+        assert_eq!(missing_ranges(10, &[0..5, 3..10]), vec![]);
+        assert_eq!(missing_ranges(4, &[]), vec![0..4]);
+    }
+}

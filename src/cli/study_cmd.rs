@@ -1,0 +1,268 @@
+//! `strata study`: the speed/accuracy trade of sampling strategies, measured against a reference.
+
+use super::Failure;
+use crate::sample::Strategy;
+use crate::scene::{load_scene, Material, Profile, Scene};
+use crate::study::reference::{obtain, RefError, ReferenceSource};
+use crate::study::run::{configure, light_only, run_series, slopes, summarize, Plan, RunResult, Summary};
+use crate::study::{csv, plot, sheet, IntegralSet};
+use clap::Args;
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+
+const MAPPING_HELP: &str = "\
+How the sample counts (--spp) map onto the integrals (--integrals):
+  * `light` alone: n = light samples per shading point with the strategy, and one camera path per pixel
+    through the pixel centre (pixel, lens, time and glossy held at `center`): the error measured is that
+    of the light integral alone. Counts above 4096 must be multiples of 4096 (4096 per camera pass).
+  * anything else: n = camera samples per pixel (spp). Each studied camera integral (pixel, lens, time,
+    glossy) uses the strategy; the others are held at `center` (pixel centre, lens centre, mid-shutter,
+    the lobe's central direction). A studied `light` uses the strategy with the profile's light_samples
+    per shading point (n of them with --light-samples-from-spp); an unstudied light is held at one sample
+    at its centre (hard shadows).
+  * The pixel strategy also drives the wavelength and diffuse-bounce dimensions.
+The reference is the converged value of that same estimator: --reference-spp N renders it once with the
+jittered strategy and N samples under the same mapping (seed distinct from the study's seeds 1..K) and
+caches it in DIR, keyed by the scene file's hash, the full reference profile and N (default N: 16 x the
+largest count); --reference analytic computes it exactly for a Lambert plane under one quad light.
+
+Outputs in DIR: study.csv (one row per render: strategy,spp,seed,seconds,rays,mse,relmse,efficiency,
+camera_spp,light_samples), study.png (log-log MSE vs samples and vs seconds, mean over seeds, fitted
+slopes in the legend), sheet.png with --sheet. relMSE = mean (x - ref)^2 / (ref^2 + 0.01) per channel;
+efficiency = 1 / (MSE x seconds), seconds being the render's own wall time.";
+
+#[derive(Args, Debug, Clone)]
+#[command(after_long_help = MAPPING_HELP)]
+pub struct StudyArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Base quality profile: a name in profiles/ (preview, final, reference, bench) or a path.
+    #[arg(long, default_value = "preview")]
+    pub profile: String,
+    /// Override a profile field of the base profile: --set key=value (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Strategies to compare, comma-separated: center, grid, random, jittered, sobol.
+    #[arg(long, default_value = "random,jittered")]
+    pub strategies: String,
+    /// Sample counts, comma-separated (see --help for what a count means for each integral).
+    #[arg(long, default_value = "1,4,16,64")]
+    pub spp: String,
+    /// Integrals to sample with the strategy: pixel, light, lens, time, glossy (comma-separated), or all.
+    #[arg(long, default_value = "all")]
+    pub integrals: String,
+    /// Independent seeds (1..=K) per strategy and count; the error is averaged over them.
+    #[arg(long, default_value_t = 4)]
+    pub seeds: u32,
+    /// Reference: a linear EXR of the scene's size, or `analytic` (Lambert plane under one quad light).
+    #[arg(long, value_name = "FILE.exr|analytic", conflicts_with = "reference_spp")]
+    pub reference: Option<String>,
+    /// Render the reference with N jittered samples (cached in the output directory).
+    #[arg(long, value_name = "N")]
+    pub reference_spp: Option<u32>,
+    /// Output directory (created if missing).
+    #[arg(long, default_value = "study")]
+    pub out: PathBuf,
+    /// Also write sheet.png: the renders side by side, a row per strategy, a column per count.
+    #[arg(long)]
+    pub sheet: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// With `light` among several integrals: n light samples per shading point as well as n spp.
+    #[arg(long)]
+    pub light_samples_from_spp: bool,
+}
+
+/// Parse a comma-separated list with `parse`; empty items are ignored, an empty list is an error.
+fn parse_list<T>(flag: &str, text: &str, parse: impl Fn(&str) -> Result<T, String>) -> Result<Vec<T>, Failure> {
+    let items: Vec<&str> = text.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
+    if items.is_empty() {
+        return Err(Failure::input(format!("{flag}: the list is empty")));
+    }
+    items.into_iter().map(|s| parse(s).map_err(|e| Failure::input(format!("{flag}: {e}")))).collect()
+}
+
+fn parse_strategy(s: &str) -> Result<Strategy, String> {
+    Strategy::parse(s).ok_or_else(|| {
+        let all: Vec<_> = Strategy::ALL.iter().map(|s| s.name()).collect();
+        format!("unknown strategy `{s}` (one of {})", all.join(", "))
+    })
+}
+
+fn parse_count(s: &str) -> Result<u32, String> {
+    match s.parse::<u32>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!("`{s}` is not a sample count (an integer >= 1)")),
+    }
+}
+
+/// Everything a study needs, validated before any rendering.
+struct Setup {
+    scene: Scene,
+    profile: Profile,
+    plan: Plan,
+    source: ReferenceSource,
+}
+
+fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
+    let scene = load_scene(&a.scene).map_err(Failure::input)?;
+    let mut profile = Profile::load(&a.profile).map_err(Failure::input)?;
+    for s in &a.set {
+        let (k, v) = s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?;
+        profile.set(k.trim(), v).map_err(|e| Failure::input(format!("command line: {e}")))?;
+    }
+    let mut strategies = parse_list("--strategies", &a.strategies, parse_strategy)?;
+    dedup(&mut strategies);
+    let mut counts = parse_list("--spp", &a.spp, parse_count)?;
+    counts.sort_unstable();
+    counts.dedup();
+    let integrals = IntegralSet::parse(&a.integrals).map_err(|e| Failure::input(format!("--integrals: {e}")))?;
+    if a.seeds == 0 || a.seeds > 1000 {
+        return Err(Failure::input(format!("--seeds must be in 1..=1000, got {}", a.seeds)));
+    }
+    if a.threads > 1024 {
+        return Err(Failure::input("--threads must be at most 1024"));
+    }
+    for &s in &strategies {
+        for &n in &counts {
+            configure(&profile, &integrals, s, n, a.light_samples_from_spp).map_err(|e| Failure::input(format!("--spp: {e}")))?;
+        }
+    }
+    let largest = *counts.last().expect("non-empty");
+    let source = match (&a.reference, a.reference_spp) {
+        (Some(r), _) if r.eq_ignore_ascii_case("analytic") => ReferenceSource::Analytic,
+        (Some(r), _) => ReferenceSource::File(PathBuf::from(r)),
+        (None, Some(0)) => return Err(Failure::input("--reference-spp must be at least 1")),
+        (None, Some(n)) => ReferenceSource::Samples(n),
+        (None, None) => {
+            let mut n = largest.saturating_mul(16);
+            if light_only(&integrals) && n > 4096 {
+                n = n.div_ceil(4096).saturating_mul(4096);
+            }
+            ReferenceSource::Samples(n)
+        }
+    };
+    let plan = Plan { integrals, strategies, counts, seeds: a.seeds, light_from_spp: a.light_samples_from_spp, threads: a.threads };
+    Ok(Setup { scene, profile, plan, source })
+}
+
+fn dedup(v: &mut Vec<Strategy>) {
+    let mut seen = Vec::new();
+    v.retain(|s| {
+        let new = !seen.contains(s);
+        seen.push(*s);
+        new
+    });
+}
+
+/// Integrals the scene does not exercise (their strategy changes nothing).
+fn unused_integrals(scene: &Scene, integrals: &IntegralSet) -> Vec<&'static str> {
+    use crate::study::Integral as I;
+    let f = &scene.features;
+    let glossy = scene.materials.iter().any(|m| matches!(m, Material::Glossy { .. }));
+    integrals
+        .iter()
+        .filter(|i| match i {
+            I::Lens => !f.lens,
+            I::Time => !f.motion,
+            I::Glossy => !glossy,
+            I::Light => !f.area_lights,
+            I::Pixel => false,
+        })
+        .map(|i| i.name())
+        .collect()
+}
+
+fn describe_mapping(plan: &Plan) -> String {
+    if light_only(&plan.integrals) {
+        "n = light samples per shading point; one camera path through each pixel centre".into()
+    } else {
+        let light = if !plan.integrals.contains(crate::study::Integral::Light) {
+            "light held at its centre"
+        } else if plan.light_from_spp {
+            "n light samples per shading point"
+        } else {
+            "the profile's light samples per shading point"
+        };
+        format!("n = camera samples per pixel; studied: {}; {light}", plan.integrals.names())
+    }
+}
+
+pub fn run(a: StudyArgs) -> Result<u8, Failure> {
+    let Setup { scene, profile, plan, source } = setup(&a)?;
+    std::fs::create_dir_all(&a.out).map_err(|e| Failure::input(format!("--out {}: cannot create: {e}", a.out.display())))?;
+    let unused = unused_integrals(&scene, &plan.integrals);
+    if !unused.is_empty() {
+        eprintln!("note: the scene does not exercise {} (their strategy changes nothing)", unused.join(", "));
+    }
+    println!("strata study: {}  {}x{}  profile {}", a.scene.display(), scene.width, scene.height, profile.name);
+    println!("  sampling: {}", describe_mapping(&plan));
+    eprintln!("reference: preparing...");
+    let reference = obtain(&source, &scene, &profile, &plan.integrals, &a.out, plan.threads).map_err(|e| match e {
+        RefError::Input(m) => Failure::input(m),
+        RefError::Runtime(m) => Failure::runtime(m),
+    })?;
+    if reference.image.iter().any(|p| !p.is_finite()) {
+        return Err(Failure::input("the reference image has non-finite pixels"));
+    }
+    println!("  reference: {}", reference.description);
+    let total = plan.strategies.len() * plan.counts.len() * plan.seeds as usize;
+    let mut done = 0;
+    let tty = std::io::stderr().is_terminal();
+    let mut report = |r: &RunResult| {
+        done += 1;
+        if !tty {
+            return;
+        }
+        eprint!("\r  run {done}/{total}: {} n={} seed {} ({:.3} s)        ", r.strategy, r.n, r.seed, r.seconds);
+        let _ = std::io::stderr().flush();
+    };
+    let series = run_series(&scene, &profile, &plan, &reference.image, a.sheet, &mut report).map_err(Failure::input)?;
+    if tty {
+        eprintln!();
+    }
+    let summary = summarize(&series.runs);
+    print_table(&summary, &plan);
+
+    let unit = if light_only(&plan.integrals) { "light samples" } else { "spp" };
+    let csv_path = a.out.join("study.csv");
+    csv::write(&csv_path, &series.runs).map_err(Failure::runtime)?;
+    let plot_path = a.out.join("study.png");
+    plot::write(&plot_path, &summary, &plan.strategies, unit).map_err(Failure::runtime)?;
+    println!("wrote {}", csv_path.display());
+    println!("wrote {}", plot_path.display());
+    if a.sheet {
+        let sheet_path = a.out.join("sheet.png");
+        sheet::write(&sheet_path, &series.images, &plan.strategies, &plan.counts, scene.width, scene.height, unit)
+            .map_err(Failure::runtime)?;
+        println!("wrote {}", sheet_path.display());
+    }
+    Ok(0)
+}
+
+fn print_table(summary: &[Summary], plan: &Plan) {
+    println!(
+        "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12}   (mean over {} seeds)",
+        "strategy", "spp", "seconds", "rays", "mse", "relmse", "efficiency", plan.seeds
+    );
+    for s in summary {
+        println!(
+            "{:<9} {:>6} {:>10.4} {:>12.0} {:>12.3e} {:>12.3e} {:>12.3e}",
+            s.strategy.name(),
+            s.n,
+            s.seconds,
+            s.rays,
+            s.mse,
+            s.relmse,
+            s.efficiency
+        );
+    }
+    println!("\nfitted slope of log MSE against log samples / log seconds:");
+    for &st in &plan.strategies {
+        let (vs_n, vs_t) = slopes(summary, st);
+        let f = |x: Option<crate::study::metrics::LogLogFit>| x.map_or("n/a".to_string(), |f| format!("{:+.3}", f.slope));
+        println!("  {:<9} {} / {}", st.name(), f(vs_n), f(vs_t));
+    }
+    println!();
+}

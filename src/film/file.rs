@@ -1,0 +1,372 @@
+//! Film files: the raw accumulation of a render (or of a sample range of it) with everything needed to
+//! resume it or to merge it exactly with other ranges.
+//!
+//! The pixel sums are the film's own 128-bit fixed-point integers, so a film written and read back is the
+//! same film bit for bit, and films of disjoint sample ranges add up to exactly the film of their union.
+//!
+//! # Layout (version 1)
+//!
+//! All integers little-endian; no padding.
+//!
+//! ```text
+//! offset    size         field
+//! 0         8            magic "STRATAFM"
+//! 8         4   u32      format version (1)
+//! 12        4   u32      width
+//! 16        4   u32      height
+//! 20        4   u32      spp: samples per pixel of the whole render (the profile's)
+//! 24        4   u32      sample range start (first sample index in this film)
+//! 28        4   u32      sample range end (exclusive)
+//! 32        4   u32      tile side of the work units
+//! 36        4   u32      U: number of work units of the range (tiles x sample batches, in render order)
+//! 40        8   u64      scene hash (Scene::hash: FNV-1a of the scene file's text)
+//! 48        8   u64      seed
+//! 56        8   u64      profile hash: xxh64 of the profile record below
+//! 64        4   u32      P: length of the profile record
+//! 68        P            profile record: the profile as JSON (fields in declaration order, name omitted)
+//! 68+P      ceil(U/8)    completed work units: bit (i mod 8) of byte i/8 is unit i; unused bits zero
+//! ...       104 x W x H  pixels, row-major, each: sum r g b (3 x i128), sum of squares r g b
+//!                        (3 x i128), sample count (u64); sums in units of 2^-32
+//! end-8     8   u64      checksum: xxh64 (seed 0) of every preceding byte
+//! ```
+//!
+//! A film is consistent: its pixels hold exactly the samples of the work units marked complete (the
+//! render driver snapshots it between units). Reading checks the magic, the version, the size implied by
+//! the header, the checksum and the header's own consistency, and says which failed. Writing is atomic
+//! (temporary file in the same directory, synced, renamed), so a checkpoint interrupted mid-write leaves
+//! the previous checkpoint intact.
+
+use super::checksum::xxh64;
+use super::output::write_atomic;
+use super::{Film, Pixel};
+use crate::scene::Profile;
+use std::io::Write;
+use std::ops::Range;
+use std::path::Path;
+
+pub const MAGIC: [u8; 8] = *b"STRATAFM";
+pub const VERSION: u32 = 1;
+/// Bytes before the profile record.
+pub const FIXED_HEADER: usize = 68;
+/// Bytes per pixel record.
+pub const PIXEL_BYTES: usize = 6 * 16 + 8;
+/// Largest accepted profile record (a real one is a few hundred bytes).
+const MAX_PROFILE_RECORD: usize = 1 << 16;
+
+/// Everything in a film file but the pixels.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FilmHeader {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub samples: Range<u32>,
+    pub tile: u32,
+    pub scene_hash: u64,
+    pub seed: u64,
+    /// The profile as JSON (see [`profile_record`]).
+    pub profile: String,
+    /// One flag per work unit of `samples` (in [`crate::render::work_units`] order).
+    pub completed: Vec<bool>,
+}
+
+/// A film with its header.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FilmFile {
+    pub header: FilmHeader,
+    pub film: Film,
+}
+
+/// The profile as stored in a film: JSON in field-declaration order (serde_json keeps it), without the
+/// name, which is only a label: `--profile final` and a copy of final.toml render the same image.
+pub fn profile_record(p: &Profile) -> String {
+    let mut p = p.clone();
+    p.name.clear();
+    serde_json::to_string(&p).expect("a profile always serializes")
+}
+
+impl FilmHeader {
+    pub fn profile_hash(&self) -> u64 {
+        xxh64(self.profile.as_bytes())
+    }
+
+    pub fn units_done(&self) -> usize {
+        self.completed.iter().filter(|&&c| c).count()
+    }
+
+    pub fn is_complete(&self) -> bool {
+        self.completed.iter().all(|&c| c)
+    }
+
+    /// Differences that make two films belong to different renders (image size, scene, seed, spp,
+    /// profile), described as `what: <self> vs <other>`. The sample range and tile are not compared.
+    pub fn identity_differences(&self, other: &FilmHeader, names: (&str, &str)) -> Vec<String> {
+        let (a, b) = names;
+        let mut d = Vec::new();
+        if (self.width, self.height) != (other.width, other.height) {
+            d.push(format!("image size: {a} {}x{}, {b} {}x{}", self.width, self.height, other.width, other.height));
+        }
+        if self.scene_hash != other.scene_hash {
+            d.push(format!("scene: {a} {:016x}, {b} {:016x} (the scene file's text differs)", self.scene_hash, other.scene_hash));
+        }
+        if self.seed != other.seed {
+            d.push(format!("seed: {a} {}, {b} {}", self.seed, other.seed));
+        }
+        if self.spp != other.spp {
+            d.push(format!("spp: {a} {}, {b} {}", self.spp, other.spp));
+        }
+        if self.profile != other.profile {
+            d.push(format!("profile: {}", profile_differences(&self.profile, &other.profile, names)));
+        }
+        d
+    }
+}
+
+/// Which profile fields differ between two records, e.g. `light_samples film 2, this render 4`.
+fn profile_differences(x: &str, y: &str, (a, b): (&str, &str)) -> String {
+    let parse = |s: &str| serde_json::from_str::<serde_json::Map<String, serde_json::Value>>(s).unwrap_or_default();
+    let (px, py) = (parse(x), parse(y));
+    let keys: std::collections::BTreeSet<&String> = px.keys().chain(py.keys()).collect();
+    let show = |v: Option<&serde_json::Value>| v.map(|v| v.to_string()).unwrap_or_else(|| "absent".into());
+    let diffs: Vec<String> = keys
+        .into_iter()
+        .filter(|k| px.get(*k) != py.get(*k))
+        .map(|k| format!("{k} {a} {}, {b} {}", show(px.get(k)), show(py.get(k))))
+        .collect();
+    if diffs.is_empty() {
+        "the profile records differ".into()
+    } else {
+        diffs.join("; ")
+    }
+}
+
+/// Serialize a film file (header, pixels, checksum).
+pub fn encode(header: &FilmHeader, film: &Film) -> Vec<u8> {
+    assert_eq!((header.width, header.height), (film.width, film.height), "film and header sizes differ");
+    let n_units = header.completed.len();
+    let mut out = Vec::with_capacity(FIXED_HEADER + header.profile.len() + n_units.div_ceil(8) + film.pixels.len() * PIXEL_BYTES + 8);
+    out.extend_from_slice(&MAGIC);
+    for v in [VERSION, header.width, header.height, header.spp, header.samples.start, header.samples.end, header.tile, n_units as u32] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [header.scene_hash, header.seed, header.profile_hash()] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&(header.profile.len() as u32).to_le_bytes());
+    out.extend_from_slice(header.profile.as_bytes());
+    let mut bits = vec![0u8; n_units.div_ceil(8)];
+    for (i, _) in header.completed.iter().enumerate().filter(|(_, &c)| c) {
+        bits[i / 8] |= 1 << (i % 8);
+    }
+    out.extend_from_slice(&bits);
+    for p in &film.pixels {
+        for v in p.sum.iter().chain(&p.sum_sq) {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&p.count.to_le_bytes());
+    }
+    let sum = xxh64(&out);
+    out.extend_from_slice(&sum.to_le_bytes());
+    out
+}
+
+/// Little-endian reader over a byte slice whose length has already been checked.
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl Cursor<'_> {
+    fn take(&mut self, n: usize) -> &[u8] {
+        let s = &self.bytes[self.at..self.at + n];
+        self.at += n;
+        s
+    }
+    fn u32(&mut self) -> u32 {
+        u32::from_le_bytes(self.take(4).try_into().unwrap())
+    }
+    fn u64(&mut self) -> u64 {
+        u64::from_le_bytes(self.take(8).try_into().unwrap())
+    }
+    fn i128(&mut self) -> i128 {
+        i128::from_le_bytes(self.take(16).try_into().unwrap())
+    }
+}
+
+/// Parse and validate a film file. Errors say what is wrong, without the path (the caller adds it).
+pub fn decode(bytes: &[u8]) -> Result<FilmFile, String> {
+    let len = bytes.len();
+    if len < 12 || bytes[..8] != MAGIC {
+        return Err(if len >= 8 && bytes[..8] != MAGIC {
+            "not a Strata film file (bad magic; expected \"STRATAFM\")".to_string()
+        } else {
+            format!("not a Strata film file (only {len} bytes)")
+        });
+    }
+    let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
+    if version != VERSION {
+        return Err(format!("film format version {version} is not supported (this strata reads version {VERSION})"));
+    }
+    if len < FIXED_HEADER + 8 {
+        return Err(format!("truncated: {len} bytes is shorter than the {}-byte header", FIXED_HEADER + 8));
+    }
+    let mut c = Cursor { bytes, at: 12 };
+    let (width, height, spp) = (c.u32(), c.u32(), c.u32());
+    let samples = c.u32()..c.u32();
+    let (tile, n_units) = (c.u32(), c.u32() as usize);
+    let (scene_hash, seed, profile_hash) = (c.u64(), c.u64(), c.u64());
+    let profile_len = c.u32() as usize;
+
+    // The size the header implies (u128: a corrupted header must not overflow the arithmetic).
+    let expected =
+        FIXED_HEADER as u128 + profile_len as u128 + n_units.div_ceil(8) as u128 + width as u128 * height as u128 * PIXEL_BYTES as u128 + 8;
+    let stored_sum = u64::from_le_bytes(bytes[len - 8..].try_into().unwrap());
+    if xxh64(&bytes[..len - 8]) != stored_sum {
+        return Err(if expected != len as u128 {
+            format!("truncated or corrupted: the header implies {expected} bytes, the file has {len} (checksum mismatch)")
+        } else {
+            "corrupted: checksum mismatch (the file was changed after it was written)".to_string()
+        });
+    }
+    if expected != len as u128 {
+        return Err(format!("size mismatch: the header implies {expected} bytes, the file has {len}"));
+    }
+
+    // The checksum holds, so these can only fail for a file written by something else than strata.
+    let bad = |m: String| Err(format!("inconsistent header: {m}"));
+    if width == 0 || height == 0 || width > crate::scene::MAX_IMAGE_SIDE as u32 || height > crate::scene::MAX_IMAGE_SIDE as u32 {
+        return bad(format!("image size {width}x{height}"));
+    }
+    if !(samples.start < samples.end && samples.end <= spp) {
+        return bad(format!("sample range {}..{} of spp {spp}", samples.start, samples.end));
+    }
+    if tile == 0 {
+        return bad("tile side 0".into());
+    }
+    let want_units = crate::render::unit_count(width, height, tile, samples.clone());
+    if n_units != want_units {
+        return bad(format!("{n_units} work units, the size, tile and range give {want_units}"));
+    }
+    if profile_len > MAX_PROFILE_RECORD {
+        return bad(format!("profile record of {profile_len} bytes"));
+    }
+    let profile =
+        String::from_utf8(c.take(profile_len).to_vec()).map_err(|_| "inconsistent header: profile record is not UTF-8".to_string())?;
+    if xxh64(profile.as_bytes()) != profile_hash {
+        return bad("profile hash does not match the profile record".into());
+    }
+    if let Err(e) = serde_json::from_str::<Profile>(&profile) {
+        return bad(format!("profile record: {e}"));
+    }
+    let bits = c.take(n_units.div_ceil(8));
+    let completed: Vec<bool> = (0..n_units).map(|i| bits[i / 8] >> (i % 8) & 1 == 1).collect();
+    if n_units % 8 != 0 && bits[n_units / 8] >> (n_units % 8) != 0 {
+        return bad("bits set past the last work unit".into());
+    }
+    let mut film = Film::new(width, height);
+    for p in film.pixels.iter_mut() {
+        *p = Pixel { sum: [c.i128(), c.i128(), c.i128()], sum_sq: [c.i128(), c.i128(), c.i128()], count: c.u64() };
+    }
+    let header = FilmHeader { width, height, spp, samples, tile, scene_hash, seed, profile, completed };
+    Ok(FilmFile { header, film })
+}
+
+/// Read and validate a film file; errors start with the path.
+pub fn read_film(path: &Path) -> Result<FilmFile, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    decode(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Write a film file atomically (temporary file, fsync, rename).
+pub fn write_film(path: &Path, header: &FilmHeader, film: &Film) -> Result<(), String> {
+    let bytes = encode(header, film);
+    write_atomic(path, |tmp| {
+        let mut f = std::fs::File::create(tmp).map_err(|e| format!("{}: {e}", path.display()))?;
+        f.write_all(&bytes).and_then(|_| f.sync_all()).map_err(|e| format!("{}: {e}", path.display()))
+    })
+}
+
+/// Check before rendering that a film can be written at `path` (its directory exists and is writable).
+pub fn check_film_writable(path: &Path) -> Result<(), String> {
+    if path.file_name().is_none() || path.is_dir() {
+        return Err(format!("{}: not a file name", path.display()));
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(format!("{}: directory {} does not exist", path.display(), dir.display()));
+    }
+    let probe = dir.join(format!(".strata-probe.{}", std::process::id()));
+    std::fs::write(&probe, b"").map_err(|e| format!("{}: cannot write here: {e}", path.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> (FilmHeader, Film) {
+        let mut film = Film::new(5, 3);
+        for (i, p) in film.pixels.iter_mut().enumerate() {
+            // Values that use the high bits and the sign of the 128-bit sums.
+            p.sum = [i as i128 - 7, (i as i128) << 100, -(1i128 << 90)];
+            p.sum_sq = [1, 2, i as i128];
+            p.count = i as u64 * 3;
+        }
+        let profile = profile_record(&Profile::builtin("preview"));
+        let n = crate::render::unit_count(5, 3, 2, 1..4);
+        let completed = (0..n).map(|i| i % 3 != 1).collect();
+        let h = FilmHeader { width: 5, height: 3, spp: 4, samples: 1..4, tile: 2, scene_hash: 0xdead_beef, seed: 9, profile, completed };
+        (h, film)
+    }
+
+    #[test]
+    fn round_trip_is_exact() {
+        let (h, f) = sample();
+        let bytes = encode(&h, &f);
+        let back = decode(&bytes).unwrap();
+        assert_eq!(back.header, h);
+        assert_eq!(back.film, f);
+        assert_eq!(encode(&back.header, &back.film), bytes);
+    }
+
+    #[test]
+    fn every_single_byte_corruption_and_truncation_is_detected() {
+        let (h, f) = sample();
+        let bytes = encode(&h, &f);
+        for i in 0..bytes.len() {
+            let mut b = bytes.clone();
+            b[i] ^= 0x10;
+            assert!(decode(&b).is_err(), "flipped bit in byte {i} went unnoticed");
+        }
+        for n in 0..bytes.len() {
+            assert!(decode(&bytes[..n]).is_err(), "truncation to {n} bytes went unnoticed");
+        }
+        let e = decode(&bytes[..bytes.len() - 10]).unwrap_err();
+        assert!(e.contains("truncated"), "{e}");
+        let mut b = bytes.clone();
+        b[200] ^= 1;
+        assert!(decode(&b).unwrap_err().contains("checksum"));
+        b = bytes.clone();
+        b[8] = 7;
+        assert!(decode(&b).unwrap_err().contains("version 7"));
+        b[0] = b'X';
+        assert!(decode(&b).unwrap_err().contains("magic"));
+    }
+
+    #[test]
+    fn differences_name_the_field() {
+        let (h, _) = sample();
+        let mut o = h.clone();
+        o.seed = 10;
+        let mut p = Profile::builtin("preview");
+        p.light_samples = 3;
+        o.profile = profile_record(&p);
+        let d = h.identity_differences(&o, ("film", "this render"));
+        assert_eq!(d.len(), 2, "{d:?}");
+        assert!(d[0].contains("seed: film 9, this render 10"), "{d:?}");
+        assert!(d[1].contains("light_samples film 1, this render 3"), "{d:?}");
+    }
+}

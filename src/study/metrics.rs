@@ -1,0 +1,65 @@
+//! Error metrics of an image against a reference, and the convergence slope of a series.
+//!
+//! All sums are in f64 over every pixel and every channel (the reference is f64 so that an analytic
+//! reference loses nothing).
+
+use glam::{DVec3, Vec3};
+
+/// The `0.01` in relMSE: keeps the metric finite on black reference pixels (pbrt, Mitsuba and the
+/// denoising literature use the same constant).
+pub const RELMSE_EPSILON: f64 = 0.01;
+
+/// Mean squared error over pixels and channels: `mean((x - ref)^2)`.
+pub fn mse(image: &[Vec3], reference: &[DVec3]) -> f64 {
+    assert_eq!(image.len(), reference.len(), "image and reference sizes differ");
+    let sum: f64 = image.iter().zip(reference).map(|(x, r)| (x.as_dvec3() - *r).length_squared()).sum();
+    sum / (3 * image.len().max(1)) as f64
+}
+
+/// Relative MSE per channel: `mean((x - ref)^2 / (ref^2 + 0.01))`.
+pub fn relmse(image: &[Vec3], reference: &[DVec3]) -> f64 {
+    assert_eq!(image.len(), reference.len(), "image and reference sizes differ");
+    let sum: f64 = image
+        .iter()
+        .zip(reference)
+        .map(|(x, r)| {
+            let d = x.as_dvec3() - *r;
+            let w = *r * *r + DVec3::splat(RELMSE_EPSILON);
+            (d * d / w).element_sum()
+        })
+        .sum();
+    sum / (3 * image.len().max(1)) as f64
+}
+
+/// Efficiency `1 / (MSE x seconds)`: the inverse of the work needed for a given error (higher is better).
+/// Infinite for a zero error.
+pub fn efficiency(mse: f64, seconds: f64) -> f64 {
+    1.0 / (mse * seconds)
+}
+
+/// A straight line `ln y = slope ln x + intercept`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogLogFit {
+    pub slope: f64,
+    pub intercept: f64,
+}
+
+/// Least-squares fit of `ln y` against `ln x`. Points with a non-positive or non-finite coordinate are
+/// skipped (a zero error has no logarithm); None if fewer than two distinct `x` remain.
+pub fn fit_loglog(points: &[(f64, f64)]) -> Option<LogLogFit> {
+    let pts: Vec<(f64, f64)> =
+        points.iter().filter(|(x, y)| x.is_finite() && y.is_finite() && *x > 0.0 && *y > 0.0).map(|(x, y)| (x.ln(), y.ln())).collect();
+    let n = pts.len() as f64;
+    if pts.len() < 2 {
+        return None;
+    }
+    let mx = pts.iter().map(|p| p.0).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p.1).sum::<f64>() / n;
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx) * (p.0 - mx)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    if sxx <= 0.0 {
+        return None;
+    }
+    let slope = sxy / sxx;
+    Some(LogLogFit { slope, intercept: my - slope * mx })
+}

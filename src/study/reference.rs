@@ -1,0 +1,143 @@
+//! The reference image a study measures against: a given EXR, a high-sample render (rendered once and
+//! cached), or the analytic image of a Lambert plane under a quad light.
+//!
+//! The reference is the converged value of the *same* estimator the series runs: the studied integrals
+//! sampled, the others held at their centre sample ([`configure`] with the jittered strategy and `N`
+//! samples, or the analytic image with the matching footprint and light).
+//!
+//! Cache: `DIR/reference-<key>.exr` with a sidecar `reference-<key>.txt` holding the full key text (crate
+//! version, scene hash and size, seed, N, the complete reference profile). A cached file is reused only if
+//! the sidecar's text equals the current key exactly and the image has the scene's size; any change to
+//! the scene file, profile, mapping or N gives a different key (and so a fresh render).
+
+use super::analytic::{Footprint, QuadIrradiance};
+use super::run::{configure, light_only, render_once, REFERENCE_SEED};
+use super::{Integral, IntegralSet};
+use crate::film::output::{read_image, write_atomic, write_image};
+use crate::sample::Strategy;
+use crate::scene::{Profile, Scene};
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+
+/// Where the reference comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ReferenceSource {
+    File(PathBuf),
+    Samples(u32),
+    Analytic,
+}
+
+/// A reference image and a one-line description of where it came from.
+pub struct Reference {
+    pub image: Vec<DVec3>,
+    pub description: String,
+}
+
+/// Errors: `Input` for bad requests (exit 2), `Runtime` for failures while working (exit 1).
+#[derive(Debug)]
+pub enum RefError {
+    Input(String),
+    Runtime(String),
+}
+
+/// Obtain the reference for a study of `integrals` on `scene` with the base `profile`.
+pub fn obtain(
+    source: &ReferenceSource,
+    scene: &Scene,
+    profile: &Profile,
+    integrals: &IntegralSet,
+    out_dir: &Path,
+    threads: usize,
+) -> Result<Reference, RefError> {
+    match source {
+        ReferenceSource::File(path) => from_file(path, scene),
+        ReferenceSource::Analytic => analytic(scene, profile, integrals).map_err(RefError::Input),
+        ReferenceSource::Samples(n) => rendered(scene, profile, integrals, *n, out_dir, threads),
+    }
+}
+
+fn from_file(path: &Path, scene: &Scene) -> Result<Reference, RefError> {
+    let is_exr = path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if !is_exr {
+        return Err(RefError::Input(format!("{}: the reference must be a linear .exr image", path.display())));
+    }
+    let (w, h, px) = read_image(path).map_err(RefError::Input)?;
+    if (w, h) != (scene.width, scene.height) {
+        return Err(RefError::Input(format!(
+            "{}: reference is {w}x{h} but the scene renders {}x{}",
+            path.display(),
+            scene.width,
+            scene.height
+        )));
+    }
+    Ok(Reference { image: px.iter().map(|c| c.as_dvec3()).collect(), description: format!("file {}", path.display()) })
+}
+
+/// The analytic image for the studied integrals (see [`QuadIrradiance`]).
+pub fn analytic(scene: &Scene, profile: &Profile, integrals: &IntegralSet) -> Result<Reference, String> {
+    let form = QuadIrradiance::from_scene(scene, profile)?;
+    let pixel_sampled = integrals.contains(Integral::Pixel) && !light_only(integrals);
+    let footprint = if pixel_sampled { Footprint::Filter(profile.filter) } else { Footprint::Centre };
+    let light_centre = !integrals.contains(Integral::Light);
+    let image = form.with_light_at_centre(light_centre).image(footprint);
+    let what = match footprint {
+        Footprint::Centre => "at pixel centres".to_string(),
+        Footprint::Filter(f) => format!("over the {f} filter footprint (Gauss-Legendre)"),
+    };
+    let light = if light_centre { "light held at its centre" } else { "Lambert's polygon formula" };
+    Ok(Reference { image, description: format!("analytic ({light}, {what}, f64)") })
+}
+
+/// The full text the cache is keyed by.
+pub fn cache_key_text(scene: &Scene, reference_profile: &Profile) -> String {
+    let profile = serde_json::to_string(reference_profile).expect("profiles serialise");
+    format!(
+        "strata study reference v1\ncrate {}\nscene {:016x} {}x{}\nseed {REFERENCE_SEED}\nprofile {profile}\n",
+        env!("CARGO_PKG_VERSION"),
+        scene.hash,
+        scene.width,
+        scene.height
+    )
+}
+
+/// FNV-1a of the key text (file name only; the sidecar holds the full text that is compared).
+fn key_hash(text: &str) -> u64 {
+    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+}
+
+/// Paths of the cached reference and its sidecar for `key_text`.
+pub fn cache_paths(out_dir: &Path, key_text: &str) -> (PathBuf, PathBuf) {
+    let stem = format!("reference-{:016x}", key_hash(key_text));
+    (out_dir.join(format!("{stem}.exr")), out_dir.join(format!("{stem}.txt")))
+}
+
+fn rendered(
+    scene: &Scene,
+    profile: &Profile,
+    integrals: &IntegralSet,
+    n: u32,
+    out_dir: &Path,
+    threads: usize,
+) -> Result<Reference, RefError> {
+    let ref_profile =
+        configure(profile, integrals, Strategy::Jittered, n, false).map_err(|e| RefError::Input(format!("--reference-spp: {e}")))?;
+    let key = cache_key_text(scene, &ref_profile);
+    let (exr, txt) = cache_paths(out_dir, &key);
+    let what = if light_only(integrals) { "light samples" } else { "samples per pixel" };
+    if std::fs::read_to_string(&txt).ok().as_deref() == Some(key.as_str()) {
+        if let Ok((w, h, px)) = read_image(&exr) {
+            if (w, h) == (scene.width, scene.height) {
+                let description = format!("jittered, {n} {what}, reused cached {}", exr.display());
+                return Ok(Reference { image: px.iter().map(|c| c.as_dvec3()).collect(), description });
+            }
+        }
+    }
+    let (film, seconds, _) = render_once(scene, ref_profile, REFERENCE_SEED, threads);
+    let rgb = film.to_rgb();
+    // The image first, then the sidecar: an interrupted write leaves no sidecar, so no stale reuse.
+    let _ = std::fs::remove_file(&txt);
+    write_image(&exr, scene.width, scene.height, &rgb).map_err(RefError::Runtime)?;
+    write_atomic(&txt, |tmp| std::fs::write(tmp, &key).map_err(|e| e.to_string())).map_err(RefError::Runtime)?;
+    let description = format!("jittered, {n} {what}, rendered in {seconds:.2} s, cached as {}", exr.display());
+    Ok(Reference { image: rgb.iter().map(|c| c.as_dvec3()).collect(), description })
+}

@@ -1,0 +1,223 @@
+//! The series of renders: for every strategy, sample count and seed, one render compared with the
+//! reference; and how a sample count maps onto the profile ([`configure`]).
+
+use super::metrics::{efficiency, fit_loglog, mse, relmse, LogLogFit};
+use super::{Integral, IntegralSet};
+use crate::film::Film;
+use crate::render::{render_into, RenderJob};
+use crate::sample::Strategy;
+use crate::scene::profile::MAX_LIGHT_SAMPLES;
+use crate::scene::{Profile, Scene};
+use crate::wavefront::Settings;
+use glam::{DVec3, Vec3};
+
+/// The seed of the high-sample reference render: never one of the study's seeds `1..=K`, so the
+/// reference's error is independent of every run's.
+pub const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
+
+/// Whether the sample count `n` is the light's (only `light` studied) or the camera's.
+pub fn light_only(integrals: &IntegralSet) -> bool {
+    integrals.contains(Integral::Light) && integrals.len() == 1
+}
+
+/// The profile of one run: `n` samples of the studied integrals with `strategy`.
+///
+/// - Only `light` studied: `light_samples = n` per shading point with `strategy`, and one camera path per
+///   pixel through the pixel centre (pixel, lens, time and glossy held at `center`), so the error
+///   measured is that of the light integral alone. Above 4096 (the profile's limit) `n` must be a
+///   multiple of 4096 and is split into `n / 4096` camera passes of 4096 light samples (each pass draws
+///   its own stratification).
+/// - Otherwise: `spp = n` camera samples per pixel; every studied camera integral (pixel, lens, time,
+///   glossy) uses `strategy`, the others are held at `center` (pixel centre, lens centre, mid-shutter,
+///   the lobe's central direction). If `light` is studied too, the light uses `strategy` with the
+///   profile's `light_samples` per shading point, or `n` of them with `light_from_spp`; if it is not
+///   studied it is held at one `center` sample (the light's centre: hard shadows).
+///
+/// The pixel strategy also drives the wavelength and diffuse-bounce dimensions (the renderer samples
+/// them with it), so those follow the pixel integral.
+pub fn configure(base: &Profile, integrals: &IntegralSet, strategy: Strategy, n: u32, light_from_spp: bool) -> Result<Profile, String> {
+    if n == 0 {
+        return Err("sample counts must be at least 1".into());
+    }
+    let mut p = base.clone();
+    let pick = |i: Integral| if integrals.contains(i) { strategy } else { Strategy::Center };
+    if light_only(integrals) {
+        let (passes, per_pass) = if n <= MAX_LIGHT_SAMPLES {
+            (1, n)
+        } else if n.is_multiple_of(MAX_LIGHT_SAMPLES) {
+            (n / MAX_LIGHT_SAMPLES, MAX_LIGHT_SAMPLES)
+        } else {
+            return Err(format!(
+                "{n} light samples: counts of the light integral above {MAX_LIGHT_SAMPLES} must be multiples of {MAX_LIGHT_SAMPLES}"
+            ));
+        };
+        p.spp = passes;
+        p.light_samples = per_pass;
+        p.light_strategy = strategy;
+        p.pixel_strategy = Strategy::Center;
+        p.lens_strategy = Strategy::Center;
+        p.time_strategy = Strategy::Center;
+        p.glossy_strategy = Strategy::Center;
+    } else {
+        p.spp = n;
+        p.pixel_strategy = pick(Integral::Pixel);
+        p.lens_strategy = pick(Integral::Lens);
+        p.time_strategy = pick(Integral::Time);
+        p.glossy_strategy = pick(Integral::Glossy);
+        if integrals.contains(Integral::Light) {
+            p.light_strategy = strategy;
+            if light_from_spp {
+                if n > MAX_LIGHT_SAMPLES {
+                    return Err(format!("--light-samples-from-spp: {n} light samples exceed the limit of {MAX_LIGHT_SAMPLES}"));
+                }
+                p.light_samples = n;
+            }
+        } else {
+            p.light_strategy = Strategy::Center;
+            p.light_samples = 1;
+        }
+    }
+    p.name = format!("{} ({strategy} x {n})", base.name);
+    p.validate().map_err(|(f, m)| format!("{f}: {m}"))?;
+    Ok(p)
+}
+
+/// One render of the series.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunResult {
+    pub strategy: Strategy,
+    /// Samples of the studied integral (the `spp` column).
+    pub n: u32,
+    pub seed: u64,
+    /// The profile's camera samples per pixel and light samples per shading point for this run.
+    pub camera_spp: u32,
+    pub light_samples: u32,
+    /// Wall seconds of the render (the renderer's own `RenderStats.seconds`).
+    pub seconds: f64,
+    pub rays: u64,
+    pub mse: f64,
+    pub relmse: f64,
+    pub efficiency: f64,
+}
+
+/// What a series runs over.
+#[derive(Clone, Debug)]
+pub struct Plan {
+    pub integrals: IntegralSet,
+    pub strategies: Vec<Strategy>,
+    pub counts: Vec<u32>,
+    /// Seeds `1..=seeds`.
+    pub seeds: u32,
+    pub light_from_spp: bool,
+    pub threads: usize,
+}
+
+/// The results of a series, and the first seed's image of every (strategy, count) for the sheet.
+pub struct Series {
+    pub runs: Vec<RunResult>,
+    pub images: Vec<(Strategy, u32, Vec<Vec3>)>,
+}
+
+/// Render one image with `profile` and `seed`; returns the linear image, seconds and rays.
+pub fn render_once(scene: &Scene, profile: Profile, seed: u64, threads: usize) -> (Film, f64, u64) {
+    let mut job = RenderJob::new(scene, Settings { profile, seed });
+    job.threads = threads;
+    let (film, stats) = render_into(&job, Film::new(scene.width, scene.height));
+    (film, stats.seconds, stats.rays.total)
+}
+
+/// Run the whole series against `reference`. `report` is called after each run (progress output).
+pub fn run_series(
+    scene: &Scene,
+    base: &Profile,
+    plan: &Plan,
+    reference: &[DVec3],
+    keep_images: bool,
+    report: &mut dyn FnMut(&RunResult),
+) -> Result<Series, String> {
+    let mut runs = Vec::new();
+    let mut images = Vec::new();
+    // One unmeasured render first: the first render of a process pays for page faults and cold caches,
+    // which would otherwise be charged to the first run's seconds.
+    if let (Some(&s), Some(&n)) = (plan.strategies.first(), plan.counts.first()) {
+        render_once(scene, configure(base, &plan.integrals, s, n, plan.light_from_spp)?, 0, plan.threads);
+    }
+    for &strategy in &plan.strategies {
+        for &n in &plan.counts {
+            let profile = configure(base, &plan.integrals, strategy, n, plan.light_from_spp)?;
+            for seed in 1..=plan.seeds as u64 {
+                let (film, seconds, rays) = render_once(scene, profile.clone(), seed, plan.threads);
+                let img = film.to_rgb();
+                let e = mse(&img, reference);
+                let r = RunResult {
+                    strategy,
+                    n,
+                    seed,
+                    camera_spp: profile.spp,
+                    light_samples: profile.light_samples,
+                    seconds,
+                    rays,
+                    mse: e,
+                    relmse: relmse(&img, reference),
+                    efficiency: efficiency(e, seconds),
+                };
+                report(&r);
+                runs.push(r);
+                if keep_images && seed == 1 {
+                    images.push((strategy, n, img));
+                }
+            }
+        }
+    }
+    Ok(Series { runs, images })
+}
+
+/// The runs of one (strategy, count) averaged over seeds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Summary {
+    pub strategy: Strategy,
+    pub n: u32,
+    pub seeds: usize,
+    pub seconds: f64,
+    pub rays: f64,
+    pub mse: f64,
+    pub relmse: f64,
+    /// `1 / (mean MSE x mean seconds)`.
+    pub efficiency: f64,
+}
+
+/// Average the runs over seeds, in the order the (strategy, count) pairs first appear.
+pub fn summarize(runs: &[RunResult]) -> Vec<Summary> {
+    let mut keys: Vec<(Strategy, u32)> = Vec::new();
+    for r in runs {
+        if !keys.contains(&(r.strategy, r.n)) {
+            keys.push((r.strategy, r.n));
+        }
+    }
+    keys.into_iter()
+        .map(|(strategy, n)| {
+            let g: Vec<&RunResult> = runs.iter().filter(|r| r.strategy == strategy && r.n == n).collect();
+            let k = g.len() as f64;
+            let mean = |f: &dyn Fn(&RunResult) -> f64| g.iter().map(|r| f(r)).sum::<f64>() / k;
+            let (seconds, e) = (mean(&|r| r.seconds), mean(&|r| r.mse));
+            Summary {
+                strategy,
+                n,
+                seeds: g.len(),
+                seconds,
+                rays: mean(&|r| r.rays as f64),
+                mse: e,
+                relmse: mean(&|r| r.relmse),
+                efficiency: efficiency(e, seconds),
+            }
+        })
+        .collect()
+}
+
+/// Fitted slopes of one strategy's mean MSE against samples and against seconds.
+pub fn slopes(summary: &[Summary], strategy: Strategy) -> (Option<LogLogFit>, Option<LogLogFit>) {
+    let s: Vec<&Summary> = summary.iter().filter(|s| s.strategy == strategy).collect();
+    let vs_n: Vec<(f64, f64)> = s.iter().map(|s| (s.n as f64, s.mse)).collect();
+    let vs_t: Vec<(f64, f64)> = s.iter().map(|s| (s.seconds, s.mse)).collect();
+    (fit_loglog(&vs_n), fit_loglog(&vs_t))
+}

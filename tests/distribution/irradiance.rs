@@ -1,0 +1,279 @@
+//! Light-area integrals: the irradiance of an unoccluded Lambert plane under quad, disk and sphere lights
+//! against closed forms, per strategy; and stratified vs independent light samples on a soft shadow.
+
+use super::*;
+use std::f64::consts::PI;
+
+const ALBEDO: [f64; 3] = [0.5, 0.6, 0.7];
+const RADIANCE: [f64; 3] = [1.0, 2.0, 3.0];
+const SIZE: u32 = 32;
+
+/// Irradiance at `p` (surface normal `n`) from a uniform Lambertian polygon of radiance 1 that is
+/// wholly above the tangent plane of `p`: Lambert's formula `E = 1/2 |sum_i theta_i (g_i . n)|`, where
+/// `theta_i` is the angle edge i subtends at `p` and `g_i` the unit normal of the plane through `p` and
+/// edge i.
+fn polygon_irradiance(p: DVec3, n: DVec3, verts: &[DVec3]) -> f64 {
+    let k = verts.len();
+    let mut sum = 0.0;
+    for i in 0..k {
+        let a = (verts[i] - p).normalize();
+        let b = (verts[(i + 1) % k] - p).normalize();
+        let c = a.cross(b);
+        let theta = c.length().atan2(a.dot(b));
+        sum += theta * c.normalize().dot(n);
+    }
+    0.5 * sum.abs()
+}
+
+/// The receiver: an infinite Lambert plane seen by a pinhole camera.
+struct Receiver {
+    cam: PinholeF64,
+    point: DVec3,
+    normal: DVec3,
+}
+
+/// Camera straight down from height 1 over the plane y = 0 (90 degree field of view: it sees [-1, 1]^2).
+fn floor() -> Receiver {
+    let cam = PinholeF64::new(DVec3::Y, DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0), 90.0, SIZE, SIZE);
+    Receiver { cam, point: DVec3::ZERO, normal: DVec3::Y }
+}
+
+fn receiver_scene(rc: &Receiver, light: &str) -> Scene {
+    let c = &rc.cam;
+    scene(&format!(
+        r#"
+[image]
+width = {SIZE}
+height = {SIZE}
+[camera]
+position = {}
+look_at = {}
+up = {}
+fov = {}
+[materials.ground]
+type = "lambert"
+albedo = [{}, {}, {}]
+[[shapes]]
+type = "plane"
+point = {}
+normal = {}
+material = "ground"
+[[lights]]
+{light}
+radiance = [{}, {}, {}]
+"#,
+        v3(c.pos),
+        v3(c.pos + c.forward),
+        v3(c.up),
+        2.0 * c.half_h.atan().to_degrees(),
+        ALBEDO[0],
+        ALBEDO[1],
+        ALBEDO[2],
+        v3(rc.point),
+        v3(rc.normal),
+        RADIANCE[0],
+        RADIANCE[1],
+        RADIANCE[2]
+    ))
+}
+
+fn plane_scene(light: &str) -> Scene {
+    receiver_scene(&floor(), light)
+}
+
+/// Analytic radiance of every pixel (seen through its centre): `albedo / pi * E(p) * L`.
+fn analytic_image(irradiance: impl Fn(DVec3) -> f64) -> Vec<DVec3> {
+    analytic_image_of(&floor(), irradiance)
+}
+
+fn analytic_image_of(rc: &Receiver, irradiance: impl Fn(DVec3) -> f64) -> Vec<DVec3> {
+    let cam = &rc.cam;
+    let mut img = Vec::new();
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let d = cam.dir(x as f64 + 0.5, y as f64 + 0.5);
+            let p = cam.pos + d * ((rc.point - cam.pos).dot(rc.normal) / d.dot(rc.normal));
+            let e = irradiance(p);
+            img.push(DVec3::from_array(std::array::from_fn(|c| ALBEDO[c] / PI * e * RADIANCE[c])));
+        }
+    }
+    img
+}
+
+fn mean(img: impl Iterator<Item = DVec3>) -> DVec3 {
+    let (s, n) = img.fold((DVec3::ZERO, 0usize), |(s, n), v| (s + v, n + 1));
+    s / n as f64
+}
+
+/// Largest relative difference of the per-channel image means.
+fn mean_rel_error(img: &[Vec3], truth: &[DVec3]) -> f64 {
+    let m = mean(img.iter().map(|v| v.as_dvec3()));
+    let t = mean(truth.iter().copied());
+    ((m - t) / t).abs().max_element()
+}
+
+/// Relative RMS error over pixels and channels.
+fn rel_rms(img: &[Vec3], truth: &[DVec3]) -> f64 {
+    let s: f64 = img.iter().zip(truth).map(|(a, t)| ((a.as_dvec3() - *t) / *t).length_squared()).sum();
+    (s / (3 * img.len()) as f64).sqrt()
+}
+
+// A tilted quad light (u x v points down, towards the plane), wholly above the plane.
+const Q_ORIGIN: DVec3 = DVec3::new(-0.3, 2.0, -0.6);
+const Q_U: DVec3 = DVec3::new(0.8, 0.2, 0.0);
+const Q_V: DVec3 = DVec3::new(0.0, 0.1, 0.5);
+
+fn quad_light() -> (Scene, Vec<DVec3>) {
+    let s = plane_scene(&format!("type = \"quad\"\norigin = {}\nu = {}\nv = {}", v3(Q_ORIGIN), v3(Q_U), v3(Q_V)));
+    let verts = [Q_ORIGIN, Q_ORIGIN + Q_U, Q_ORIGIN + Q_U + Q_V, Q_ORIGIN + Q_V];
+    (s, analytic_image(|p| polygon_irradiance(p, DVec3::Y, &verts)))
+}
+
+#[test]
+fn quad_light_irradiance_matches_lambert_polygon_formula() {
+    let (s, truth) = quad_light();
+    // Unbiased strategies: 16 centre camera samples x 16 light samples per pixel.
+    for strategy in ["random", "jittered", "sobol"] {
+        let (img, _) = render_image(&s, &profile(16, "center", 16, strategy), 11);
+        let e = mean_rel_error(&img, &truth);
+        eprintln!("quad light, {strategy:>8}: image mean rel. error {e:.2e}, per-pixel rel. RMS {:.2e}", rel_rms(&img, &truth));
+        assert!(e < 0.01, "{strategy}: image mean off by {:.3}%", e * 100.0);
+    }
+}
+
+/// Grazing light: a wall (x = 0) lit by a horizontal ceiling light just above the part of the wall in
+/// view, so shadow rays meet the light's plane at angles down to a few degrees. (This caught light
+/// samples offset to the back of the light: grazing shadow rays crossed the light itself.)
+#[test]
+fn grazing_quad_light_irradiance_matches_lambert_polygon_formula() {
+    let cam = PinholeF64::new(DVec3::new(0.6, 0.85, 0.0), DVec3::new(0.0, 0.85, 0.0), DVec3::Y, 20.0, SIZE, SIZE);
+    let rc = Receiver { cam, point: DVec3::ZERO, normal: DVec3::X };
+    let (o, u, v) = (DVec3::new(0.05, 1.0, -0.3), DVec3::new(0.5, 0.0, 0.0), DVec3::new(0.0, 0.0, 0.6));
+    let s = receiver_scene(&rc, &format!("type = \"quad\"\norigin = {}\nu = {}\nv = {}", v3(o), v3(u), v3(v)));
+    let verts = [o, o + u, o + u + v, o + v];
+    let truth = analytic_image_of(&rc, |p| {
+        assert!(p.y < 0.99, "only wall points below the light are in view");
+        polygon_irradiance(p, DVec3::X, &verts)
+    });
+    let (film, stats) = render(&s, Settings { profile: profile(16, "center", 16, "random"), seed: 11 }, 0);
+    assert_eq!(stats.nonfinite_samples, 0);
+    let img = film.to_rgb();
+    let e = mean_rel_error(&img, &truth);
+    // Near the light the integrand is sharply peaked (per-pixel noise of several %), so each pixel is
+    // checked against its own standard error: 256 independent samples per pixel.
+    let z = film
+        .pixels
+        .iter()
+        .zip(&truth)
+        .map(|(px, t)| ((px.mean().as_dvec3() - *t) / px.variance_of_mean().as_dvec3().max(DVec3::splat(1e-30)).sqrt()).abs().max_element())
+        .fold(0.0, f64::max);
+    eprintln!("grazing quad light: image mean rel. error {e:.2e}, per-pixel rel. RMS {:.2e}, worst |z| {z:.2}", rel_rms(&img, &truth));
+    assert!(e < 0.01, "image mean off by {:.3}%", e * 100.0);
+    assert!(z < 6.0, "a pixel is {z:.1} standard errors off");
+}
+
+#[test]
+fn grid_light_samples_converge_to_lambert_polygon_formula() {
+    let (s, truth) = quad_light();
+    let mut errs = Vec::new();
+    for ns in [1u32, 4, 16, 64] {
+        // The grid is deterministic: one camera sample per pixel is the whole estimate.
+        let (img, _) = render_image(&s, &profile(1, "center", ns, "grid"), 11);
+        let (e, m) = (rel_rms(&img, &truth), mean_rel_error(&img, &truth));
+        eprintln!("quad light, grid {ns:>2}: per-pixel rel. RMS {e:.3e}, image mean rel. error {m:.3e}");
+        errs.push(e);
+    }
+    for w in errs.windows(2) {
+        assert!(w[1] < w[0], "grid error does not decrease: {errs:?}");
+    }
+    // The midpoint rule on a smooth integrand: error ~ h^2 ~ 1/ns, so 16x more samples at least 4x better.
+    assert!(errs[3] < errs[1] / 4.0, "grid converges too slowly: {errs:?}");
+    assert!(errs[3] < 1e-3, "grid 8x8 still {:.2e} off", errs[3]);
+}
+
+#[test]
+fn disk_light_irradiance_matches_inscribed_polygon_limit() {
+    let c = DVec3::new(0.2, 1.8, -0.1);
+    let n = DVec3::new(0.2, -1.0, 0.1).normalize();
+    let r = 0.4;
+    let s = plane_scene(&format!("type = \"disk\"\ncenter = {}\nnormal = {}\nradius = {r}", v3(c), v3(n)));
+    // The disk as the limit of an inscribed 4096-gon (area deficit ~ 4e-7).
+    let t = n.any_orthonormal_vector();
+    let b = n.cross(t);
+    let k = 4096;
+    let verts: Vec<DVec3> = (0..k).map(|i| 2.0 * PI * i as f64 / k as f64).map(|phi| c + (t * phi.cos() + b * phi.sin()) * r).collect();
+    let truth = analytic_image(|p| polygon_irradiance(p, DVec3::Y, &verts));
+    for strategy in ["random", "jittered"] {
+        let (img, _) = render_image(&s, &profile(16, "center", 16, strategy), 5);
+        let e = mean_rel_error(&img, &truth);
+        eprintln!("disk light, {strategy:>8}: image mean rel. error {e:.2e}, per-pixel rel. RMS {:.2e}", rel_rms(&img, &truth));
+        assert!(e < 0.01, "{strategy}: image mean off by {:.3}%", e * 100.0);
+    }
+}
+
+#[test]
+fn sphere_light_irradiance_matches_point_source_form() {
+    let c = DVec3::new(0.3, 2.0, 0.2);
+    let r = 0.3;
+    let s = plane_scene(&format!("type = \"sphere\"\ncenter = {}\nradius = {r}", v3(c)));
+    // A sphere wholly above the horizon irradiates like a point source at its centre:
+    // E = pi L (r / d)^2 cos(theta).
+    let truth = analytic_image(|p| {
+        let v = c - p;
+        PI * (r * r / v.length_squared()) * v.normalize().y
+    });
+    for strategy in ["random", "jittered"] {
+        let (img, _) = render_image(&s, &profile(16, "center", 16, strategy), 5);
+        let e = mean_rel_error(&img, &truth);
+        eprintln!("sphere light, {strategy:>8}: image mean rel. error {e:.2e}, per-pixel rel. RMS {:.2e}", rel_rms(&img, &truth));
+        assert!(e < 0.01, "{strategy}: image mean off by {:.3}%", e * 100.0);
+    }
+}
+
+/// A sphere on a plane under a quad light: the textbook soft shadow.
+fn soft_shadow_scene() -> Scene {
+    scene(
+        r#"
+[image]
+width = 40
+height = 40
+[camera]
+position = [0.0, 1.6, 3.2]
+look_at = [0.0, 0.3, 0.0]
+fov = 40.0
+[materials.white]
+type = "lambert"
+albedo = [0.8, 0.8, 0.8]
+[[shapes]]
+type = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+material = "white"
+[[shapes]]
+type = "sphere"
+center = [0.0, 0.5, 0.0]
+radius = 0.5
+material = "white"
+[[lights]]
+type = "quad"
+origin = [-0.6, 2.2, -0.6]
+u = [1.2, 0.0, 0.0]
+v = [0.0, 0.0, 1.2]
+radiance = [3.0, 3.0, 3.0]
+"#,
+    )
+}
+
+#[test]
+fn jittered_light_samples_beat_random_on_soft_shadows() {
+    let s = soft_shadow_scene();
+    // Reference: 32 centre camera samples x 256 independent light samples per pixel.
+    let (reference, _) = render_image(&s, &profile(32, "center", 256, "random"), 1234);
+    for ns in [4u32, 16, 64] {
+        let (r, _) = render_image(&s, &profile(1, "center", ns, "random"), 7);
+        let (j, _) = render_image(&s, &profile(1, "center", ns, "jittered"), 7);
+        let (er, ej) = (mse(&r, &reference), mse(&j, &reference));
+        eprintln!("soft shadow, {ns:>2} light samples: MSE random {er:.3e}, jittered {ej:.3e} (ratio {:.2})", er / ej);
+        assert!(ej < er, "{ns} samples: jittered MSE {ej:.3e} not below random {er:.3e}");
+    }
+}

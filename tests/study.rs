@@ -1,0 +1,407 @@
+//! `strata study`: metrics against hand-computed values, Lambert's formula against brute-force
+//! quadrature, convergence slopes on the soft-shadow scene, the analytic reference (exactness and the
+//! renderer's radiometry), the CLI outputs, the reference cache, and input errors.
+
+use glam::{DVec3, Vec3};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use strata::film::Film;
+use strata::sample::Strategy;
+use strata::scene::{load_scene, parse_scene, Profile, Scene};
+use strata::study::analytic::{gauss_legendre, polygon_irradiance, Footprint, QuadIrradiance};
+use strata::study::metrics::{efficiency, fit_loglog, mse, relmse};
+use strata::study::reference::{obtain, ReferenceSource};
+use strata::study::run::{configure, render_once, run_series, slopes, summarize, Plan, Summary};
+use strata::study::{Integral, IntegralSet};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("strata-study-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A scene file with its image size replaced (same geometry, fewer pixels).
+fn resized(file: &str, w: u32, h: u32) -> Scene {
+    let path = root().join(file);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut out = String::new();
+    for line in text.lines() {
+        let l = if line.starts_with("width =") {
+            format!("width = {w}")
+        } else if line.starts_with("height =") {
+            format!("height = {h}")
+        } else {
+            line.to_string()
+        };
+        out.push_str(&l);
+        out.push('\n');
+    }
+    parse_scene(&path, &out).unwrap()
+}
+
+fn mse_of(summary: &[Summary], s: Strategy, n: u32) -> f64 {
+    summary.iter().find(|r| r.strategy == s && r.n == n).unwrap().mse
+}
+
+// ---------------------------------------------------------------- metrics
+
+#[test]
+fn metrics_match_hand_computed_values() {
+    let img = [Vec3::new(1.0, 2.0, 3.0), Vec3::new(0.0, 0.0, 0.0)];
+    let reference = [DVec3::new(1.0, 1.0, 1.0), DVec3::new(0.1, 0.0, 0.0)];
+    // Squared errors: (0, 1, 4) and (0.01, 0, 0): 5.01 over 6 values.
+    assert!((mse(&img, &reference) - 5.01 / 6.0).abs() < 1e-12);
+    // relMSE: 0/1.01 + 1/1.01 + 4/1.01 + 0.01/(0.01 + 0.01) + 0/0.01 + 0/0.01, over 6.
+    let expected = (5.0 / 1.01 + 0.5) / 6.0;
+    assert!((relmse(&img, &reference) - expected).abs() < 1e-12, "{}", relmse(&img, &reference));
+    assert_eq!(efficiency(0.5, 2.0), 1.0);
+    assert_eq!(efficiency(0.0, 2.0), f64::INFINITY);
+    // Identical images: zero error.
+    assert_eq!(mse(&img, &img.map(|v| v.as_dvec3())), 0.0);
+}
+
+#[test]
+fn loglog_fit_recovers_known_lines() {
+    let f = fit_loglog(&[(1.0, 1.0), (10.0, 0.1), (100.0, 0.01)]).unwrap();
+    assert!((f.slope + 1.0).abs() < 1e-12 && f.intercept.abs() < 1e-12);
+    // y = 3 x^-1.5, and a zero y (no logarithm) is skipped.
+    let pts: Vec<(f64, f64)> = [1.0, 4.0, 16.0, 64.0].iter().map(|&x: &f64| (x, 3.0 * x.powf(-1.5))).chain([(256.0, 0.0)]).collect();
+    let f = fit_loglog(&pts).unwrap();
+    assert!((f.slope + 1.5).abs() < 1e-12 && (f.intercept - 3f64.ln()).abs() < 1e-12);
+    // Least squares, not interpolation: with a = ln 2 the points are (0, 0), (a, 2a), (2a, 2a); means
+    // (a, 4a/3); sxx = 2a^2, sxy = (-a)(-4a/3) + (a)(2a/3) = 2a^2: slope 1.
+    let f = fit_loglog(&[(1.0, 1.0), (2.0, 4.0), (4.0, 4.0)]).unwrap();
+    assert!((f.slope - 1.0).abs() < 1e-12, "{}", f.slope);
+    assert!(fit_loglog(&[(1.0, 1.0)]).is_none());
+    assert!(fit_loglog(&[(2.0, 1.0), (2.0, 3.0)]).is_none());
+}
+
+// ---------------------------------------------------------------- the analytic reference
+
+#[test]
+fn gauss_legendre_nodes_and_exactness() {
+    let gl = gauss_legendre(8);
+    // Tabulated (Abramowitz & Stegun 25.4): the largest node and its weight.
+    let (x, w) = gl.iter().copied().fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+    assert!((x - 0.960_289_856_497_536_2).abs() < 1e-14 && (w - 0.101_228_536_290_376_3).abs() < 1e-14, "{x} {w}");
+    // Exact for polynomials of degree <= 15: integral of x^14 over [-1, 1] is 2/15; x^15 integrates to 0.
+    let i14: f64 = gl.iter().map(|(x, w)| w * x.powi(14)).sum();
+    let i15: f64 = gl.iter().map(|(x, w)| w * x.powi(15)).sum();
+    assert!((i14 - 2.0 / 15.0).abs() < 1e-14 && i15.abs() < 1e-14);
+    assert!((gl.iter().map(|p| p.1).sum::<f64>() - 2.0).abs() < 1e-14);
+}
+
+/// Lambert's formula against the definition, E = int cos_x cos_l / d^2 dA over the quad, by 64 x 64
+/// Gauss-Legendre in f64 (an independent computation).
+#[test]
+fn polygon_irradiance_matches_area_integral() {
+    let (o, u, v) = (DVec3::new(0.3, 2.5, -0.9), DVec3::new(1.2, 0.0, 0.0), DVec3::new(0.0, 0.0, 1.0));
+    let nl = u.cross(v).normalize();
+    let verts = [o, o + u, o + u + v, o + v];
+    let gl = gauss_legendre(64);
+    let n = DVec3::Y;
+    for x in [DVec3::ZERO, DVec3::new(0.9, 0.0, -0.4), DVec3::new(-3.0, 0.0, 2.0), DVec3::new(5.0, 0.0, -7.0)] {
+        let mut e = 0.0;
+        for &(a, wa) in &gl {
+            for &(b, wb) in &gl {
+                let y = o + u * (0.5 * (a + 1.0)) + v * (0.5 * (b + 1.0));
+                let d = y - x;
+                let d2 = d.length_squared();
+                let wi = d / d2.sqrt();
+                e += wa * wb * 0.25 * n.dot(wi) * (-nl.dot(wi)) / d2;
+            }
+        }
+        e *= u.cross(v).length();
+        let lambert = polygon_irradiance(x, n, &verts);
+        // Either winding gives the same value.
+        let reversed = polygon_irradiance(x, n, &[verts[3], verts[2], verts[1], verts[0]]);
+        assert!((lambert - e).abs() < 1e-10 * e, "x = {x}: Lambert {lambert} vs quadrature {e}");
+        assert!((lambert - reversed).abs() < 1e-14 * lambert);
+    }
+}
+
+#[test]
+fn analytic_form_is_refused_for_other_scenes() {
+    let p = Profile::builtin("preview");
+    for file in ["scenes/soft_shadows.toml", "scenes/showcase.toml", "scenes/shapes/quad.toml"] {
+        let scene = load_scene(&root().join(file)).unwrap();
+        let err = QuadIrradiance::from_scene(&scene, &p).unwrap_err();
+        assert!(err.contains("Lambert plane lit by one quad light"), "{file}: {err}");
+    }
+    let scene = load_scene(&root().join("scenes/quad_irradiance.toml")).unwrap();
+    assert!(QuadIrradiance::from_scene(&scene, &p).is_ok());
+}
+
+/// The pixel quadrature is converged: 8 x 8 Gauss-Legendre agrees with a 64 x 64 midpoint rule over the
+/// box pixel to far below any Monte Carlo error the study can reach.
+#[test]
+fn pixel_quadrature_is_converged() {
+    let scene = load_scene(&root().join("scenes/quad_irradiance.toml")).unwrap();
+    let form = QuadIrradiance::from_scene(&scene, &Profile::builtin("preview")).unwrap();
+    for (px, py) in [(0, 0), (20, 11), (47, 31)] {
+        let gl = form.pixel(px, py, Footprint::Filter(strata::sample::Filter::Box));
+        let mut mid = DVec3::ZERO;
+        let k = 64;
+        for i in 0..k {
+            for j in 0..k {
+                let (x, y) = (px as f64 + (i as f64 + 0.5) / k as f64, py as f64 + (j as f64 + 0.5) / k as f64);
+                mid += form.radiance_at(x, y);
+            }
+        }
+        mid /= (k * k) as f64;
+        // Midpoint error is O(h^2 f''): ~1e-8 here.
+        assert!((gl - mid).abs().max_element() < 1e-7, "({px}, {py}): {gl} vs {mid}");
+    }
+}
+
+/// The radiometry check: the renderer's mean over many samples equals the analytic value within the
+/// statistical error, per pixel (z-scores from the film's own variance estimate) and over the image.
+#[test]
+fn analytic_reference_matches_the_renderer() {
+    let scene = load_scene(&root().join("scenes/quad_irradiance.toml")).unwrap();
+    let base = Profile::builtin("preview");
+    let form = QuadIrradiance::from_scene(&scene, &base).unwrap();
+    // (a) Pixel footprint and light both sampled at random: 2048 spp x 1 light sample.
+    let mut a = configure(&base, &IntegralSet::of(&[Integral::Pixel, Integral::Light]), Strategy::Random, 2048, false).unwrap();
+    a.light_samples = 1;
+    // (b) Pixel centre, 256 camera passes x 16 random light samples: the irradiance formula alone.
+    let mut b = configure(&base, &IntegralSet::of(&[Integral::Light]), Strategy::Random, 16, false).unwrap();
+    b.spp = 256;
+    for (profile, footprint) in [(a, Footprint::Filter(base.filter)), (b, Footprint::Centre)] {
+        let (film, _, _) = render_once(&scene, profile, 99, 0);
+        let exact = form.image(footprint);
+        check_z_scores(&film, &exact, &format!("{footprint:?}"));
+    }
+}
+
+fn check_z_scores(film: &Film, exact: &[DVec3], what: &str) {
+    let (mut z2, mut diff, mut var, mut mean_r, mut mean_a) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let n = film.pixels.len() as f64;
+    for (p, e) in film.pixels.iter().zip(exact) {
+        // One channel: the light is white, so the channels are the same estimate scaled by the albedo.
+        let (m, v) = (p.mean().x as f64, p.variance_of_mean().x as f64);
+        assert!(v > 0.0);
+        z2 += (m - e.x).powi(2) / v;
+        diff += m - e.x;
+        var += v;
+        mean_r += m / n;
+        mean_a += e.x / n;
+    }
+    let chi = z2 / n;
+    let z_total = diff / var.sqrt();
+    println!("{what}: mean z^2 = {chi:.4}, image z = {z_total:+.3}, means {mean_r:.6} vs {mean_a:.6}");
+    // mean(z^2) of n independent standard normals has sd sqrt(2/n) = 0.036 here: 0.85..1.15 is > 4 sd.
+    assert!((0.85..1.15).contains(&chi), "{what}: mean z^2 = {chi}");
+    assert!(z_total.abs() < 4.0, "{what}: image-mean z = {z_total}");
+    assert!((mean_r / mean_a - 1.0).abs() < 2e-3, "{what}: {mean_r} vs {mean_a}");
+}
+
+/// Against the analytic reference the error falls toward zero with no floor: random as 1/n, jittered
+/// (a smooth integrand here) about n^-2, grid (a midpoint rule, deterministic) faster than 1/n.
+#[test]
+fn analytic_reference_has_no_error_floor() {
+    let scene = load_scene(&root().join("scenes/quad_irradiance.toml")).unwrap();
+    let base = Profile::builtin("preview");
+    let integrals = IntegralSet::of(&[Integral::Light]);
+    let dir = tmp_dir("floor");
+    let reference = obtain(&ReferenceSource::Analytic, &scene, &base, &integrals, &dir, 0).ok().unwrap();
+    let counts = vec![1, 4, 16, 64, 256, 1024];
+    let plan = Plan {
+        integrals,
+        strategies: vec![Strategy::Random, Strategy::Jittered, Strategy::Grid],
+        counts: counts.clone(),
+        seeds: 4,
+        light_from_spp: false,
+        threads: 0,
+    };
+    let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
+    let summary = summarize(&series.runs);
+    for s in &summary {
+        println!("{:>8} {:>5} mse {:.3e}", s.strategy.name(), s.n, s.mse);
+    }
+    let (r, _) = slopes(&summary, Strategy::Random);
+    let (j, _) = slopes(&summary, Strategy::Jittered);
+    let (r, j) = (r.unwrap().slope, j.unwrap().slope);
+    println!("slopes: random {r:.3}, jittered {j:.3}");
+    assert!((r + 1.0).abs() < 0.1, "random slope {r}");
+    assert!(j < -1.8, "jittered slope {j}");
+    // No floor: the expected factor over the whole range, and still the expected rate at the last step.
+    let ratio_r = mse_of(&summary, Strategy::Random, 1) / mse_of(&summary, Strategy::Random, 1024);
+    assert!((512.0..2048.0).contains(&ratio_r), "random MSE(1)/MSE(1024) = {ratio_r}, expected ~1024");
+    let last_r = mse_of(&summary, Strategy::Random, 256) / mse_of(&summary, Strategy::Random, 1024);
+    assert!((2.5..6.5).contains(&last_r), "random MSE(256)/MSE(1024) = {last_r}, expected ~4");
+    let last_j = mse_of(&summary, Strategy::Jittered, 256) / mse_of(&summary, Strategy::Jittered, 1024);
+    assert!(last_j > 8.0, "jittered MSE(256)/MSE(1024) = {last_j}, expected ~16");
+    let grid = mse_of(&summary, Strategy::Grid, 16) / mse_of(&summary, Strategy::Grid, 1024);
+    assert!(grid > 64.0 * 16.0, "grid MSE(16)/MSE(1024) = {grid}, expected ~64^2");
+}
+
+// ---------------------------------------------------------------- the soft-shadow slopes
+
+/// The textbook result: on the soft-shadow scene the light integral's MSE falls as n^-1 for random
+/// samples and faster for jittered ones (the penumbra is an edge: n^-1.5; fully lit pixels are smooth:
+/// n^-2; measured -1.7 on this image), against a 16384-sample jittered reference, 8 seeds, pixel centres.
+#[test]
+fn soft_shadow_slopes_random_and_jittered() {
+    let scene = resized("scenes/soft_shadows.toml", 32, 24);
+    let base = Profile::builtin("preview");
+    let integrals = IntegralSet::of(&[Integral::Light]);
+    let dir = tmp_dir("slopes");
+    let reference = obtain(&ReferenceSource::Samples(16384), &scene, &base, &integrals, &dir, 0).ok().unwrap();
+    let plan = Plan {
+        integrals,
+        strategies: vec![Strategy::Random, Strategy::Jittered],
+        counts: vec![4, 16, 64, 256],
+        seeds: 8,
+        light_from_spp: false,
+        threads: 0,
+    };
+    let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
+    let summary = summarize(&series.runs);
+    let (r, _) = slopes(&summary, Strategy::Random);
+    let (j, _) = slopes(&summary, Strategy::Jittered);
+    let (r, j) = (r.unwrap().slope, j.unwrap().slope);
+    println!("soft shadows: random slope {r:.3}, jittered slope {j:.3}");
+    assert!((r + 1.0).abs() < 0.1, "random slope {r}");
+    assert!(j < -1.25, "jittered slope {j}");
+    // And jittered is better at every count above 1 sample.
+    for n in [4, 16, 64, 256] {
+        assert!(mse_of(&summary, Strategy::Jittered, n) < mse_of(&summary, Strategy::Random, n));
+    }
+}
+
+// ---------------------------------------------------------------- the command line
+
+fn strata() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_strata"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+fn run_ok(args: &[&str]) -> String {
+    let out = strata().args(args).output().unwrap();
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn cli_writes_csv_plot_and_sheet() {
+    let dir = tmp_dir("cli");
+    let d = dir.to_str().unwrap();
+    let stdout = run_ok(&[
+        "study",
+        "scenes/quad_irradiance.toml",
+        "--reference",
+        "analytic",
+        "--strategies",
+        "random,jittered",
+        "--spp",
+        "1,4",
+        "--integrals",
+        "light",
+        "--seeds",
+        "2",
+        "--sheet",
+        "--out",
+        d,
+    ]);
+    assert!(stdout.contains("analytic") && stdout.contains("fitted slope"), "{stdout}");
+    let csv = std::fs::read_to_string(dir.join("study.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    for col in ["strategy", "spp", "seed", "seconds", "rays", "mse", "relmse", "efficiency"] {
+        assert!(header.contains(&col), "missing column {col}: {header:?}");
+    }
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 2 * 2 * 2);
+    let col = |name: &str| header.iter().position(|c| *c == name).unwrap();
+    for r in &rows {
+        assert_eq!(r.len(), header.len());
+        let mse: f64 = r[col("mse")].parse().unwrap();
+        let eff: f64 = r[col("efficiency")].parse().unwrap();
+        let secs: f64 = r[col("seconds")].parse().unwrap();
+        assert!(mse > 0.0 && secs > 0.0 && (eff * mse * secs - 1.0).abs() < 1e-9);
+        assert!(r[col("rays")].parse::<u64>().unwrap() >= 48 * 32);
+    }
+    let plot = image::open(dir.join("study.png")).unwrap().to_rgb8();
+    assert_eq!(plot.dimensions(), strata::study::plot::PLOT_SIZE);
+    assert_eq!(plot.dimensions(), (1000, 420));
+    // The caption ("MSE vs light samples") is drawn: dark pixels in the title band of the left panel.
+    let dark = (150..350).flat_map(|x| (2..32).map(move |y| (x, y))).filter(|&(x, y)| plot.get_pixel(x, y)[0] < 100).count();
+    assert!(dark > 50, "no text in the plot title band ({dark} dark pixels)");
+    let sheet = image::open(dir.join("sheet.png")).unwrap().to_rgb8();
+    // 48 x 32 renders are enlarged x3 to 144 x 96 cells: 110 + 2 (144 + 6) + 6 by 30 + 2 (96 + 6) + 6.
+    assert_eq!(sheet.dimensions(), (416, 240));
+    assert_eq!(sheet.dimensions(), strata::study::sheet::sheet_size(48, 32, 2, 2));
+}
+
+/// `--reference-spp` renders once and caches; the cache is reused only for the same scene text, profile
+/// and N; a cached reference given back as `--reference FILE.exr` gives the same errors.
+#[test]
+fn reference_cache_is_reused_only_when_fresh() {
+    let dir = tmp_dir("cache");
+    let scene_text = std::fs::read_to_string(root().join("scenes/soft_shadows.toml"))
+        .unwrap()
+        .replace("width = 160", "width = 20")
+        .replace("height = 120", "height = 14");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, &scene_text).unwrap();
+    let (s, d) = (scene.to_str().unwrap(), dir.join("out"));
+    let d = d.to_str().unwrap();
+    let args = |n: &'static str| vec!["study", s, "--spp", "1,4", "--seeds", "2", "--reference-spp", n, "--out", d];
+    let first = run_ok(&args("64"));
+    assert!(first.contains("rendered in"), "{first}");
+    let csv1 = std::fs::read_to_string(Path::new(d).join("study.csv")).unwrap();
+    let exrs: Vec<PathBuf> =
+        std::fs::read_dir(d).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "exr")).collect();
+    assert_eq!(exrs.len(), 1, "{exrs:?}");
+    let second = run_ok(&args("64"));
+    assert!(second.contains("reused cached"), "{second}");
+    let csv2 = std::fs::read_to_string(Path::new(d).join("study.csv")).unwrap();
+    let mse_col = |csv: &str| csv.lines().skip(1).map(|l| l.split(',').nth(5).unwrap().to_string()).collect::<Vec<_>>();
+    assert_eq!(mse_col(&csv1), mse_col(&csv2));
+    // A different N, a different profile: not reused.
+    assert!(run_ok(&args("32")).contains("rendered in"));
+    let mut with_profile = args("64");
+    with_profile.extend(["--profile", "final"]);
+    assert!(run_ok(&with_profile).contains("rendered in"));
+    // The cached EXR as an explicit reference: the same errors.
+    let given = run_ok(&["study", s, "--spp", "1,4", "--seeds", "2", "--reference", exrs[0].to_str().unwrap(), "--out", d]);
+    assert!(given.contains("reference: file"), "{given}");
+    let csv3 = std::fs::read_to_string(Path::new(d).join("study.csv")).unwrap();
+    assert_eq!(mse_col(&csv1), mse_col(&csv3));
+    // Edit the scene: the cache is stale and must not be reused.
+    std::fs::write(&scene, scene_text.replace("radiance = [8.0, 8.0, 8.0]", "radiance = [9.0, 9.0, 9.0]")).unwrap();
+    let edited = run_ok(&args("64"));
+    assert!(edited.contains("rendered in"), "{edited}");
+    let csv4 = std::fs::read_to_string(Path::new(d).join("study.csv")).unwrap();
+    assert_ne!(mse_col(&csv1), mse_col(&csv4));
+}
+
+#[test]
+fn cli_input_errors_exit_2_with_a_message() {
+    let dir = tmp_dir("errors");
+    let d = dir.to_str().unwrap();
+    let cases: [(&[&str], &str); 6] = [
+        (&["--strategies", "random,magic"], "unknown strategy `magic`"),
+        (&["--spp", ","], "--spp: the list is empty"),
+        (&["--spp", "4,zero"], "is not a sample count"),
+        (&["--integrals", "pixel,colour"], "unknown integral `colour`"),
+        (&["--seeds", "0"], "--seeds"),
+        (&["--reference", "analytic"], "Lambert plane lit by one quad light"),
+    ];
+    for (extra, msg) in cases {
+        let mut a = vec!["study", "scenes/soft_shadows.toml", "--out", d];
+        a.extend_from_slice(extra);
+        let out = strata().args(&a).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(err.contains(msg), "{extra:?}: expected `{msg}` in: {err}");
+    }
+    assert!(!dir.join("study.csv").exists(), "nothing is written on an input error");
+}
