@@ -183,17 +183,17 @@ pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f
                 f32x8::from(hit)
             }
             _ => {
-                if !blocks(scene, profile, prim.material) {
-                    if walk {
-                        touched |= prim_t_x8(prim, &local).simd_lt(ray.tmax).to_bitmask();
-                    }
-                    return zero.simd_gt(f32x8::ONE);
-                }
-                let t = match time {
+                let t = || match time {
                     Some(_) if prim.motion != Vec3::ZERO => prim_t_x8(prim, &in_prim_frame(ray, prim.motion, time)),
                     _ => prim_t_x8(prim, ray),
                 };
-                t.simd_lt(ray.tmax)
+                if !blocks(scene, profile, prim.material) {
+                    if walk {
+                        touched |= t().simd_lt(ray.tmax).to_bitmask();
+                    }
+                    return zero.simd_gt(f32x8::ONE);
+                }
+                t().simd_lt(ray.tmax)
             }
         }
     });
