@@ -67,14 +67,19 @@ fn prism_spreads_white_light_into_an_ordered_spectrum() {
 
     // Square view of the screen, the room light off.
     let (w, h) = (64u32, 16u32);
-    let text = SCENE
-        .replace("width = 320", &format!("width = {w}"))
-        .replace("height = 200", &format!("height = {h}"))
-        .replace("position = [3.4, 2.4, 1.8]", &format!("position = [{}, {}, {}]", eye.x, eye.y, eye.z))
-        .replace("look_at = [0.7, 0.45, -1.1]", &format!("look_at = [{}, {}, {}]", look.x, look.y, look.z))
-        .replace("fov = 48.0", "fov = 12.0")
-        .replace("radiance = [0.15, 0.15, 0.15]", "radiance = [0.0, 0.0, 0.0]");
-    assert_ne!(text, SCENE);
+    let swaps = [
+        ("width = 320".to_string(), format!("width = {w}")),
+        ("height = 200".to_string(), format!("height = {h}")),
+        ("position = [2.0, 3.3, 2.6]".to_string(), format!("position = [{}, {}, {}]", eye.x, eye.y, eye.z)),
+        ("look_at = [0.5, 0.35, -0.9]".to_string(), format!("look_at = [{}, {}, {}]", look.x, look.y, look.z)),
+        ("fov = 48.0".to_string(), "fov = 12.0".to_string()),
+        ("radiance = [0.35, 0.35, 0.35]".to_string(), "radiance = [0.0, 0.0, 0.0]".to_string()),
+    ];
+    let mut text = SCENE.to_string();
+    for (from, to) in &swaps {
+        assert_eq!(text.matches(from.as_str()).count(), 1, "scenes/prism.toml changed: `{from}`");
+        text = text.replace(from.as_str(), to);
+    }
     let s = scene(&text);
     assert!(s.features.dispersion);
     let mut profile = Profile::builtin("caustic");
