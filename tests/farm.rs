@@ -98,11 +98,13 @@ fn resume_after_cancel_and_from_checkpoints_is_bit_identical() {
     assert!(resumed == full, "resumed render differs from the uninterrupted one");
 
     let snaps = snaps.into_inner().unwrap();
-    assert!(snaps.len() >= 15, "only {} checkpoints", snaps.len());
+    // How many snapshots are taken depends on scheduling (a checkpoint is skipped while one is being
+    // written); enough of them to test four is all this needs.
+    assert!(snaps.len() >= 4, "only {} checkpoints", snaps.len());
     for (k, (f, c)) in snaps.iter().enumerate() {
         assert_eq!(f.total_samples(), samples_of_units(&scene, c), "checkpoint {k} is inconsistent");
     }
-    for (f, c) in snaps.iter().step_by(snaps.len() / 4) {
+    for (f, c) in snaps.iter().step_by((snaps.len() / 4).max(1)) {
         let (r, _, _) = render_resumable(&job(&scene), f.clone(), c.clone());
         assert!(r == full, "resume from a checkpoint differs from the uninterrupted render");
     }

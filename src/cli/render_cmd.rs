@@ -326,34 +326,44 @@ fn mega(x: u64) -> String {
 }
 
 pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStats, out: &Path) {
+    let mut o = String::new();
+    // Written at once and errors ignored: `strata render ... | head` must not panic on a closed pipe.
+    macro_rules! wl { ($($t:tt)*) => {{ use std::fmt::Write as _; let _ = writeln!(o, $($t)*); }}; }
     let p = &job.settings.profile;
-    println!("strata: {}  {}x{}  profile {}  seed {}  {} threads", path.display(), s.width, s.height, p.name, s.seed, s.threads);
-    println!("  sampling: {}", crate::wavefront::pipeline::describe(p));
-    println!(
+    wl!("strata: {}  {}x{}  profile {}  seed {}  {} threads", path.display(), s.width, s.height, p.name, s.seed, s.threads);
+    wl!("  sampling: {}", crate::wavefront::pipeline::describe(p));
+    wl!(
         "  scene: {} prims, {} CSG solids, {} lights; features {}",
         scene.prims.len(),
         scene.csg.solid_count(),
         scene.lights.len(),
         feature_list(&scene.features)
     );
-    println!(
+    wl!(
         "  rays: camera {}, secondary {}, shadow {}, total {}",
         mega(s.rays.camera),
         mega(s.rays.secondary),
         mega(s.rays.shadow),
         mega(s.rays.total)
     );
-    println!("  time: {:.3} s wall, {:.2} M rays/s", s.seconds, s.rays_per_second / 1e6);
+    wl!("  time: {:.3} s wall, {:.2} M rays/s", s.seconds, s.rays_per_second / 1e6);
     let t = &s.stage_seconds;
-    println!(
+    wl!(
         "  stages (cpu s): generate {:.3}, intersect {:.3}, csg_merge {:.3}, shade {:.3}, shadow {:.3}, accumulate {:.3}",
-        t.generate, t.intersect, t.csg_merge, t.shade, t.shadow, t.accumulate
+        t.generate,
+        t.intersect,
+        t.csg_merge,
+        t.shade,
+        t.shadow,
+        t.accumulate
     );
     if scene.features.csg {
-        println!("  csg candidates: {}", s.csg_candidates);
+        wl!("  csg candidates: {}", s.csg_candidates);
     }
-    println!("  nonfinite samples: {}", s.nonfinite_samples);
-    println!("  wrote {}", out.display());
+    wl!("  nonfinite samples: {}", s.nonfinite_samples);
+    wl!("  wrote {}", out.display());
+    use std::io::Write as _;
+    let _ = std::io::stdout().write_all(o.as_bytes());
 }
 
 pub fn feature_list(f: &crate::scene::Features) -> String {

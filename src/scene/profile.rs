@@ -75,11 +75,15 @@ fn default_cutoff() -> f32 {
 }
 
 /// The profiles shipped in `profiles/`, embedded so the binary works from any directory.
-pub const BUILTIN: [(&str, &str); 4] = [
+pub const BUILTIN: [(&str, &str); 8] = [
     ("preview", include_str!("../../profiles/preview.toml")),
     ("final", include_str!("../../profiles/final.toml")),
     ("reference", include_str!("../../profiles/reference.toml")),
     ("bench", include_str!("../../profiles/bench.toml")),
+    ("light1", include_str!("../../profiles/light1.toml")),
+    ("light9", include_str!("../../profiles/light9.toml")),
+    ("light36", include_str!("../../profiles/light36.toml")),
+    ("light100", include_str!("../../profiles/light100.toml")),
 ];
 
 impl Profile {
@@ -146,8 +150,17 @@ impl Profile {
         Ok(())
     }
 
-    /// Override one field from the command line (`--set key=value`, `--spp N`, ...).
+    /// Override one field from the command line (`--set key=value`, `--spp N`, ...). On error the
+    /// profile is left unchanged.
     pub fn set(&mut self, key: &str, value: &str) -> Result<(), String> {
+        let mut p = self.clone();
+        p.set_field(key, value)?;
+        p.validate().map_err(|(f, m)| format!("{f}: {m}"))?;
+        *self = p;
+        Ok(())
+    }
+
+    fn set_field(&mut self, key: &str, value: &str) -> Result<(), String> {
         fn num<T: std::str::FromStr>(key: &str, v: &str) -> Result<T, String> {
             v.trim().parse().map_err(|_| format!("{key}: `{v}` is not a valid number"))
         }
@@ -200,7 +213,7 @@ impl Profile {
             }
             _ => return Err(format!("unknown profile field `{key}`")),
         }
-        self.validate().map_err(|(f, m)| format!("{f}: {m}"))
+        Ok(())
     }
 }
 
@@ -218,4 +231,27 @@ fn find_key(text: &str, key: &str) -> Option<std::ops::Range<usize>> {
         offset += line.len();
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_builtin_profile_parses_and_is_named_after_itself() {
+        for (name, _) in BUILTIN {
+            let p = Profile::builtin(name);
+            assert_eq!(p.name, name);
+        }
+    }
+
+    #[test]
+    fn set_rejects_out_of_range_and_unknown_fields() {
+        let mut p = Profile::builtin("preview");
+        assert!(p.set("spp", "0").is_err());
+        assert!(p.set("strategy", "magic").is_err());
+        assert!(p.set("nope", "1").is_err());
+        p.set("strategy", "sobol").unwrap();
+        assert_eq!(p.light_strategy, Strategy::Sobol);
+    }
 }
