@@ -191,7 +191,7 @@ fn run(o: &Opts) -> Result<(), String> {
     }
 
     println!("\n## Primitive count (bench_spheres layout, 640x480, 2 threads)\n");
-    println!("| spheres | TOML MB | parse + BVH s | render s | rays (M) | M rays/s | M rays / CPU s | CPU s / CPU s at 1e2 |");
+    println!("| spheres | TOML MB | parse + BVH s | render s | rays (M) | M rays/s | M rays / CPU s | CPU s per ray / same at 1e2 |");
     println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
     let mut base = None;
     let mut n = 100u64;
