@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Render a Strata scene + profile with Mitsuba 3 (variant llvm_ad_rgb), time it, and estimate its rays.
 
-    mitsuba_scene.py render SCENE.toml PROFILE.toml --threads 2 --exr OUT.exr --json OUT.json [--spp N]
+    mitsuba_scene.py render SCENE.toml PROFILE.toml --threads 2 --exr OUT.exr --json OUT.json [--spp N] [--sampler S]
     mitsuba_scene.py compare REF.exr IMAGE.exr...      # MSE of each image against REF (JSON lines)
 
 Needs DRJIT_LIBLLVM_PATH (e.g. /usr/lib/x86_64-linux-gnu/libLLVM-19.so) for the LLVM backend.
