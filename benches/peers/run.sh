@@ -12,6 +12,7 @@
 #   PYTHON (python3: the interpreter that has Mitsuba).
 # A peer that is not installed is skipped with a message; CI never runs this script.
 set -euo pipefail
+export PYTHONDONTWRITEBYTECODE=1  # no __pycache__ beside the scripts
 cd "$(dirname "$0")/../.."
 HERE=benches/peers
 THREADS=${THREADS:-2}
