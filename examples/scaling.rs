@@ -3,7 +3,7 @@
 //! (docs/scaling.md holds a measured copy).
 //!
 //! ```text
-//! cargo run --release --example scaling [-- --reps 2 --spp 16 --max-prims 1000000]
+//! cargo run --release --example scaling [-- --reps 2 --spp 16 --max-prims 1000000 --only threads]
 //! ```
 //!
 //! Every number is a [`RenderStats`] of one render with the `bench` profile (fixed counts, no adaptive
@@ -28,10 +28,18 @@ struct Opts {
     reps: usize,
     spp: Option<u32>,
     max_prims: u64,
+    /// Tables to print: threads, prims, resolution (default all).
+    only: Option<String>,
+}
+
+impl Opts {
+    fn wants(&self, table: &str) -> bool {
+        self.only.as_deref().is_none_or(|o| o == table)
+    }
 }
 
 fn parse_args() -> Result<Opts, String> {
-    let mut o = Opts { reps: 2, spp: None, max_prims: 1_000_000 };
+    let mut o = Opts { reps: 2, spp: None, max_prims: 1_000_000, only: None };
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
     while i < args.len() {
@@ -41,7 +49,8 @@ fn parse_args() -> Result<Opts, String> {
             "--reps" => o.reps = num(val)?.max(1) as usize,
             "--spp" => o.spp = Some(num(val)? as u32),
             "--max-prims" => o.max_prims = num(val)?,
-            other => return Err(format!("unknown option `{other}` (--reps N, --spp N, --max-prims N)")),
+            "--only" if ["threads", "prims", "resolution"].contains(&val.as_str()) => o.only = Some(val.clone()),
+            other => return Err(format!("bad option `{other} {val}` (--reps N, --spp N, --max-prims N, --only threads|prims|resolution)")),
         }
         i += 2;
     }
@@ -166,6 +175,19 @@ fn run(o: &Opts) -> Result<(), String> {
     let p = profile(o);
     println!("profile bench: {} spp, max depth {}, best of {} runs\n", p.spp, p.max_depth, o.reps);
 
+    if o.wants("threads") {
+        threads(o)?;
+    }
+    if o.wants("prims") {
+        prims(o)?;
+    }
+    if o.wants("resolution") {
+        resolution(o)?;
+    }
+    Ok(())
+}
+
+fn threads(o: &Opts) -> Result<(), String> {
     println!("## Threads\n");
     println!(
         "| scene | rays (M) | 1 thread: s | M rays/s | M rays / CPU s | 2 threads: s | M rays/s | M rays / CPU s | \
@@ -190,8 +212,12 @@ fn run(o: &Opts) -> Result<(), String> {
         );
     }
 
+    Ok(())
+}
+
+fn prims(o: &Opts) -> Result<(), String> {
     println!("\n## Primitive count (bench_spheres layout, 640x480, 2 threads)\n");
-    println!("| spheres | TOML MB | parse + BVH s | render s | rays (M) | M rays/s | M rays / CPU s | CPU s / CPU s at 1e2 |");
+    println!("| spheres | TOML MB | parse + BVH s | render s | rays (M) | M rays/s | M rays / CPU s | CPU s per ray / same at 1e2 |");
     println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
     let mut base = None;
     let mut n = 100u64;
@@ -215,6 +241,10 @@ fn run(o: &Opts) -> Result<(), String> {
         n *= 10;
     }
 
+    Ok(())
+}
+
+fn resolution(o: &Opts) -> Result<(), String> {
     println!("\n## Resolution (bench_spheres.toml, 2 threads)\n");
     println!("| resolution | pixels (M) | render s | rays (M) | M rays/s | M rays / CPU s | CPU s per M pixels |");
     println!("|---|---:|---:|---:|---:|---:|---:|");

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Render a Strata scene + profile with Mitsuba 3 (variant llvm_ad_rgb), time it, and estimate its rays.
 
-    mitsuba_scene.py render SCENE.toml PROFILE.toml --threads 2 --exr OUT.exr --json OUT.json [--spp N]
+    mitsuba_scene.py render SCENE.toml PROFILE.toml --threads 2 --exr OUT.exr --json OUT.json [--spp N] [--sampler S]
     mitsuba_scene.py compare REF.exr IMAGE.exr...      # MSE of each image against REF (JSON lines)
 
 Needs DRJIT_LIBLLVM_PATH (e.g. /usr/lib/x86_64-linux-gnu/libLLVM-19.so) for the LLVM backend.
@@ -55,12 +55,14 @@ def quad_to_world(mi, o, u, v):
     return mi.ScalarTransform4f(m)
 
 
-def to_dict(mi, scene, profile, spp):
+def to_dict(mi, scene, profile, spp, sampler_kind="auto"):
     if any(m != [0, 0, 0] for m in [list(scene.background)]):
         raise Unsupported("a non-black background (Mitsuba would sample it as a light)")
     cam = scene.camera
-    sampler = {"type": "stratified", "sample_count": spp} if math.isqrt(spp) ** 2 == spp else \
-        {"type": "independent", "sample_count": spp}
+    # Strata's `jittered` is stratified sampling; Mitsuba's `stratified` sampler needs a square count.
+    if sampler_kind == "auto":
+        sampler_kind = "stratified" if math.isqrt(spp) ** 2 == spp else "independent"
+    sampler = {"type": sampler_kind, "sample_count": spp}
     d = {
         "type": "scene",
         "sensor": {
@@ -164,7 +166,7 @@ def render(args):
     scene_ir, profile = load_scene(args.scene), load_profile(args.profile)
     spp = args.spp or int(profile["spp"])
     t0 = time.perf_counter()
-    d = to_dict(mi, scene_ir, profile, spp)
+    d = to_dict(mi, scene_ir, profile, spp, args.sampler)
     scene = mi.load_dict(d)
     t_load = time.perf_counter() - t0
     times, cpus = [], []
@@ -184,7 +186,7 @@ def render(args):
     warm = times[best]
     out = {
         "renderer": "mitsuba", "version": mi.__version__, "variant": mi.variant(), "threads": args.threads,
-        "integrator": d["integrator"], "spp": spp, "paths": paths,
+        "integrator": d["integrator"], "sampler": d["sensor"]["sampler"]["type"], "spp": spp, "paths": paths,
         "load_seconds": t_load, "first_render_seconds": times[0], "seconds": warm, "cpu_seconds": cpus[best],
         "rays_per_path": per_path, "shadow_rays_per_path": n_shadow / n_paths,
         "rays_estimated": per_path * paths, "rays_per_second": per_path * paths / warm,
@@ -224,6 +226,7 @@ def main():
     r.add_argument("--json", required=True)
     r.add_argument("--repeat", type=int, default=1, help="timed renders after the first (JIT) one")
     r.add_argument("--count-spp", type=int, default=2, help="samples per pixel of the ray-counting replay")
+    r.add_argument("--sampler", default="auto", help="Mitsuba sampler (default: stratified for square spp)")
     c = sub.add_parser("compare")
     c.add_argument("ref")
     c.add_argument("images", nargs="+")

@@ -8,15 +8,19 @@
 # Usage: benches/peers/run.sh [--quality]
 #   --quality   also render a Mitsuba reference (REF_SPP samples) and report each renderer's error.
 # Environment: THREADS (2), OUT (target/peers), MITSUBA_SPP (64, both sides of (b)),
-#   REF_SPP (1024), DRJIT_LIBLLVM_PATH (found under /usr/lib if unset).
+#   REF_SPP (1024), DRJIT_LIBLLVM_PATH (found under /usr/lib if unset), POVRAY (povray),
+#   PYTHON (python3: the interpreter that has Mitsuba).
 # A peer that is not installed is skipped with a message; CI never runs this script.
 set -euo pipefail
+export PYTHONDONTWRITEBYTECODE=1  # no __pycache__ beside the scripts
 cd "$(dirname "$0")/../.."
 HERE=benches/peers
 THREADS=${THREADS:-2}
 OUT=${OUT:-target/peers}
 MITSUBA_SPP=${MITSUBA_SPP:-64}
 REF_SPP=${REF_SPP:-1024}
+POVRAY=${POVRAY:-povray}
+PYTHON=${PYTHON:-python3}
 QUALITY=0
 for a in "$@"; do
   case "$a" in
@@ -51,16 +55,16 @@ strata() { # case scene profile [extra flags...]
 
 # --- (a) POV-Ray -------------------------------------------------------------------------------
 strata glass_csg "$HERE/scenes/glass_csg.toml" "$HERE/profiles/pov_match.toml"
-if command -v povray >/dev/null 2>&1; then
+if command -v "$POVRAY" >/dev/null 2>&1; then
   python3 "$HERE/pov_scene.py" "$HERE/scenes/glass_csg.toml" "$HERE/profiles/pov_match.toml" \
     "$OUT/glass_csg.pov" "$OUT/glass_csg.ini" "$OUT/glass_csg.pov.png" "$THREADS"
   # POV-Ray writes its statistics to stderr; the progress lines go too, keep the log whole.
-  timed "$OUT/glass_csg.pov.time" povray "$OUT/glass_csg.ini" > "$OUT/glass_csg.pov.log" 2>&1 \
+  timed "$OUT/glass_csg.pov.time" "$POVRAY" "$OUT/glass_csg.ini" > "$OUT/glass_csg.pov.log" 2>&1 \
     || { echo "povray failed: see $OUT/glass_csg.pov.log" >&2; exit 1; }
   echo "povray glass_csg: done"
   python3 "$HERE/png_diff.py" "$OUT/glass_csg.strata.png" "$OUT/glass_csg.pov.png" > "$OUT/glass_csg.pov_diff.json"
 else
-  echo "SKIPPED POV-Ray: povray is not installed (apt-get install -y povray)"
+  echo "SKIPPED POV-Ray: $POVRAY is not installed (apt-get install -y povray)"
 fi
 
 # --- (b) Mitsuba 3 -----------------------------------------------------------------------------
@@ -75,8 +79,8 @@ print(max(libs, key=ver) if libs else '')")
   export DRJIT_LIBLLVM_PATH
 fi
 HAVE_MITSUBA=1
-if ! python3 -c "import mitsuba" >/dev/null 2>&1; then
-  echo "SKIPPED Mitsuba 3: the Python package is not installed (pip install mitsuba)"; HAVE_MITSUBA=0
+if ! "$PYTHON" -c "import mitsuba" >/dev/null 2>&1; then
+  echo "SKIPPED Mitsuba 3: the Python package is not installed for $PYTHON (pip install mitsuba)"; HAVE_MITSUBA=0
 elif [ -z "$DRJIT_LIBLLVM_PATH" ] || ! [ -f "$DRJIT_LIBLLVM_PATH" ]; then
   echo "SKIPPED Mitsuba 3: no libLLVM for its llvm variant (apt-get install -y libllvm19, or set DRJIT_LIBLLVM_PATH)"; HAVE_MITSUBA=0
 fi
@@ -85,16 +89,16 @@ for kind in path direct; do
   case=spheres_$kind
   EXT=exr strata "$case" "$HERE/scenes/spheres_area.toml" "$HERE/profiles/mitsuba_$kind.toml" --spp "$MITSUBA_SPP"
   if [ "$HAVE_MITSUBA" = 1 ]; then
-    timed "$OUT/$case.mitsuba.time" python3 "$HERE/mitsuba_scene.py" render "$HERE/scenes/spheres_area.toml" "$HERE/profiles/mitsuba_$kind.toml" \
+    timed "$OUT/$case.mitsuba.time" "$PYTHON" "$HERE/mitsuba_scene.py" render "$HERE/scenes/spheres_area.toml" "$HERE/profiles/mitsuba_$kind.toml" \
       --threads "$THREADS" --spp "$MITSUBA_SPP" --exr "$OUT/$case.mitsuba.exr" --json "$OUT/$case.mitsuba.json" > /dev/null
     echo "mitsuba $case: done"
     if [ "$QUALITY" = 1 ]; then
       ref="$OUT/$case.ref$REF_SPP.exr"
       if ! [ -f "$ref" ]; then
-        python3 "$HERE/mitsuba_scene.py" render "$HERE/scenes/spheres_area.toml" "$HERE/profiles/mitsuba_$kind.toml" \
+        "$PYTHON" "$HERE/mitsuba_scene.py" render "$HERE/scenes/spheres_area.toml" "$HERE/profiles/mitsuba_$kind.toml" \
           --threads "$THREADS" --spp "$REF_SPP" --repeat 0 --count-spp 1 --exr "$ref" --json "$OUT/$case.ref.json" > /dev/null
       fi
-      python3 "$HERE/mitsuba_scene.py" compare "$ref" "$OUT/$case.strata.exr" "$OUT/$case.mitsuba.exr" \
+      "$PYTHON" "$HERE/mitsuba_scene.py" compare "$ref" "$OUT/$case.strata.exr" "$OUT/$case.mitsuba.exr" \
         | python3 -c "import json,sys; [print(json.dumps({**json.loads(l), 'ref_spp': int(sys.argv[1])})) for l in sys.stdin]" "$REF_SPP" \
         > "$OUT/$case.quality.jsonl"
     fi

@@ -60,6 +60,7 @@ def main():
     out = sys.argv[1]
     rows = []
     notes = []
+    mse = {}  # (title, "Strata" | "Mitsuba") -> MSE against the reference
     for case, peer, title in CASES:
         s = read(os.path.join(out, f"{case}.strata.json"))
         if s is None:
@@ -104,6 +105,7 @@ def main():
                 for line in q.splitlines():
                     r = json.loads(line)
                     who = "Strata" if "strata" in os.path.basename(r["image"]) else "Mitsuba"
+                    mse[(title, who)] = r["mse"]
                     notes.append(f"{title}: {who} MSE {r['mse']:.3e}, relMSE {r['relmse']:.3e} against a "
                                  f"{r.get('ref_spp', '?')} spp Mitsuba reference (image mean {r['mean']:.4f}, "
                                  f"reference mean {r['ref_mean']:.4f}).")
@@ -129,6 +131,20 @@ def main():
               f"{fmt(r['rays'] / r['seconds'] / 1e6)} | {per_cpu} | {ratio} | {how} |")
     for n in notes:
         print(f"\n- {n}")
+    # Equal quality: MSE falls as 1/samples, so a renderer with MSE e in time t needs t e / e' for MSE e'.
+    times = {(title, "Strata" if who == "Strata" else "Mitsuba"): r for title, who, r, _ in rows if r}
+    for (title, who), _ in list(mse.items()):
+        if who != "Strata" or (title, "Mitsuba") not in mse:
+            continue
+        s_r, m_r = times.get((title, "Strata")), times.get((title, "Mitsuba"))
+        if not (s_r and m_r):
+            continue
+        ms, mm = mse[(title, "Strata")], mse[(title, "Mitsuba")]
+        line = (f"{title}: at equal error (MSE proportional to 1 / samples) Strata needs "
+                f"{s_r['seconds'] * ms / (m_r['seconds'] * mm):.2f}x Mitsuba's render time")
+        if s_r.get("cpu") and m_r.get("cpu"):
+            line += f" ({s_r['cpu'] * ms / (m_r['cpu'] * mm):.2f}x its CPU time)"
+        print(f"\n- {line}.")
     m = read(os.path.join(out, "machine.txt"))
     if m:
         print("\n```\n" + m.strip() + "\n```")
