@@ -282,13 +282,15 @@ pub struct NeeQueue {
     pub path: Vec<u32>,
     /// Random-number stream of this shading point.
     pub key: Vec<u64>,
+    /// The camera sample index of the path (light samples are stratified across a pixel's samples).
+    pub sample: Vec<u32>,
     pub time: Vec<f32>,
 }
 
 impl NeeQueue {
     pub fn clear(&mut self) {
         macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
-        clr!(px, py, pz, nx, ny, nz, wr, wg, wb, path, key, time);
+        clr!(px, py, pz, nx, ny, nz, wr, wg, wb, path, key, sample, time);
     }
     pub fn len(&self) -> usize {
         self.px.len()
@@ -297,7 +299,8 @@ impl NeeQueue {
         self.px.is_empty()
     }
     #[inline]
-    pub fn push(&mut self, p: Vec3, n: Vec3, w: Vec3, path: u32, key: u64, time: f32) {
+    #[allow(clippy::too_many_arguments)]
+    pub fn push(&mut self, p: Vec3, n: Vec3, w: Vec3, path: u32, key: u64, sample: u32, time: f32) {
         self.px.push(p.x);
         self.py.push(p.y);
         self.pz.push(p.z);
@@ -309,6 +312,7 @@ impl NeeQueue {
         self.wb.push(w.z);
         self.path.push(path);
         self.key.push(key);
+        self.sample.push(sample);
         self.time.push(time);
     }
 }

@@ -73,10 +73,11 @@ pub fn branch_stream(pixel: u32, branch: u32) -> u64 {
     hash_combine(pixel as u64, branch as u64)
 }
 
-/// Stream of one shading event (for integrals sampled per shading point, e.g. light samples).
+/// Stream shared by the shading points of one pixel, branch and depth across the pixel's samples: light
+/// samples are stratified over all of them (index = sample x light_samples + j).
 #[inline]
-pub fn event_key(pixel: u32, branch: u32, sample: u32, depth: u16) -> u64 {
-    hash_combine(hash_combine(branch_stream(pixel, branch), sample as u64), depth as u64)
+pub fn point_key(pixel: u32, branch: u32, depth: u16) -> u64 {
+    hash_combine(branch_stream(pixel, branch), depth as u64)
 }
 
 #[inline]
@@ -168,7 +169,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                     let w = r.throughput * a;
                     let p_off = offset_ray_origin(hit.p, hit.n_facing);
                     if !scene.lights.is_empty() {
-                        nee.push(p_off, hit.n_facing, w * FRAC_1_PI, r.path, event_key(pixel, r.branch, sample, r.depth), r.time);
+                        nee.push(p_off, hit.n_facing, w * FRAC_1_PI, r.path, point_key(pixel, r.branch, r.depth), sample, r.time);
                     }
                     if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
                         // Its own strategy: borrowing the pixel strategy made `center` pixels bounce

@@ -48,7 +48,13 @@ impl Packet {
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
     let mut pk = Packet::new();
     let mut traced = 0u64;
-    let area = Sampler2d::new(profile.light_strategy, profile.light_samples);
+    // Jittered and Sobol light samples form one stratified set over all of a pixel's camera samples
+    // (index = sample x light_samples + j, strata permuted per stream, as a padded sampler does): with
+    // 1 light sample and 64 pixel samples the light is still covered by 64 strata. Grid keeps its meaning
+    // (each shading point sees the light as the same grid of point lights); random needs no set.
+    let (spp, nl) = (profile.spp as u64, profile.light_samples as u64);
+    let across = matches!(profile.light_strategy, Strategy::Jittered | Strategy::Sobol) && spp * nl <= 1 << 24;
+    let area = Sampler2d::new(profile.light_strategy, if across { (spp * nl) as u32 } else { profile.light_samples });
     let delta = Sampler2d::new(Strategy::Center, 1);
     let walk = any_passable(scene, profile);
     for i in 0..nee.len() {
@@ -57,11 +63,22 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         let w = Vec3::new(nee.wr[i], nee.wg[i], nee.wb[i]);
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
-            let key = stream_key(seed, hash_combine(nee.key[i], li as u64), dims::LIGHT);
-            let (end, sampler) = if matches!(light, Light::Point { .. }) { (1.0, &delta) } else { (SHADOW_END, &area) };
+            let point = matches!(light, Light::Point { .. });
+            let stream = hash_combine(nee.key[i], li as u64);
+            // Across samples the stream is shared by the pixel's samples; otherwise each sample has its own.
+            let key = if across {
+                stream_key(seed, stream, dims::LIGHT)
+            } else {
+                stream_key(seed, hash_combine(stream, nee.sample[i] as u64), dims::LIGHT)
+            };
+            let (end, sampler) = if point { (1.0, &delta) } else { (SHADOW_END, &area) };
             for j in 0..ns {
-                // All ns samples serve this one shading point: strata need no permutation.
-                let u = sampler.sample_unpermuted(key, j);
+                let u = if across && !point {
+                    sampler.sample(key, nee.sample[i] * ns + j)
+                } else {
+                    // All ns samples serve this one shading point: strata need no permutation.
+                    sampler.sample_unpermuted(key, j)
+                };
                 let Some(ls) = sample_light(light, p, u) else { continue };
                 let cos = n.dot(ls.wi);
                 if cos <= 0.0 {
