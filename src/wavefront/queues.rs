@@ -267,7 +267,7 @@ impl CsgCandidates {
 /// light samples and traces them as any-hit packets.
 #[derive(Default)]
 pub struct NeeQueue {
-    /// Offset origin for shadow rays (already off the surface on the lit side).
+    /// The shading point (on the surface; the shadow stage offsets the shadow-ray origin off it).
     pub px: Vec<f32>,
     pub py: Vec<f32>,
     pub pz: Vec<f32>,

@@ -168,7 +168,9 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                     let w = r.throughput * a;
                     let p_off = offset_ray_origin(hit.p, hit.n_facing);
                     if !scene.lights.is_empty() {
-                        nee.push(p_off, hit.n_facing, w * FRAC_1_PI, r.path, event_key(pixel, r.branch, sample, r.depth), r.time);
+                        // The light is sampled from the hit point itself: the spawn offset is only there to
+                        // keep the shadow ray off this surface, it must not move the shading point.
+                        nee.push(hit.p, hit.n_facing, w * FRAC_1_PI, r.path, event_key(pixel, r.branch, sample, r.depth), r.time);
                     }
                     if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
                         // Its own strategy: borrowing the pixel strategy made `center` pixels bounce

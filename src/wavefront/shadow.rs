@@ -11,6 +11,7 @@ use super::intersect::{in_prim_frame, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
 use super::transmit::{any_passable, passes, transmittance_x8};
 use crate::accel::{intersect_aabb_x8, PacketRay};
+use crate::geometry::offset_ray_origin;
 use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
@@ -55,6 +56,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
         let n = Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]);
         let w = Vec3::new(nee.wr[i], nee.wg[i], nee.wb[i]);
+        // Light samples are taken at the shading point; only the shadow ray starts off the surface.
+        let o = offset_ray_origin(p, n);
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
             let key = stream_key(seed, hash_combine(nee.key[i], li as u64), dims::LIGHT);
@@ -72,9 +75,9 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     continue;
                 }
                 let k = pk.len;
-                let d = ls.target - p;
+                let d = ls.target - o;
                 for a in 0..3 {
-                    pk.o[a][k] = p[a];
+                    pk.o[a][k] = o[a];
                     pk.d[a][k] = d[a];
                 }
                 pk.tmax[k] = end;
