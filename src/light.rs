@@ -2,7 +2,7 @@
 //! the estimate of the irradiance from an area light is `Le cos_l / d^2 / pdf_area`, times the receiver's
 //! cosine, which the caller applies.
 
-use crate::geometry::offset_ray_origin;
+use crate::geometry::{offset_ray_origin, offset_ray_origin_scaled};
 use crate::sample::sample_disk_concentric;
 use crate::scene::Light;
 use glam::Vec3;
@@ -61,7 +61,8 @@ pub fn sample_light(light: &Light, p: Vec3, u: [f32; 2]) -> Option<LightSample> 
             let y = p + wi * th;
             let n = (y - center).normalize();
             let pdf = 1.0 / (2.0 * std::f32::consts::PI * (1.0 - cos_max).max(1e-12));
-            Some(LightSample { target: offset_ray_origin(y, n), wi, weight: radiance / pdf })
+            // y was computed from the receiver's position: its error is ULPs of |p| as well.
+            Some(LightSample { target: offset_ray_origin_scaled(y, n, p.abs().max_element()), wi, weight: radiance / pdf })
         }
     }
 }

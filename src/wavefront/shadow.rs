@@ -11,7 +11,6 @@ use super::intersect::{in_prim_frame, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
 use super::transmit::{any_passable, passes, transmittance_x8};
 use crate::accel::{intersect_aabb_x8, PacketRay};
-use crate::geometry::offset_ray_origin;
 use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
@@ -57,7 +56,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         let n = Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]);
         let w = Vec3::new(nee.wr[i], nee.wg[i], nee.wb[i]);
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
-        let o = offset_ray_origin(p, n);
+        let o = Vec3::new(nee.ox[i], nee.oy[i], nee.oz[i]);
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
             let key = stream_key(seed, hash_combine(nee.key[i], li as u64), dims::LIGHT);
