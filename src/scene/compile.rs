@@ -66,7 +66,7 @@ impl Compiler<'_> {
     }
 
     fn vec3(&self, v: &V3, field: &str) -> R<Vec3> {
-        let a = *v.get_ref();
+        let a = v.get_ref().0;
         if a.iter().any(|x| !x.is_finite()) {
             return Err(self.err(v.span(), field, "components must be finite numbers"));
         }
@@ -242,7 +242,7 @@ impl Compiler<'_> {
         };
         let shutter = match &c.shutter {
             Some(s) => {
-                let [a, b] = *s.get_ref();
+                let [a, b] = s.get_ref().0;
                 if !(a.is_finite() && b.is_finite() && a <= b) {
                     return Err(self.err(s.span(), "camera.shutter", "must be [open, close] with open <= close"));
                 }
@@ -342,7 +342,7 @@ impl Compiler<'_> {
                         Ior::Constant(x)
                     }
                     (None, Some(c), None) => {
-                        let [a, b] = *c.get_ref();
+                        let [a, b] = c.get_ref().0;
                         if !(a.is_finite() && b.is_finite() && (1.0..=10.0).contains(&a) && (0.0..1.0).contains(&b)) {
                             return Err(self.err(
                                 c.span(),
@@ -353,7 +353,7 @@ impl Compiler<'_> {
                         Ior::Cauchy { a, b_um2: b }
                     }
                     (None, None, Some(c)) => {
-                        let [nd, vd] = *c.get_ref();
+                        let [nd, vd] = c.get_ref().0;
                         if !(nd.is_finite() && vd.is_finite() && nd > 1.0 && nd <= 10.0 && vd >= 5.0) {
                             return Err(self.err(c.span(), f("abbe"), "must be [nd, Vd] with nd in (1, 10] and Abbe number Vd >= 5"));
                         }
