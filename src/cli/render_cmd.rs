@@ -4,7 +4,7 @@ use super::Failure;
 use crate::film::file::{check_film_writable, profile_record, read_film, write_film, FilmHeader};
 use crate::film::output::{check_writable, write_image};
 use crate::film::Film;
-use crate::render::{render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
+use crate::render::{check_render_size, render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
 use crate::scene::{load_scene, Profile, Scene};
 use crate::wavefront::Settings;
 use clap::Args;
@@ -150,6 +150,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         Some(t) => parse_samples(t, profile.spp)?,
         None => 0..profile.spp,
     };
+    check_render_size(scene.width, scene.height, &samples).map_err(Failure::input)?;
     let out = a.output.clone().unwrap_or_else(|| default_output(&a.scene, "png"));
     check_writable(&out).map_err(Failure::input)?;
     if let Some(j) = &a.stats_json {

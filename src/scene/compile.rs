@@ -4,7 +4,7 @@
 
 use super::error::{read_text, InputError, Source};
 use super::format::{CameraDef, LightDef, MaterialDef, SceneFile, ShapeDef, TransformDef, S, V3};
-use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PRIMS};
+use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS};
 use crate::accel::{build_bvh, Aabb, BuildOptions};
 use crate::camera::Camera;
 use crate::csg::{self, Csg, CsgTree, Op};
@@ -110,6 +110,17 @@ impl Compiler<'_> {
         };
         let width = check_side(&img.width, "width")?;
         let height = check_side(&img.height, "height")?;
+        if width as u64 * height as u64 > MAX_PIXELS {
+            return Err(self.err(
+                img.height.span(),
+                "image.height",
+                format!(
+                    "{width} x {height} = {} pixels; the limit is {MAX_PIXELS} (the film takes {} bytes per pixel)",
+                    width as u64 * height as u64,
+                    std::mem::size_of::<crate::film::Pixel>()
+                ),
+            ));
+        }
         let background = match &img.background {
             Some(b) => self.color(b, "image.background", None)?,
             None => Vec3::ZERO,
