@@ -103,9 +103,13 @@ fn extract_backticked(s: &str) -> Option<String> {
 /// Read a file as UTF-8 text, with an `InputError` (line 1) for unreadable or non-UTF-8 files.
 pub fn read_text(path: &Path) -> Result<String, InputError> {
     let err = |line: usize, message: String| InputError { file: path.to_path_buf(), line, column: 1, field: String::new(), message };
-    let bytes = std::fs::read(path).map_err(|e| err(1, format!("cannot read file: {e}")))?;
+    // Read at most one byte past the limit: a huge file (or /dev/zero) is refused without being read.
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| std::io::Read::read_to_end(&mut std::io::Read::take(f, MAX_INPUT_BYTES as u64 + 1), &mut bytes))
+        .map_err(|e| err(1, format!("cannot read file: {e}")))?;
     if bytes.len() > MAX_INPUT_BYTES {
-        return Err(err(1, format!("file is {} bytes; the limit is {MAX_INPUT_BYTES}", bytes.len())));
+        return Err(err(1, format!("file is larger than the limit of {MAX_INPUT_BYTES} bytes")));
     }
     String::from_utf8(bytes).map_err(|e| {
         let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
