@@ -90,30 +90,77 @@ fn batch_size(tile: u32) -> u32 {
     (WAVEFRONT_PATHS / (tile * tile)).max(1)
 }
 
-/// `work_units(..).len()` without building the list.
-pub fn unit_count(width: u32, height: u32, tile: u32, samples: Range<u32>) -> usize {
-    let tile = tile.max(1);
-    let batches = samples.len().div_ceil(batch_size(tile) as usize);
-    width.div_ceil(tile) as usize * height.div_ceil(tile) as usize * batches
+/// Most samples (pixels x samples per pixel) one render may take: 2^38 = 2.7e11 (1920 x 1080 at
+/// 131072 spp, 7680 x 4320 at 8192 spp; about 8 hours at 10M samples/s). What it protects is memory,
+/// not time: a render keeps one completion flag per work unit of ~4096 samples (for checkpoints and
+/// resume), 2 bytes each, 134 MB at this limit; the largest image at the largest spp would need 17 GB.
+pub const MAX_RENDER_SAMPLES: u64 = 1 << 38;
+
+/// Refuse a render of more than [`MAX_RENDER_SAMPLES`] samples (an input error, before anything is
+/// allocated).
+pub fn check_render_size(width: u32, height: u32, samples: &Range<u32>) -> Result<(), String> {
+    let n = width as u64 * height as u64 * samples.len() as u64;
+    if n > MAX_RENDER_SAMPLES {
+        return Err(format!(
+            "{width} x {height} pixels x {} samples = {n:.3e} samples; the limit per render is 2^38 = {MAX_RENDER_SAMPLES:.3e} \
+             (render sample ranges separately and merge them)",
+            samples.len()
+        ));
+    }
+    Ok(())
 }
 
-/// The work units of a render, in the order they are taken.
-pub fn work_units(width: u32, height: u32, tile: u32, samples: Range<u32>) -> Vec<WorkUnit> {
-    let tile = tile.max(1);
-    let batch = batch_size(tile);
-    let mut units = Vec::new();
-    let mut s = samples.start;
-    while s < samples.end {
-        let e = (s + batch).min(samples.end);
-        for y0 in (0..height).step_by(tile as usize) {
-            for x0 in (0..width).step_by(tile as usize) {
-                let t = Tile { x0, y0, x1: (x0 + tile).min(width), y1: (y0 + tile).min(height) };
-                units.push(WorkUnit { tile: t, samples: s..e });
-            }
-        }
-        s = e;
+/// The work units of a render, in the order they are taken: sample batch by sample batch, tiles in row
+/// order within a batch. Computed from their index, never stored: a list takes 24 bytes per unit.
+#[derive(Clone, Debug)]
+pub struct WorkUnits {
+    width: u32,
+    height: u32,
+    tile: u32,
+    samples: Range<u32>,
+    batch: u32,
+    tiles_x: usize,
+    tiles: usize,
+    len: usize,
+}
+
+impl WorkUnits {
+    pub fn new(width: u32, height: u32, tile: u32, samples: Range<u32>) -> WorkUnits {
+        let tile = tile.max(1);
+        let batch = batch_size(tile);
+        let tiles_x = width.div_ceil(tile) as usize;
+        let tiles = tiles_x * height.div_ceil(tile) as usize;
+        let len = tiles * samples.len().div_ceil(batch as usize);
+        WorkUnits { width, height, tile, samples, batch, tiles_x, tiles, len }
     }
-    units
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Unit `i` (< `len()`).
+    pub fn get(&self, i: usize) -> WorkUnit {
+        let (b, k) = (i / self.tiles, i % self.tiles);
+        let s = self.samples.start + b as u32 * self.batch;
+        let (x0, y0) = ((k % self.tiles_x) as u32 * self.tile, (k / self.tiles_x) as u32 * self.tile);
+        let tile = Tile { x0, y0, x1: (x0 + self.tile).min(self.width), y1: (y0 + self.tile).min(self.height) };
+        WorkUnit { tile, samples: s..s.saturating_add(self.batch).min(self.samples.end) }
+    }
+}
+
+/// `work_units(..).len()` without building the list.
+pub fn unit_count(width: u32, height: u32, tile: u32, samples: Range<u32>) -> usize {
+    WorkUnits::new(width, height, tile, samples).len()
+}
+
+/// The work units of a render as a list (small renders and tests; the renderer uses [`WorkUnits`]).
+pub fn work_units(width: u32, height: u32, tile: u32, samples: Range<u32>) -> Vec<WorkUnit> {
+    let units = WorkUnits::new(width, height, tile, samples);
+    (0..units.len()).map(|i| units.get(i)).collect()
 }
 
 /// Render into `film` (which may already hold other samples). Returns the statistics of this call.
@@ -128,10 +175,9 @@ pub fn render_into(job: &RenderJob, film: Film) -> (Film, RenderStats) {
 /// cancelled) and the statistics of this call.
 pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (Film, Vec<bool>, RenderStats) {
     let scene = job.scene;
-    let units = work_units(scene.width, scene.height, job.tile, job.samples.clone());
+    let units = WorkUnits::new(scene.width, scene.height, job.tile, job.samples.clone());
     assert_eq!(completed.len(), units.len(), "one completion flag per work unit");
-    let todo: Vec<usize> = (0..units.len()).filter(|&i| !completed[i]).collect();
-    let resumed = units.len() - todo.len();
+    let resumed = completed.iter().filter(|&&c| c).count();
     let flags: Vec<AtomicBool> = completed.iter().map(|&c| AtomicBool::new(c)).collect();
     let threads = if job.threads == 0 { rayon::current_num_threads() } else { job.threads };
     let film = Mutex::new(film);
@@ -154,16 +200,20 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
                 break;
             }
             let i = next.fetch_add(1, Ordering::Relaxed);
-            if i >= todo.len() {
+            if i >= units.len() {
                 break;
+            }
+            // Units are taken once each, in order: a flag already set here came with the film.
+            if flags[i].load(Ordering::Relaxed) {
+                continue;
             }
             while pause.load(Ordering::Acquire) {
                 std::thread::sleep(Duration::from_micros(200));
             }
             {
                 let _unit = gate.read().unwrap_or_else(|e| e.into_inner());
-                render_unit(scene, &job.settings, &units[todo[i]], &mut wf, &film);
-                flags[todo[i]].store(true, Ordering::Relaxed);
+                render_unit(scene, &job.settings, &units.get(i), &mut wf, &film);
+                flags[i].store(true, Ordering::Relaxed);
             }
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
             if let Some(p) = job.progress {

@@ -2,9 +2,9 @@
 
 use super::Failure;
 use crate::film::file::{check_film_writable, profile_record, read_film, write_film, FilmHeader};
-use crate::film::output::{check_writable, write_image};
+use crate::film::output::{check_file_writable, check_writable, write_image};
 use crate::film::Film;
-use crate::render::{render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
+use crate::render::{check_render_size, render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
 use crate::scene::{load_scene, Profile, Scene};
 use crate::wavefront::Settings;
 use clap::Args;
@@ -150,10 +150,11 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         Some(t) => parse_samples(t, profile.spp)?,
         None => 0..profile.spp,
     };
+    check_render_size(scene.width, scene.height, &samples).map_err(Failure::input)?;
     let out = a.output.clone().unwrap_or_else(|| default_output(&a.scene, "png"));
     check_writable(&out).map_err(Failure::input)?;
     if let Some(j) = &a.stats_json {
-        check_writable_any(j).map_err(Failure::input)?;
+        check_file_writable(j).map_err(Failure::input)?;
     }
     // Where the film goes: --film, else back into the film being resumed.
     let film_path = a.film.clone().or_else(|| a.resume.clone());
@@ -311,14 +312,6 @@ impl Progress {
             b.finish_and_clear();
         }
     }
-}
-
-fn check_writable_any(path: &Path) -> Result<(), String> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        return Err(format!("{}: directory {} does not exist", path.display(), dir.display()));
-    }
-    Ok(())
 }
 
 fn mega(x: u64) -> String {

@@ -126,7 +126,9 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     }
     for &s in &strategies {
         for &n in &counts {
-            configure(&profile, &integrals, s, n, a.light_samples_from_spp).map_err(|e| Failure::input(format!("--spp: {e}")))?;
+            let p = configure(&profile, &integrals, s, n, a.light_samples_from_spp).map_err(|e| Failure::input(format!("--spp: {e}")))?;
+            crate::render::check_render_size(scene.width, scene.height, &(0..p.spp))
+                .map_err(|e| Failure::input(format!("--spp {n}: {e}")))?;
         }
     }
     let largest = *counts.last().expect("non-empty");

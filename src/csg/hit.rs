@@ -42,7 +42,7 @@ pub fn first_hit(csg: &Csg, solid: u32, o: Vec3, d: Vec3, tmin: f32, tmax: f32, 
         return None;
     }
     fill_crossings(csg, s, &Vec3x8::splat(o), &Vec3x8::splat(d), arena);
-    let base = tol_base(o.length(), d.length());
+    let base = tol_base(o.length(), d.length(), s.scale);
     eval_lane(csg.program(s), s.leaf_start, 0, tmin, tmax, base, arena)
 }
 
@@ -59,7 +59,7 @@ pub fn first_hit_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
     }
     fill_crossings(csg, s, &ray.o, &ray.d, arena);
     let eps = f32x8::splat(COINCIDENT_EPS);
-    let base = (eps * ray.o.dot(ray.o).sqrt().max(f32x8::ONE) / ray.d.dot(ray.d).sqrt()).to_array();
+    let base = (eps * ray.o.dot(ray.o).sqrt().max(f32x8::splat(s.scale)) / ray.d.dot(ray.d).sqrt()).to_array();
     let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
     let prog = csg.program(s);
     for (lane, hit) in out.iter_mut().enumerate() {

@@ -16,11 +16,13 @@
 //! state before the group. With `o`, `d` the world ray (`d` need not be unit):
 //!
 //! ```text
-//! tol(t) = COINCIDENT_EPS * (max(1, |o|) / |d| + |t|)        COINCIDENT_EPS = 1e-5
+//! tol(t) = COINCIDENT_EPS * (max(L, |o|) / |d| + |t|)        COINCIDENT_EPS = 1e-5
 //! ```
 //!
-//! i.e. in world units, `1e-5 * (max(1, |o|) + |t d|)`: relative to the magnitude of the coordinates the
-//! f32 crossings were computed from, with an absolute floor of `1e-5` for scenes near the origin. The
+//! i.e. in world units, `1e-5 * (max(L, |o|) + |t d|)`: relative to the magnitude of the coordinates the
+//! f32 crossings were computed from: the ray's (`|o|`, `|t d|`) and the solid's own, `L` = the largest
+//! |coordinate| of the solid's bounds and of its leaves' placements. So the rule is the same at every
+//! scene scale (an absolute floor would swallow a solid smaller than it: 1e-5 is 10% of a 1e-4 solid). The
 //! boundary emitted for a group is the first crossing of the group, from the operand whose own state
 //! changed the same way as the result's (`a` preferred), so its leaf (and flip) is a surface that really
 //! bounds the result there.
@@ -46,10 +48,11 @@ pub(crate) struct Ev {
     pub tag: u32,
 }
 
-/// Per-ray part of the tolerance, `COINCIDENT_EPS * max(1, |o|) / |d|`, in units of `t`.
+/// Per-ray part of the tolerance, `COINCIDENT_EPS * max(L, |o|) / |d|`, in units of `t` (`L`: the
+/// solid's scale, [`super::Csg::scale`]).
 #[inline]
-pub fn tol_base(o_len: f32, d_len: f32) -> f32 {
-    COINCIDENT_EPS * o_len.max(1.0) / d_len
+pub fn tol_base(o_len: f32, d_len: f32, solid_scale: f32) -> f32 {
+    COINCIDENT_EPS * o_len.max(solid_scale) / d_len
 }
 
 /// The tolerance `tol(t)` (`|t|` is capped so that `±inf` gives a finite tolerance, never NaN).

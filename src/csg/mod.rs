@@ -27,15 +27,15 @@
 //!
 //! # Coincident surfaces (the one rule, details in `merge.rs`)
 //!
-//! Crossings whose parameters differ by at most `tol(t) = 1e-5 * (max(1, |o|) / |d| + |t|)` (in world
-//! units `1e-5 * (max(1, |o|) + |t d|)`) are one event: they are applied together and a boundary is
+//! Crossings whose parameters differ by at most `tol(t) = 1e-5 * (max(L, |o|) / |d| + |t|)` (in world
+//! units `1e-5 * (max(L, |o|) + |t d|)`, `L` = [`Csg::scale`] of the solid) are one event: they are applied together and a boundary is
 //! reported only where the combined inside/outside state changes. So `A - A` is empty, `A ∪ A = A ∩ A = A`,
 //! and a hole whose cap is flush with a face is a clean opening (the ray sees the hole's bottom or passes
 //! through; never the face inside the hole). Two faces closer than `tol` are one face. Measured by the test
 //! `smallest_resolved_gap` (two slabs seen from above, `first_hit` and `intervals_f64` alike): the smallest
 //! gap still resolved as two faces is **8.2e-5 world units** for a ray whose origin is 4 units away (the
 //! formula gives 8.0e-5), and 1.02e-3 for an origin 50 units away (formula 1.0e-3); i.e. about
-//! `1e-5 × (max(1, |o|) + distance)`.
+//! `1e-5 × (max(L, |o|) + distance)`.
 //!
 //! `Csg::bounds`, `Csg::leaf` and `Csg::inside` index by id and panic on an id that `add_solid` (or the
 //! hit) did not return; `first_hit`, `first_hit_x8` and `intervals_f64` return nothing for an unknown solid.

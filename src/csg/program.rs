@@ -82,6 +82,9 @@ pub(crate) struct Solid {
     pub instr_start: u32,
     pub instr_count: u32,
     pub bounds: (Vec3, Vec3),
+    /// Magnitude of the solid's coordinates: the largest |coordinate| of its bounds and of its leaves'
+    /// placements. The floor of the coincidence tolerance (`merge.rs`), so that it scales with the solid.
+    pub scale: f32,
 }
 
 /// All leaves of all solids in one array, and one postfix program per solid.
@@ -112,12 +115,17 @@ impl Csg {
                 return Err(CsgError::Unbounded);
             }
         };
+        let placed = self.leaves[leaf_start..].iter().map(|l| l.object_to_world.translation.abs().max_element());
+        let scale = placed.fold(bounds.0.abs().max(bounds.1.abs()).max_element(), f32::max);
+        // An empty solid has infinite bounds; it has no crossings either, so any finite floor will do.
+        let scale = if scale.is_finite() { scale } else { 0.0 };
         self.solids.push(Solid {
             leaf_start: leaf_start as u32,
             leaf_count: (self.leaves.len() - leaf_start) as u32,
             instr_start: instr_start as u32,
             instr_count: (self.instrs.len() - instr_start) as u32,
             bounds,
+            scale,
         });
         Ok(self.solids.len() as u32 - 1)
     }
@@ -127,6 +135,12 @@ impl Csg {
     /// disjoint intersection) has `min = +inf`, `max = -inf`.
     pub fn bounds(&self, solid: u32) -> (Vec3, Vec3) {
         self.solids[solid as usize].bounds
+    }
+
+    /// The solid's scale `L`: the largest |coordinate| of its bounds and of its leaves' placements (the
+    /// floor of the coincidence tolerance, see `merge.rs`).
+    pub fn scale(&self, solid: u32) -> f32 {
+        self.solids[solid as usize].scale
     }
 
     /// A leaf by its global id (the id in [`super::CsgHit::leaf`]).

@@ -175,7 +175,7 @@ pub fn intervals_f64(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f
     }
     evs.sort_by(|x, y| x.0.total_cmp(&y.0));
     let eps = COINCIDENT_EPS as f64;
-    let base = eps * o.length().max(1.0) / d.length();
+    let base = eps * o.length().max(s.scale as f64) / d.length();
     let mut state = vec![false; leaves.len()];
     let prog = csg.program(s);
     let (mut inside, mut entry) = (false, 0.0);

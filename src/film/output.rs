@@ -38,6 +38,15 @@ pub fn to_srgb8(rgb: &[Vec3]) -> Vec<u8> {
 /// Check before rendering that `path` can be written: format known, directory exists and is writable.
 pub fn check_writable(path: &Path) -> Result<(), String> {
     format_for(path)?;
+    check_file_writable(path)
+}
+
+/// Check before rendering that a file can be written at `path` (any format): its directory exists and
+/// takes a new file, and `path` is not itself a directory (the final rename would fail after the render).
+pub fn check_file_writable(path: &Path) -> Result<(), String> {
+    if path.is_dir() {
+        return Err(format!("{}: is a directory", path.display()));
+    }
     let dir = parent_dir(path);
     if !dir.is_dir() {
         return Err(format!("{}: directory {} does not exist", path.display(), dir.display()));

@@ -28,7 +28,16 @@ const MIN_SCALE: f32 = 1.0e-30;
 /// [`super::refine_sphere_point`]). Non-finite `p` or `n` propagate.
 #[inline]
 pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
-    let m = p.abs().max_element().max(MIN_SCALE);
+    offset_ray_origin_scaled(p, n, 0.0)
+}
+
+/// [`offset_ray_origin`] for a point whose error is ULPs of a larger magnitude than its own: the
+/// offset is `OFFSET_ULPS` ULPs of `max(max_i |p_i|, magnitude)`. A hit point computed as `o + t d`
+/// is accurate to ULPs of `max(|o|, |p|)` (`|t d| <= |o| + |p|`); seen from a camera 1e3 away, a
+/// plane near the origin has hit points off the plane by far more than 256 ULPs of the point itself.
+#[inline]
+pub fn offset_ray_origin_scaled(p: Vec3, n: Vec3, magnitude: f32) -> Vec3 {
+    let m = p.abs().max_element().max(magnitude).max(MIN_SCALE);
     // ulp(m) = 2^(exponent of m) * 2^-23: keep only the exponent bits.
     let ulp = f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON;
     n.mul_add(Vec3::splat(OFFSET_ULPS * ulp), p)

@@ -136,15 +136,25 @@ pub fn normal_sphere(center: Vec3, p: Vec3) -> Vec3 {
     (p - center).normalize_or_zero()
 }
 
-/// Re-project a computed hit point onto the sphere: `c + r * normalize(p - c)`. A hit point
-/// `o + t d` carries an error of about `eps (|o| + |t d|)`, which for a distant origin is far
-/// more than the ULPs of `p` that [`super::offset_ray_origin`] covers; after refinement the error
-/// is a few ULPs of `|c| + r`. (`p == center` is returned unchanged.)
+/// Re-project a computed hit point onto the sphere, along the radial direction: `p - n (|p - c| - r)`
+/// with `n = (p - c) / |p - c|`. A hit point `o + t d` carries an error of about
+/// `eps (|o| + |t d|)`, which for a distant origin is far more than the ULPs of `p` that
+/// [`super::offset_ray_origin`] covers. The radial residual `|p - c| - r` is formed in f64 (`p - c` of
+/// two f32 is exact there), so the refined point is the true sphere point rounded to f32: off the
+/// surface by half an ULP of its own coordinates, whatever `|c|` and `r` are. (The textbook
+/// `c + r n` is only accurate to ULPs of `|c| + r`: under a ground sphere of radius 1e4, 2000 times
+/// the ULP of a hit point near the origin, which the spawn offset does not cover: acne.)
+/// `p == center` is returned unchanged.
 #[inline]
 pub fn refine_sphere_point(center: Vec3, radius: f32, p: Vec3) -> Vec3 {
-    let n = (p - center).normalize_or_zero();
-    if n == Vec3::ZERO {
+    let f = p.as_dvec3() - center.as_dvec3();
+    let len = f.length();
+    if !(len > 0.0) {
         return p;
     }
-    n.mul_add(Vec3::splat(radius), center)
+    let q = p.as_dvec3() - f * ((len - radius as f64) / len);
+    if !q.is_finite() {
+        return p;
+    }
+    q.as_vec3()
 }

@@ -4,7 +4,7 @@
 
 use super::error::{read_text, InputError, Source};
 use super::format::{CameraDef, LightDef, MaterialDef, SceneFile, ShapeDef, TransformDef, S, V3};
-use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PRIMS};
+use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS};
 use crate::accel::{build_bvh, Aabb, BuildOptions};
 use crate::camera::Camera;
 use crate::csg::{self, Csg, CsgTree, Op};
@@ -66,7 +66,7 @@ impl Compiler<'_> {
     }
 
     fn vec3(&self, v: &V3, field: &str) -> R<Vec3> {
-        let a = *v.get_ref();
+        let a = v.get_ref().0;
         if a.iter().any(|x| !x.is_finite()) {
             return Err(self.err(v.span(), field, "components must be finite numbers"));
         }
@@ -110,6 +110,17 @@ impl Compiler<'_> {
         };
         let width = check_side(&img.width, "width")?;
         let height = check_side(&img.height, "height")?;
+        if width as u64 * height as u64 > MAX_PIXELS {
+            return Err(self.err(
+                img.height.span(),
+                "image.height",
+                format!(
+                    "{width} x {height} = {} pixels; the limit is {MAX_PIXELS} (the film takes {} bytes per pixel)",
+                    width as u64 * height as u64,
+                    std::mem::size_of::<crate::film::Pixel>()
+                ),
+            ));
+        }
         let background = match &img.background {
             Some(b) => self.color(b, "image.background", None)?,
             None => Vec3::ZERO,
@@ -242,7 +253,7 @@ impl Compiler<'_> {
         };
         let shutter = match &c.shutter {
             Some(s) => {
-                let [a, b] = *s.get_ref();
+                let [a, b] = s.get_ref().0;
                 if !(a.is_finite() && b.is_finite() && a <= b) {
                     return Err(self.err(s.span(), "camera.shutter", "must be [open, close] with open <= close"));
                 }
@@ -342,7 +353,7 @@ impl Compiler<'_> {
                         Ior::Constant(x)
                     }
                     (None, Some(c), None) => {
-                        let [a, b] = *c.get_ref();
+                        let [a, b] = c.get_ref().0;
                         if !(a.is_finite() && b.is_finite() && (1.0..=10.0).contains(&a) && (0.0..1.0).contains(&b)) {
                             return Err(self.err(
                                 c.span(),
@@ -353,7 +364,7 @@ impl Compiler<'_> {
                         Ior::Cauchy { a, b_um2: b }
                     }
                     (None, None, Some(c)) => {
-                        let [nd, vd] = *c.get_ref();
+                        let [nd, vd] = c.get_ref().0;
                         if !(nd.is_finite() && vd.is_finite() && nd > 1.0 && nd <= 10.0 && vd >= 5.0) {
                             return Err(self.err(c.span(), f("abbe"), "must be [nd, Vd] with nd in (1, 10] and Abbe number Vd >= 5"));
                         }

@@ -49,13 +49,48 @@ impl Source<'_> {
         InputError { file: self.path.to_path_buf(), line, column, field: field.into(), message: message.into() }
     }
 
-    /// Convert a TOML syntax or type error into an `InputError` (the toml crate already names the key).
+    /// Convert a TOML syntax or type error into an `InputError`. "unknown field `x`" and "missing field
+    /// `x`" name the key; the other messages do not ("invalid type: string \"big\", expected f32",
+    /// "invalid length 4", "duplicate key"), and their backticked text, if any, is a value: the field is
+    /// then the key written at the error's position (the key of the `key = value` on that line).
     pub fn from_toml(&self, e: &toml::de::Error) -> InputError {
         let span = e.span().unwrap_or(0..0);
         let message = e.message().trim().to_string();
-        // The toml crate puts the offending key in its message ("unknown field `x`", "missing field `y`").
-        let field = extract_backticked(&message).unwrap_or_default();
+        let named = message.strip_prefix("unknown field ").or_else(|| message.strip_prefix("missing field "));
+        let field = named.and_then(extract_backticked).unwrap_or_else(|| self.key_at(span.start));
         self.error(span, field, message)
+    }
+
+    /// The key of the `key = value` entry that byte `offset` lies in, looking back along its own line
+    /// only (a value spanning lines names no key), or the table of a header line.
+    fn key_at(&self, offset: usize) -> String {
+        let offset = offset.min(self.text.len());
+        let bytes = self.text.as_bytes();
+        let line_start = bytes[..offset].iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+        let line_end = bytes[offset..].iter().position(|&b| b == b'\n').map_or(bytes.len(), |i| offset + i);
+        let is_key = |b: u8| b.is_ascii_alphanumeric() || b == b'_' || b == b'-';
+        // A table header (`[image]` defined twice): the table's name.
+        let line = self.text[line_start..line_end].trim();
+        if let Some(inner) = line.strip_prefix('[') {
+            let name = inner.trim_start_matches('[');
+            return name.find(']').map_or(String::new(), |e| name[..e].trim().to_string());
+        }
+        // The span may start at the key itself (duplicate key): the bare key there, if `=` follows it.
+        let key_here = bytes[offset..line_end].iter().take_while(|&&b| is_key(b)).count();
+        if key_here > 0 && bytes[offset + key_here..line_end].iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'=') {
+            return self.text[offset..offset + key_here].to_string();
+        }
+        // Else the nearest `key =` before the offset on this line, or at it (the innermost one in an
+        // inline table; a misplaced `=` is reported at itself).
+        let before = &bytes[line_start..(offset + 1).min(line_end)];
+        for eq in (0..before.len()).rev().filter(|&i| before[i] == b'=') {
+            let end = before[..eq].iter().rposition(|b| !b.is_ascii_whitespace()).map_or(0, |i| i + 1);
+            let start = before[..end].iter().rposition(|&b| !is_key(b)).map_or(0, |i| i + 1);
+            if start < end {
+                return self.text[line_start + start..line_start + end].to_string();
+            }
+        }
+        String::new()
     }
 }
 
@@ -68,9 +103,13 @@ fn extract_backticked(s: &str) -> Option<String> {
 /// Read a file as UTF-8 text, with an `InputError` (line 1) for unreadable or non-UTF-8 files.
 pub fn read_text(path: &Path) -> Result<String, InputError> {
     let err = |line: usize, message: String| InputError { file: path.to_path_buf(), line, column: 1, field: String::new(), message };
-    let bytes = std::fs::read(path).map_err(|e| err(1, format!("cannot read file: {e}")))?;
+    // Read at most one byte past the limit: a huge file (or /dev/zero) is refused without being read.
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| std::io::Read::read_to_end(&mut std::io::Read::take(f, MAX_INPUT_BYTES as u64 + 1), &mut bytes))
+        .map_err(|e| err(1, format!("cannot read file: {e}")))?;
     if bytes.len() > MAX_INPUT_BYTES {
-        return Err(err(1, format!("file is {} bytes; the limit is {MAX_INPUT_BYTES}", bytes.len())));
+        return Err(err(1, format!("file is larger than the limit of {MAX_INPUT_BYTES} bytes")));
     }
     String::from_utf8(bytes).map_err(|e| {
         let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];

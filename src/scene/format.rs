@@ -8,7 +8,39 @@ use std::collections::BTreeMap;
 use toml::Spanned;
 
 pub type S<T> = Spanned<T>;
-pub type V3 = S<[f32; 3]>;
+pub type V3 = S<Nums<3>>;
+
+/// Exactly `N` numbers. serde's `[f32; N]` reads the first `N` elements of a longer array and silently
+/// drops the rest (`center = [0, 0, 0, 5]` was accepted as the origin).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Nums<const N: usize>(pub [f32; N]);
+
+impl<'de, const N: usize> Deserialize<'de> for Nums<N> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V<const N: usize>;
+        impl<'de, const N: usize> serde::de::Visitor<'de> for V<N> {
+            type Value = Nums<N>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(f, "an array of {N} numbers")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Nums<N>, A::Error> {
+                let mut out = [0.0f32; N];
+                for (i, slot) in out.iter_mut().enumerate() {
+                    *slot = seq.next_element()?.ok_or_else(|| serde::de::Error::invalid_length(i, &self))?;
+                }
+                let mut len = N;
+                while seq.next_element::<serde::de::IgnoredAny>()?.is_some() {
+                    len += 1;
+                }
+                if len > N {
+                    return Err(serde::de::Error::invalid_length(len, &self));
+                }
+                Ok(Nums(out))
+            }
+        }
+        d.deserialize_seq(V::<N>)
+    }
+}
 
 #[derive(Deserialize, Debug)]
 #[serde(deny_unknown_fields)]
@@ -46,7 +78,7 @@ pub struct CameraDef {
     pub aperture: Option<S<f32>>,
     pub focus_distance: Option<S<f32>>,
     /// Shutter open and close times; objects move by `motion * t`.
-    pub shutter: Option<S<[f32; 2]>>,
+    pub shutter: Option<S<Nums<2>>>,
 }
 
 #[derive(Deserialize, Debug)]
@@ -68,8 +100,8 @@ pub struct MaterialDef {
     pub radiance: Option<V3>,
     pub roughness: Option<S<f32>>,
     pub ior: Option<S<f32>>,
-    pub cauchy: Option<S<[f32; 2]>>,
-    pub abbe: Option<S<[f32; 2]>>,
+    pub cauchy: Option<S<Nums<2>>>,
+    pub abbe: Option<S<Nums<2>>>,
     pub absorption: Option<V3>,
     pub transmittance: Option<V3>,
     pub transmittance_distance: Option<S<f32>>,

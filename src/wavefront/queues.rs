@@ -267,10 +267,14 @@ impl CsgCandidates {
 /// light samples and traces them as any-hit packets.
 #[derive(Default)]
 pub struct NeeQueue {
-    /// Offset origin for shadow rays (already off the surface on the lit side).
+    /// The shading point (on the surface): light samples are taken from here.
     pub px: Vec<f32>,
     pub py: Vec<f32>,
     pub pz: Vec<f32>,
+    /// Origin of the shadow rays: the shading point moved off the surface on the lit side.
+    pub ox: Vec<f32>,
+    pub oy: Vec<f32>,
+    pub oz: Vec<f32>,
     /// Shading normal on the side of the incoming ray.
     pub nx: Vec<f32>,
     pub ny: Vec<f32>,
@@ -290,7 +294,7 @@ pub struct NeeQueue {
 impl NeeQueue {
     pub fn clear(&mut self) {
         macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
-        clr!(px, py, pz, nx, ny, nz, wr, wg, wb, path, key, sample, time);
+        clr!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time);
     }
     pub fn len(&self) -> usize {
         self.px.len()
@@ -300,10 +304,13 @@ impl NeeQueue {
     }
     #[inline]
     #[allow(clippy::too_many_arguments)]
-    pub fn push(&mut self, p: Vec3, n: Vec3, w: Vec3, path: u32, key: u64, sample: u32, time: f32) {
+    pub fn push(&mut self, p: Vec3, o: Vec3, n: Vec3, w: Vec3, path: u32, key: u64, sample: u32, time: f32) {
         self.px.push(p.x);
         self.py.push(p.y);
         self.pz.push(p.z);
+        self.ox.push(o.x);
+        self.oy.push(o.y);
+        self.oz.push(o.z);
         self.nx.push(n.x);
         self.ny.push(n.y);
         self.nz.push(n.z);

@@ -6,7 +6,7 @@
 use super::dims;
 use super::medium;
 use super::queues::{HitQueue, MediumStack, NeeQueue, PathTable, RayItem, RayQueue, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
-use crate::geometry::{normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin, refine_sphere_point};
+use crate::geometry::{normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, refine_sphere_point};
 use crate::optics::{
     beer_lambert, fresnel_dielectric, fresnel_schlick, reflect, refract, sample_ggx_reflect, sample_ggx_reflect_weight,
     sample_hemisphere_cos,
@@ -31,6 +31,17 @@ pub struct SurfaceHit {
     /// The ray arrives on the outside of the surface.
     pub front: bool,
     pub material: u32,
+    /// The magnitude whose ULPs bound the error of `p` (beyond `p`'s own): the ray origin's for a point
+    /// computed as `o + t d`, 0 for a point re-projected onto its surface.
+    pub error_scale: f32,
+}
+
+impl SurfaceHit {
+    /// Origin of a ray leaving the surface towards `side` (`n_facing` or `-n_facing`).
+    #[inline]
+    pub fn spawn(&self, side: Vec3) -> Vec3 {
+        offset_ray_origin_scaled(self.p, side, self.error_scale)
+    }
 }
 
 /// Geometry at the nearest hit of ray `r`.
@@ -40,10 +51,12 @@ pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, 
     let shift = prim.motion * r.time;
     let mut p = r.o + r.d * t;
     let mut material = prim.material;
+    let mut error_scale = r.o.abs().max_element();
     let n = match &prim.shape {
         Shape::Sphere { center, radius } => {
             let c = *center + shift;
             p = refine_sphere_point(c, *radius, p);
+            error_scale = 0.0;
             normal_sphere(c, p)
         }
         Shape::Ellipsoid(e) => normal_ellipsoid(e, p - shift),
@@ -64,7 +77,7 @@ pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, 
         }
     };
     let front = r.d.dot(n) < 0.0;
-    SurfaceHit { p, n, n_facing: if front { n } else { -n }, front, material }
+    SurfaceHit { p, n, n_facing: if front { n } else { -n }, front, material, error_scale }
 }
 
 /// Random-number stream of one path branch: stratified dimensions index it by sample.
@@ -167,9 +180,11 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                 Material::Lambert { albedo } => {
                     let a = albedo.eval(hit.p - scene.prims[hits.prim[i] as usize].motion * r.time);
                     let w = r.throughput * a;
-                    let p_off = offset_ray_origin(hit.p, hit.n_facing);
+                    let p_off = hit.spawn(hit.n_facing);
                     if !scene.lights.is_empty() {
-                        nee.push(p_off, hit.n_facing, w * FRAC_1_PI, r.path, point_key(pixel, r.branch, r.depth), sample, r.time);
+                        // The light is sampled from the hit point itself: the spawn offset is only there to
+                        // keep the shadow ray off this surface, it must not move the shading point.
+                        nee.push(hit.p, p_off, hit.n_facing, w * FRAC_1_PI, r.path, point_key(pixel, r.branch, r.depth), sample, r.time);
                     }
                     if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
                         // Its own strategy: borrowing the pixel strategy made `center` pixels bounce
@@ -191,7 +206,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                     if (r.depth as u32) < profile.max_depth {
                         let d = reflect(-r.d.normalize(), hit.n_facing);
                         let child = RayItem {
-                            o: offset_ray_origin(hit.p, hit.n_facing),
+                            o: hit.spawn(hit.n_facing),
                             d,
                             throughput: r.throughput * *tint,
                             flags: FLAG_SPECULAR,
@@ -214,7 +229,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         if let Some(wi) = sample_ggx_reflect(wo, hit.n_facing, *alpha, u) {
                             let wgt = sample_ggx_reflect_weight(wo, hit.n_facing, wi, *alpha);
                             let child = RayItem {
-                                o: offset_ray_origin(hit.p, hit.n_facing),
+                                o: hit.spawn(hit.n_facing),
                                 d: wi,
                                 throughput: r.throughput * *tint * wgt,
                                 flags: FLAG_SPECULAR,
@@ -272,7 +287,7 @@ impl Ctx<'_> {
         let disp = scene.features.dispersion;
         let ior = |m: Option<u32>| ior_of(scene, m, r.lambda, disp);
         let this = hit.material;
-        let p_trans = offset_ray_origin(hit.p, -hit.n_facing);
+        let p_trans = hit.spawn(-hit.n_facing);
         // Through the surface unbent: the same bounce count, branch and flags (what the ray would have
         // done without the surface; shadow rays see through such crossings too).
         let pass = |thr: Vec3, media: MediumStack| RayItem { o: p_trans, throughput: thr, media, tmax: f32::INFINITY, ..*r };
@@ -313,7 +328,7 @@ impl Ctx<'_> {
             (fres(cos_i, eta), refract(wo, hit.n_facing, eta).map(|dir| (dir, stack, flags)))
         };
         let f = if trans.is_none() { 1.0 } else { f };
-        let p_refl = offset_ray_origin(hit.p, hit.n_facing);
+        let p_refl = hit.spawn(hit.n_facing);
         let refl_dir = reflect(wo, hit.n_facing);
         let reflected = |thr: Vec3| RayItem { o: p_refl, d: refl_dir, throughput: thr, flags: FLAG_SPECULAR, ..next_of(r) };
         let transmitted = |thr: Vec3, dir: Vec3, media: MediumStack, flags: u8| RayItem {

@@ -61,6 +61,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
         let n = Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]);
         let w = Vec3::new(nee.wr[i], nee.wg[i], nee.wb[i]);
+        // Light samples are taken at the shading point; only the shadow ray starts off the surface.
+        let o = Vec3::new(nee.ox[i], nee.oy[i], nee.oz[i]);
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
             let point = matches!(light, Light::Point { .. });
@@ -89,9 +91,9 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     continue;
                 }
                 let k = pk.len;
-                let d = ls.target - p;
+                let d = ls.target - o;
                 for a in 0..3 {
-                    pk.o[a][k] = p[a];
+                    pk.o[a][k] = o[a];
                     pk.d[a][k] = d[a];
                 }
                 pk.tmax[k] = end;

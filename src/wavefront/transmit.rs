@@ -23,7 +23,6 @@ use super::queues::{MediumStack, RayItem, NONE};
 use super::shade::surface_hit;
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, CsgArena};
-use crate::geometry::offset_ray_origin;
 use crate::optics::{beer_lambert, fresnel_dielectric, fresnel_schlick};
 use crate::scene::{Material, Profile, Scene, Shape};
 use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
@@ -116,7 +115,7 @@ pub fn transmittance_x8(
                 cos: seg[l].normalize_or_zero().dot(h.n).abs(),
             };
             count[l] += 1;
-            cur[l] = offset_ray_origin(h.p, -h.n_facing);
+            cur[l] = h.spawn(-h.n_facing);
         }
     }
     let tr = std::array::from_fn(|l| {
