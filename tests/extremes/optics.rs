@@ -143,9 +143,10 @@ fn touching_media_in_the_furnace() {
 /// Two glass blocks of the same index stacked face to face are optically one block, but the renderer
 /// does not know that: a ray leaving the lower block is spawned past the shared face, inside the upper
 /// block, so its entry there is never seen; the exit is refracted as glass to air and the ray then
-/// travels the upper block as if it had entered it from air. A documented limitation (touching media are
-/// handled as media separated by a film of air; `docs/robustness.md`), measured here against a single
-/// block of the same outline, Fresnel split without randomness above the cut-off: a faint seam, 11 of 1728
+/// travels the upper block as if it had entered it from air. A documented limitation (coincident surfaces
+/// are ambiguous; `docs/refraction.md` advises overlapping media ranked by `priority` instead; here the
+/// side faces of overlapping blocks would coincide in turn), measured against a single block of the same
+/// outline, Fresnel split without randomness above the cut-off: a faint seam, 11 of 1728
 /// pixels off by more than 0.02 (largest 0.14), mean 0.4%. Checked so that a change is noticed: a fix
 /// brings it to 0, a regression past 1% of the pixels fails.
 #[test]
