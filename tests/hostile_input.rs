@@ -402,7 +402,9 @@ fn expect_error(text: &str, what: &str) -> InputError {
     // Tests run in parallel: one file per case.
     static CASE: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let path = tmp_dir().join(format!("case-{}.toml", CASE.fetch_add(1, std::sync::atomic::Ordering::Relaxed)));
-    match run_bounded(&path, text.as_bytes()) {
+    let outcome = run_bounded(&path, text.as_bytes());
+    let _ = std::fs::remove_file(&path);
+    match outcome {
         Outcome::Rejected(e) => {
             check_error(&e, &path, text.as_bytes(), what);
             e
@@ -528,14 +530,12 @@ fn mutated_profiles_never_panic() {
 /// A file over the 16 MiB limit is refused without being read whole.
 #[test]
 fn huge_files_are_refused() {
-    let path = tmp_dir().join("huge.toml");
     let mut text = one_shape("");
     while text.len() <= 17 << 20 {
         text += "# padding padding padding padding padding padding padding padding padding padding\n";
     }
     let e = expect_error(&text, "17 MiB file");
     assert!(e.message.contains("limit"), "{e}");
-    let _ = std::fs::remove_file(path);
 }
 
 /// The renderer never lists its work units: the largest accepted render (2^25 pixels, 2^20 samples

@@ -123,24 +123,20 @@ fn tabletop_profile() -> strata::scene::Profile {
 
 /// Scale 1e-4 .. 1e5 (camera, geometry, checker cells, CSG, lights scaled alike): the same samples land
 /// on the same relative positions, so the image must equal the unit-scale image up to f32 rounding.
-/// Measured: mean difference <= 1.1e-6 of the image mean, largest pixel difference <= 2e-5 (values are
-/// 0.05..1). A single sample crossing an edge or a shadow boundary would change its pixel by about a
-/// quarter of the contrast (>= 1e-2), so the bound "no pixel off by more than 1e-3" separates rounding
-/// from any geometric defect by an order of magnitude on each side.
+/// Measured: pixel differences <= 2e-5 (values are 0.05..1), except at some scales one pixel off by
+/// 1e-3: a single light sample on a shadow edge that rounding moved to the other side (one of 4 x 2
+/// light samples of that pixel). A camera sample crossing a silhouette would change its pixel by a
+/// quarter of the contrast (>= 1e-2). Bound: at most 2 pixels off by more than 1e-4, none by 1e-2,
+/// mean difference below 1e-4 of the image mean (measured <= 1.8e-5).
 #[test]
 fn scale_range_matches_unit_scale() {
     let reference = render(&tabletop(Xf::ID), tabletop_profile());
     for s in [1e-4, 1e-3, 1e-2, 1e-1, 1e1, 1e2, 1e3, 1e4, 1e5] {
         let img = render(&tabletop(Xf::scale(s)), tabletop_profile());
-        let d = diff(&reference, &img, 1e-3);
+        let d = diff(&reference, &img, 1e-4);
         eprintln!("scale {s:e}: {d:?}");
         dump(&format!("scale_{s:e}"), &[&reference, &img]);
-        // One light sample that lands within rounding of a grazing cut-off can move its pixel by ~1e-3
-        // (seen once, at scale 1e-4, after light samples became stratified across a pixel's camera
-        // samples); a sample crossing an edge or shadow boundary moves it by >= 1e-2. The bounds keep a
-        // factor of 3 from the first and from the second.
-        assert!(d.max_abs < 3e-3, "scale {s:e}: {d:?}\n{}", diff_map(&reference, &img, 1e-3));
-        assert!(d.mean_rel < 3e-5, "scale {s:e}: {d:?}");
+        assert!(d.over <= 2 && d.max_abs < 1e-2 && d.mean_rel < 1e-4, "scale {s:e}: {d:?}\n{}", diff_map(&reference, &img, 1e-4));
     }
 }
 
