@@ -23,7 +23,7 @@ pub struct RenderArgs {
     /// Output image: .png (sRGB 8-bit) or .exr (linear float). Default: <scene name>.png.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
-    /// Quality profile: a name in profiles/ (preview, final, reference, bench) or a path.
+    /// Quality profile: a shipped name (preview, final, reference, bench, light1/9/36/100, caustic) or a path.
     #[arg(long, default_value = "preview")]
     pub profile: String,
     /// Samples per pixel (overrides the profile).

@@ -36,7 +36,7 @@ efficiency = 1 / (MSE x seconds), seconds being the render's own wall time.";
 pub struct StudyArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Base quality profile: a name in profiles/ (preview, final, reference, bench) or a path.
+    /// Base quality profile: a shipped name (preview, final, reference, bench, light1, light9, light36, light100, caustic) or a path.
     #[arg(long, default_value = "preview")]
     pub profile: String,
     /// Override a profile field of the base profile: --set key=value (repeatable).

@@ -75,7 +75,7 @@ fn default_cutoff() -> f32 {
 }
 
 /// The profiles shipped in `profiles/`, embedded so the binary works from any directory.
-pub const BUILTIN: [(&str, &str); 8] = [
+pub const BUILTIN: [(&str, &str); 9] = [
     ("preview", include_str!("../../profiles/preview.toml")),
     ("final", include_str!("../../profiles/final.toml")),
     ("reference", include_str!("../../profiles/reference.toml")),
@@ -84,6 +84,7 @@ pub const BUILTIN: [(&str, &str); 8] = [
     ("light9", include_str!("../../profiles/light9.toml")),
     ("light36", include_str!("../../profiles/light36.toml")),
     ("light100", include_str!("../../profiles/light100.toml")),
+    ("caustic", include_str!("../../profiles/caustic.toml")),
 ];
 
 impl Profile {
