@@ -48,6 +48,16 @@ pub fn in_prim_frame(ray: &Ray8, motion: Vec3, time: Option<f32x8>) -> Ray8 {
     }
 }
 
+/// [`prim_t_x8`] at the packet's shutter times: only moving prims pay for a packet in their own frame
+/// (static prims test the packet in place, no copy).
+#[inline(always)]
+pub fn prim_t_at_x8(prim: &Prim, ray: &Ray8, time: Option<f32x8>) -> f32x8 {
+    match time {
+        Some(_) if prim.motion != Vec3::ZERO => prim_t_x8(prim, &in_prim_frame(ray, prim.motion, time)),
+        _ => prim_t_x8(prim, ray),
+    }
+}
+
 /// Load packet `i` (rays i..i+8) of a padded queue.
 #[inline(always)]
 pub fn load_packet(rays: &RayQueue, i: usize) -> (Ray8, Option<f32x8>) {
@@ -102,12 +112,7 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
                 }
                 return;
             }
-            // Only moving prims pay for a packet in their own frame (no copy for static ones).
-            let t = match time {
-                Some(_) if prim.motion != Vec3::ZERO => prim_t_x8(prim, &in_prim_frame(ray, prim.motion, time)),
-                _ => prim_t_x8(prim, ray),
-            };
-            record(ray, &mut ids, t, pid);
+            record(ray, &mut ids, prim_t_at_x8(prim, ray, time), pid);
         });
         for &pid in &scene.unbounded {
             let t = prim_t_x8(&scene.prims[pid as usize], &ray);

@@ -133,20 +133,24 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
             }
         }
     };
-    for i in 0..n {
-        counts[bucket(i) + 1] += 1;
+    // `order` holds each ray's bucket in its first half (computed once) and the partition in its second.
+    order.clear();
+    order.resize(2 * n, 0);
+    for (i, slot) in order[..n].iter_mut().enumerate() {
+        let b = bucket(i);
+        *slot = b as u32;
+        counts[b + 1] += 1;
     }
     for k in 1..counts.len() {
         counts[k] += counts[k - 1];
     }
-    order.clear();
-    order.resize(n, 0);
     let mut fill = counts;
-    for i in 0..n {
-        let b = bucket(i);
-        order[fill[b]] = i as u32;
-        fill[b] += 1;
+    let (buckets, sorted) = order.split_at_mut(n);
+    for (i, &b) in buckets.iter().enumerate() {
+        sorted[fill[b as usize]] = i as u32;
+        fill[b as usize] += 1;
     }
+    let order = &*sorted;
 
     let ctx = Ctx { scene, profile, seed };
     let ShadeOut { paths, next, nee } = out;

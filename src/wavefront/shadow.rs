@@ -7,7 +7,7 @@
 //! through them for their transmittance (`transmit.rs`).
 
 use super::dims;
-use super::intersect::{in_prim_frame, prim_t_x8};
+use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
 use super::transmit::{any_passable, passes, transmittance_x8};
 use crate::accel::{intersect_aabb_x8, PacketRay};
@@ -202,10 +202,7 @@ pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f
                 f32x8::from(hit)
             }
             _ => {
-                let t = || match time {
-                    Some(_) if prim.motion != Vec3::ZERO => prim_t_x8(prim, &in_prim_frame(ray, prim.motion, time)),
-                    _ => prim_t_x8(prim, ray),
-                };
+                let t = || prim_t_at_x8(prim, ray, time);
                 if !blocks(scene, profile, prim.material) {
                     if walk {
                         touched |= t().simd_lt(ray.tmax).to_bitmask();

@@ -17,7 +17,7 @@
 //! with no surface between, is not attenuated: no crossing tells.) Indices are the nominal ones (shadow rays
 //! carry no wavelength). A segment with more than [`MAX_CROSSINGS`] surfaces counts as blocked.
 
-use super::intersect::{in_prim_frame, prim_t_x8};
+use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::medium;
 use super::queues::{MediumStack, RayItem, NONE};
 use super::shade::surface_hit;
@@ -195,8 +195,8 @@ fn closest_x8(scene: &Scene, ray: &mut Ray8, time: Option<f32x8>, arena: &mut Cs
     scene.bvh.traverse_closest_x8(ray, |bi, ray| {
         let pid = scene.bounded[bi as usize];
         let prim = &scene.prims[pid as usize];
-        let local = in_prim_frame(ray, prim.motion, time);
         if let Shape::Csg { solid } = prim.shape {
+            let local = in_prim_frame(ray, prim.motion, time);
             let b = &scene.bounds[pid as usize];
             let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(ray), ray.tmax);
             if mask.to_bitmask() == 0 {
@@ -209,7 +209,7 @@ fn closest_x8(scene: &Scene, ray: &mut Ray8, time: Option<f32x8>, arena: &mut Cs
             let hit = std::array::from_fn(|l| out[l].map_or((NONE, NONE, false), |h| (pid, h.leaf, h.flip)));
             record(ray, &mut best, t, hit);
         } else {
-            let t = prim_t_x8(prim, &local).to_array();
+            let t = prim_t_at_x8(prim, ray, time).to_array();
             record(ray, &mut best, t, [(pid, NONE, false); LANES]);
         }
     });
