@@ -8,12 +8,13 @@ mod support;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rayon::prelude::*;
 use std::hint::black_box;
+use strata::accel::GROUP;
 use strata::csg::{intervals_f64, CsgArena};
 use strata::scene::{Profile, Scene, Shape};
 use strata::wavefront::csg_merge::csg_merge;
 use strata::wavefront::intersect::{intersect, prim_t_f64};
 use strata::wavefront::queues::NONE;
-use strata::wavefront::shadow::occluded_x8;
+use strata::wavefront::shadow::{occluded_x8, occlusion_group};
 use strata::wavefront::{CsgCandidates, HitQueue, RayQueue};
 
 /// Nearest hit of one ray by the scalar f64 path (BVH f64 traversal + f64 kernels + planes).
@@ -153,6 +154,13 @@ fn bench_shadow(c: &mut Criterion) {
             checked += 1;
         }
     }
+    // The timed path (groups of packets) must agree with the single-packet path on every packet.
+    for g in packets.chunks(GROUP).step_by(5) {
+        let (occ, _) = occlusion_group(&scene, &profile, &mut g.to_vec(), &[None; GROUP], &mut arena, false);
+        for (j, p) in g.iter().enumerate() {
+            assert_eq!(occ[j].to_bitmask(), occluded_x8(&scene, &profile, p, None, &mut arena).to_bitmask());
+        }
+    }
     println!("shadow validation: {checked} rays agree");
     let n = packets.iter().map(|p| p.tmax.to_array().iter().filter(|&&t| t > 0.0).count() as u64).sum();
     let mut g = c.benchmark_group("shadow");
@@ -162,8 +170,10 @@ fn bench_shadow(c: &mut Criterion) {
         b.iter(|| {
             pool.install(|| {
                 packets.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
-                    for p in ps {
-                        black_box(occluded_x8(&scene, &profile, p, None, arena));
+                    for g in ps.chunks(GROUP) {
+                        let mut rays = [g[0]; GROUP];
+                        rays[..g.len()].copy_from_slice(g);
+                        black_box(occlusion_group(&scene, &profile, &mut rays[..g.len()], &[None; GROUP], arena, false));
                     }
                 })
             })

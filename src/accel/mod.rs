@@ -18,12 +18,14 @@
 
 mod aabb;
 mod build;
+mod group;
 mod node;
 mod traverse;
 mod validate;
 
 pub use aabb::{intersect_aabb_f64, intersect_aabb_x8, slab_interval_f64, Aabb, PacketRay, INV_D_CLAMP};
 pub use build::build_bvh;
+pub use group::GROUP;
 pub use node::{BvhNode, MAX_LEAF_COUNT};
 
 /// Maximum number of levels of a built tree (a root-only tree has depth 1). The build guarantees it

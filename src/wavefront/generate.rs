@@ -25,6 +25,31 @@ impl Tile {
     pub fn pixel_count(&self) -> u32 {
         (self.x1 - self.x0) * (self.y1 - self.y0)
     }
+
+    /// The tile's pixels in Morton (Z) order: 8 consecutive pixels form a 4x2 block and 64 an 8x8
+    /// block, so the 8-ray packets and 64-ray traversal groups of camera rays are compact in the image
+    /// (row order made a group a 64x1 strip). Cells of the enclosing power-of-two square outside the
+    /// tile are skipped.
+    pub fn pixels_z_order(&self) -> impl Iterator<Item = (u32, u32)> {
+        let (w, h) = (self.x1 - self.x0, self.y1 - self.y0);
+        let side = w.max(h).next_power_of_two() as u64;
+        let (x0, y0) = (self.x0, self.y0);
+        (0..side * side).filter_map(move |code| {
+            let (x, y) = (compact_bits(code), compact_bits(code >> 1));
+            (x < w && y < h).then_some((x0 + x, y0 + y))
+        })
+    }
+}
+
+/// The even bits of `v` packed into the low half (inverse of bit interleaving).
+fn compact_bits(v: u64) -> u32 {
+    let mut x = v & 0x5555_5555_5555_5555;
+    x = (x | (x >> 1)) & 0x3333_3333_3333_3333;
+    x = (x | (x >> 2)) & 0x0f0f_0f0f_0f0f_0f0f;
+    x = (x | (x >> 4)) & 0x00ff_00ff_00ff_00ff;
+    x = (x | (x >> 8)) & 0x0000_ffff_0000_ffff;
+    x = (x | (x >> 16)) & 0x0000_0000_ffff_ffff;
+    x as u32
 }
 
 pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples: Range<u32>, paths: &mut PathTable, rays: &mut RayQueue) {
@@ -33,38 +58,65 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     let spp = profile.spp;
     let area = Sampler2d::new(profile.pixel_strategy, spp);
     let lens_set = Sampler2d::new(profile.lens_strategy, spp);
-    for y in tile.y0..tile.y1 {
-        for x in tile.x0..tile.x1 {
-            let pixel = y * scene.width + x;
-            let stream = pixel as u64;
-            let (area_key, lens_key) = (stream_key(seed, stream, dims::PIXEL), stream_key(seed, stream, dims::LENS));
-            for s in samples.clone() {
-                let off = sample_filter(profile.filter, area.sample(area_key, s));
-                let lens = if f.lens { sample_disk_concentric(lens_set.sample(lens_key, s)) } else { [0.0, 0.0] };
-                let (o, d) = cam.ray(x as f32 + 0.5 + off[0], y as f32 + 0.5 + off[1], lens);
-                let time = if f.motion { cam.time(sample_1d(profile.time_strategy, seed, stream, dims::TIME, s, spp)) } else { 0.0 };
-                let (lambda, throughput) = if f.dispersion {
-                    // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.
-                    let l = sample_wavelength(sample_1d(profile.wavelength_strategy, seed, stream, dims::WAVELENGTH, s, spp));
-                    (l, wavelength_to_rgb(l) / sample_wavelength_pdf(l))
-                } else {
-                    (0.0, Vec3::ONE)
-                };
-                let path = paths.push(pixel, s);
-                rays.push(&RayItem {
-                    o,
-                    d,
-                    tmax: f32::INFINITY,
-                    time,
-                    lambda,
-                    throughput,
-                    path,
-                    branch: 0,
-                    depth: 0,
-                    diffuse: 0,
-                    flags: 0,
-                    media: MediumStack::default(),
-                });
+    for (x, y) in tile.pixels_z_order() {
+        let pixel = y * scene.width + x;
+        let stream = pixel as u64;
+        let (area_key, lens_key) = (stream_key(seed, stream, dims::PIXEL), stream_key(seed, stream, dims::LENS));
+        for s in samples.clone() {
+            let off = sample_filter(profile.filter, area.sample(area_key, s));
+            let lens = if f.lens { sample_disk_concentric(lens_set.sample(lens_key, s)) } else { [0.0, 0.0] };
+            let (o, d) = cam.ray(x as f32 + 0.5 + off[0], y as f32 + 0.5 + off[1], lens);
+            let time = if f.motion { cam.time(sample_1d(profile.time_strategy, seed, stream, dims::TIME, s, spp)) } else { 0.0 };
+            let (lambda, throughput) = if f.dispersion {
+                // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.
+                let l = sample_wavelength(sample_1d(profile.wavelength_strategy, seed, stream, dims::WAVELENGTH, s, spp));
+                (l, wavelength_to_rgb(l) / sample_wavelength_pdf(l))
+            } else {
+                (0.0, Vec3::ONE)
+            };
+            let path = paths.push(pixel, s);
+            rays.push(&RayItem {
+                o,
+                d,
+                tmax: f32::INFINITY,
+                time,
+                lambda,
+                throughput,
+                path,
+                branch: 0,
+                depth: 0,
+                diffuse: 0,
+                flags: 0,
+                media: MediumStack::default(),
+            });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn z_order_visits_each_pixel_once_in_blocks() {
+        for (w, h) in [(16, 16), (5, 3), (64, 64), (1, 7), (17, 2)] {
+            let t = Tile { x0: 3, y0: 10, x1: 3 + w, y1: 10 + h };
+            let px: Vec<_> = t.pixels_z_order().collect();
+            assert_eq!(px.len() as u32, w * h);
+            let mut seen = std::collections::HashSet::new();
+            for &(x, y) in &px {
+                assert!((3..3 + w).contains(&x) && (10..10 + h).contains(&y));
+                assert!(seen.insert((x, y)));
+            }
+        }
+        // A full 16x16 tile: every run of 8 is a 4x2 block, every run of 64 an 8x8 block.
+        let t = Tile { x0: 0, y0: 0, x1: 16, y1: 16 };
+        let px: Vec<_> = t.pixels_z_order().collect();
+        for (run, (bw, bh)) in [(8, (4, 2)), (64, (8, 8))] {
+            for c in px.chunks(run) {
+                let (xs, ys): (Vec<u32>, Vec<u32>) = c.iter().copied().unzip();
+                assert_eq!(xs.iter().max().unwrap() - xs.iter().min().unwrap() + 1, bw);
+                assert_eq!(ys.iter().max().unwrap() - ys.iter().min().unwrap() + 1, bh);
             }
         }
     }

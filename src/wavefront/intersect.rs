@@ -3,13 +3,13 @@
 //! a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
 use super::queues::{CsgCandidates, HitQueue, RayQueue, NONE};
-use crate::accel::{intersect_aabb_x8, PacketRay};
+use crate::accel::{intersect_aabb_x8, PacketRay, GROUP};
 use crate::geometry::{
     intersect_disk_f64, intersect_disk_x8, intersect_ellipsoid_f64, intersect_ellipsoid_x8, intersect_obox_f64, intersect_obox_x8,
     intersect_plane_f64, intersect_plane_x8, intersect_quad_f64, intersect_quad_x8, intersect_sphere_f64, intersect_sphere_x8, MISS,
 };
 use crate::scene::{Prim, Scene, Shape};
-use crate::simd::{f32x8, load8, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x8, i32x8, load8, store8, Ray8, Vec3x8, LANES};
 use glam::{DVec3, Vec3};
 
 /// Distance to a (non-CSG) primitive for 8 rays; MISS where there is none.
@@ -70,33 +70,54 @@ pub fn load_packet(rays: &RayQueue, i: usize) -> (Ray8, Option<f32x8>) {
 /// Record hits of `t` on the lanes where it is nearer than the current best. Equal distances go to the
 /// lower primitive id, so the result does not depend on traversal order (packet composition).
 #[inline(always)]
-fn record(ray: &mut Ray8, ids: &mut [u32; LANES], t: f32x8, prim: u32) {
-    let le = t.simd_le(ray.tmax);
-    let mut bits = le.to_bitmask();
-    if bits == 0 {
-        return;
-    }
-    let (ta, tm) = (t.to_array(), ray.tmax.to_array());
-    let mut new_tmax = tm;
-    while bits != 0 {
-        let l = bits.trailing_zeros() as usize;
-        bits &= bits - 1;
-        if ta[l] < tm[l] || (ta[l] != MISS && prim < ids[l]) {
-            new_tmax[l] = ta[l];
-            ids[l] = prim;
+fn record(ray: &mut Ray8, ids: &mut i32x8, t: f32x8, prim: u32) {
+    let closer = t.simd_lt(ray.tmax);
+    let tie = t.simd_eq(ray.tmax) & t.simd_ne(f32x8::splat(MISS));
+    if tie.any() {
+        // Rare: exact ties are settled lane by lane (ids compare as unsigned, NONE = u32::MAX last).
+        let (mut ia, tie) = (ids.to_array(), tie.to_bitmask());
+        for (l, id) in ia.iter_mut().enumerate() {
+            if tie & (1 << l) != 0 && prim < *id as u32 {
+                *id = prim as i32;
+            }
         }
+        *ids = i32x8::from(ia);
     }
-    ray.tmax = f32x8::from(new_tmax);
+    if closer.any() {
+        ray.tmax = closer.select(t, ray.tmax);
+        *ids = bytemuck::cast::<f32x8, i32x8>(closer).select(i32x8::splat(prim as i32), *ids);
+    }
+}
+
+/// An 8-lane packet that carries no ray (every lane `tmax = -1`): fills unused slots of a group.
+#[inline(always)]
+fn empty_packet() -> Ray8 {
+    let z = Vec3x8::splat(Vec3::ZERO);
+    Ray8 { o: z, d: Vec3x8::splat(Vec3::ONE), inv_d: Vec3x8::splat(Vec3::ONE), tmax: f32x8::splat(-1.0) }
 }
 
 pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mut CsgCandidates) {
     let n = rays.padded_len();
     hits.reset(n);
     cands.clear();
-    for base in (0..n).step_by(LANES) {
-        let (mut ray, time) = load_packet(rays, base);
-        let mut ids = [NONE; LANES];
-        scene.bvh.traverse_closest_x8(&mut ray, |bi, ray| {
+    // Up to GROUP packets (64 rays) traverse the BVH together (`accel/group.rs`).
+    for gbase in (0..n).step_by(LANES * GROUP) {
+        let k = ((n - gbase) / LANES).min(GROUP);
+        let mut times = [None; GROUP];
+        let mut rs = [empty_packet(); GROUP];
+        for j in 0..k {
+            (rs[j], times[j]) = load_packet(rays, gbase + j * LANES);
+        }
+        let none = i32x8::splat(NONE as i32);
+        let mut ids = [none; GROUP];
+        // Unbounded planes first: their hits lower tmax, which culls the BVH beyond them.
+        for j in 0..k {
+            for &pid in &scene.unbounded {
+                let t = prim_t_x8(&scene.prims[pid as usize], &rs[j]);
+                record(&mut rs[j], &mut ids[j], t, pid);
+            }
+        }
+        scene.bvh.traverse_closest_group(&mut rs[..k], |bi, j, ray| {
             let pid = scene.bounded[bi as usize];
             let prim = &scene.prims[pid as usize];
             if let Shape::Csg { .. } = prim.shape {
@@ -107,23 +128,20 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
                 while bits != 0 {
                     let l = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
-                    cands.ray.push((base + l) as u32);
+                    cands.ray.push((gbase + j * LANES + l) as u32);
                     cands.prim.push(pid);
                 }
                 return;
             }
-            record(ray, &mut ids, prim_t_at_x8(prim, ray, time), pid);
+            record(ray, &mut ids[j], prim_t_at_x8(prim, ray, times[j]), pid);
         });
-        for &pid in &scene.unbounded {
-            let t = prim_t_x8(&scene.prims[pid as usize], &ray);
-            record(&mut ray, &mut ids, t, pid);
-        }
-        let ta = ray.tmax.to_array();
-        for l in 0..LANES {
-            if ids[l] != NONE {
-                hits.t[base + l] = ta[l];
-                hits.prim[base + l] = ids[l];
-            }
+        for j in 0..k {
+            let base = gbase + j * LANES;
+            let found = ids[j].simd_eq(none);
+            // Lanes without a hit keep the reset values (t = inf, NONE).
+            let t = bytemuck::cast::<i32x8, f32x8>(found).select(f32x8::splat(f32::INFINITY), rs[j].tmax);
+            store8(&mut hits.t, base, t);
+            hits.prim[base..base + LANES].copy_from_slice(bytemuck::cast_slice(&ids[j].to_array()));
         }
     }
 }

@@ -10,6 +10,7 @@ use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
 use super::transmit::{any_passable, passes, transmittance_x8};
+use crate::accel::GROUP;
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light, samples_for};
@@ -21,32 +22,48 @@ use glam::Vec3;
 /// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
 const SHADOW_END: f32 = 1.0 - 1e-4;
 
-struct Packet {
-    o: [[f32; LANES]; 3],
-    d: [[f32; LANES]; 3],
-    tmax: [f32; LANES],
-    time: [f32; LANES],
-    contrib: [Vec3; LANES],
-    path: [u32; LANES],
+/// Rays per batch: one traversal group of [`GROUP`] packets.
+const BATCH: usize = GROUP * LANES;
+
+/// Shadow rays waiting to be traced, in packet-sized rows: lane `k` is packet `k / 8`, lane `k % 8`.
+struct Batch {
+    o: [[f32; BATCH]; 3],
+    d: [[f32; BATCH]; 3],
+    tmax: [f32; BATCH],
+    time: [f32; BATCH],
+    contrib: [Vec3; BATCH],
+    path: [u32; BATCH],
     len: usize,
 }
 
-impl Packet {
-    fn new() -> Packet {
-        Packet {
-            o: [[0.0; LANES]; 3],
-            d: [[1.0; LANES]; 3],
-            tmax: [-1.0; LANES],
-            time: [0.0; LANES],
-            contrib: [Vec3::ZERO; LANES],
-            path: [0; LANES],
+impl Batch {
+    fn new() -> Box<Batch> {
+        Box::new(Batch {
+            o: [[0.0; BATCH]; 3],
+            d: [[1.0; BATCH]; 3],
+            tmax: [-1.0; BATCH],
+            time: [0.0; BATCH],
+            contrib: [Vec3::ZERO; BATCH],
+            path: [0; BATCH],
             len: 0,
-        }
+        })
+    }
+
+    /// Packet `j` as a `Ray8` (lanes past `len` carry `tmax = -1`) and its shutter times.
+    fn packet(&self, j: usize, motion: bool) -> (Ray8, Option<f32x8>) {
+        let r = j * LANES..(j + 1) * LANES;
+        let v = |a: &[f32; BATCH]| f32x8::from(<[f32; LANES]>::try_from(&a[r.clone()]).unwrap());
+        let ray = Ray8::new(
+            Vec3x8::new(v(&self.o[0]), v(&self.o[1]), v(&self.o[2])),
+            Vec3x8::new(v(&self.d[0]), v(&self.d[1]), v(&self.d[2])),
+            v(&self.tmax),
+        );
+        (ray, motion.then(|| v(&self.time)))
     }
 }
 
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
-    let mut pk = Packet::new();
+    let mut pk = Batch::new();
     let mut traced = 0u64;
     // Jittered and Sobol light samples form one stratified set over all of a pixel's camera samples
     // (index = sample x light_samples + j, strata permuted per stream, as a padded sampler does): with
@@ -101,7 +118,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 pk.contrib[k] = c;
                 pk.path[k] = nee.path[i];
                 pk.len += 1;
-                if pk.len == LANES {
+                if pk.len == BATCH {
                     traced += flush(scene, profile, &mut pk, paths, arena, walk);
                 }
             }
@@ -113,31 +130,41 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     traced
 }
 
-/// Trace the packet's shadow rays (any hit) and credit the unoccluded ones, times their transmittance
-/// where they met dielectrics they walk through. Returns rays traced (walk segments included).
-fn flush(scene: &Scene, profile: &Profile, pk: &mut Packet, paths: &mut PathTable, arena: &mut CsgArena, walk: bool) -> u64 {
+/// Trace the batch's shadow rays (any hit, as one traversal group) and credit the unoccluded ones, times
+/// their transmittance where they met dielectrics they walk through. Returns rays traced (walk segments
+/// included).
+fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, paths: &mut PathTable, arena: &mut CsgArena, walk: bool) -> u64 {
     let n = pk.len;
-    for l in n..LANES {
-        pk.tmax[l] = -1.0;
+    pk.tmax[n..].fill(-1.0);
+    let k = n.div_ceil(LANES);
+    let motion = scene.features.motion;
+    let mut rays = [Ray8::new(Vec3x8::splat(Vec3::ZERO), Vec3x8::splat(Vec3::ONE), f32x8::splat(-1.0)); GROUP];
+    let mut times = [None; GROUP];
+    for j in 0..k {
+        (rays[j], times[j]) = pk.packet(j, motion);
     }
-    let ray = Ray8::new(
-        Vec3x8::new(f32x8::from(pk.o[0]), f32x8::from(pk.o[1]), f32x8::from(pk.o[2])),
-        Vec3x8::new(f32x8::from(pk.d[0]), f32x8::from(pk.d[1]), f32x8::from(pk.d[2])),
-        f32x8::from(pk.tmax),
-    );
-    let time = scene.features.motion.then(|| f32x8::from(pk.time));
-    let (occluded, touched) = occlusion_x8(scene, profile, &ray, time, arena, walk);
-    let bits = occluded.to_bitmask();
-    let through = touched & !bits & ((1u32 << n) - 1);
-    let (tr, walked) = if through != 0 {
-        transmittance_x8(scene, profile, &pk.o, &pk.d, &pk.tmax, &pk.time, through, arena)
-    } else {
-        ([Vec3::ONE; LANES], 0)
-    };
-    for (l, t) in tr.iter().enumerate().take(n) {
-        if bits & (1 << l) == 0 {
-            let c = if through & (1 << l) != 0 { pk.contrib[l] * *t } else { pk.contrib[l] };
-            paths.add(pk.path[l], c);
+    let (occluded, touched) = occlusion_group(scene, profile, &mut rays[..k], &times, arena, walk);
+    let mut walked = 0;
+    for j in 0..k {
+        let lanes = (n - j * LANES).min(LANES);
+        let r = j * LANES..j * LANES + LANES;
+        let bits = occluded[j].to_bitmask();
+        let through = touched[j] & !bits & ((1u32 << lanes) - 1);
+        let tr = if through != 0 {
+            let arr = |a: &[f32; BATCH]| <[f32; LANES]>::try_from(&a[r.clone()]).unwrap();
+            let (o, d) = ([0, 1, 2].map(|a| arr(&pk.o[a])), [0, 1, 2].map(|a| arr(&pk.d[a])));
+            let (tr, w) = transmittance_x8(scene, profile, &o, &d, &arr(&pk.tmax), &arr(&pk.time), through, arena);
+            walked += w;
+            tr
+        } else {
+            [Vec3::ONE; LANES]
+        };
+        for (l, t) in tr.iter().enumerate().take(lanes) {
+            if bits & (1 << l) == 0 {
+                let q = j * LANES + l;
+                let c = if through & (1 << l) != 0 { pk.contrib[q] * *t } else { pk.contrib[q] };
+                paths.add(pk.path[q], c);
+            }
         }
     }
     pk.len = 0;
@@ -158,31 +185,49 @@ pub fn occluded_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f3
 /// [`occluded_x8`], and as bits the lanes that met a dielectric shadow rays walk through (whose
 /// transmittance is then needed). `walk`: [`any_passable`] of this scene and profile.
 pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena, walk: bool) -> (f32x8, u32) {
+    let (occ, touched) = occlusion_group(scene, profile, &mut [*ray], &[time], arena, walk);
+    (occ[0], touched[0])
+}
+
+/// Any-hit occlusion of up to [`GROUP`] packets of shadow rays, traversed together: per packet, the
+/// occluded mask and the walk-through bits of [`occlusion_x8`]. The packets' `tmax` are clobbered.
+pub fn occlusion_group(
+    scene: &Scene,
+    profile: &Profile,
+    rays: &mut [Ray8],
+    times: &[Option<f32x8>],
+    arena: &mut CsgArena,
+    walk: bool,
+) -> ([f32x8; GROUP], [u32; GROUP]) {
     let zero = f32x8::ZERO;
-    let mut touched = 0u32;
-    let mut occ = zero.simd_gt(f32x8::ONE); // all false
-    for &pid in &scene.unbounded {
-        let prim = &scene.prims[pid as usize];
-        let hit = prim_t_x8(prim, ray).simd_lt(ray.tmax);
-        if blocks(scene, profile, prim.material) {
-            occ |= hit;
-        } else {
-            touched |= hit.to_bitmask();
+    let none = zero.simd_gt(f32x8::ONE); // all false
+    let mut touched = [0u32; GROUP];
+    let mut occ = [none; GROUP];
+    let k = rays.len();
+    for j in 0..k {
+        for &pid in &scene.unbounded {
+            let prim = &scene.prims[pid as usize];
+            let hit = prim_t_x8(prim, &rays[j]).simd_lt(rays[j].tmax);
+            if blocks(scene, profile, prim.material) {
+                occ[j] |= hit;
+            } else {
+                touched[j] |= hit.to_bitmask();
+            }
         }
+        // Lanes the planes already occlude take no part in the traversal.
+        rays[j].tmax = occ[j].select(f32x8::splat(-1.0), rays[j].tmax);
     }
-    if occ.to_bitmask() == (1 << LANES) - 1 {
-        return (occ, 0);
-    }
-    let from_bvh = scene.bvh.traverse_any_x8(ray, |bi, ray| {
+    let from_bvh = scene.bvh.traverse_any_group(rays, |bi, j, ray| {
         let pid = scene.bounded[bi as usize];
         let prim = &scene.prims[pid as usize];
+        let time = times[j];
         match prim.shape {
             Shape::Csg { solid } => {
                 // Lanes that reach the solid's bounds are solved together by the 8-lane interval merge.
                 let b = &scene.bounds[pid as usize];
                 let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(ray), ray.tmax);
                 if mask.to_bitmask() == 0 {
-                    return zero.simd_gt(f32x8::ONE);
+                    return none;
                 }
                 let local = in_prim_frame(ray, prim.motion, time);
                 let masked = Ray8 { tmax: mask.select(ray.tmax, f32x8::splat(-1.0)), ..local };
@@ -195,7 +240,7 @@ pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f
                             hit[l] = f32::from_bits(u32::MAX);
                         } else {
                             // A first boundary that lets the ray through: the walk sees the rest of the solid.
-                            touched |= 1 << l;
+                            touched[j] |= 1 << l;
                         }
                     }
                 }
@@ -205,13 +250,16 @@ pub fn occlusion_x8(scene: &Scene, profile: &Profile, ray: &Ray8, time: Option<f
                 let t = || prim_t_at_x8(prim, ray, time);
                 if !blocks(scene, profile, prim.material) {
                     if walk {
-                        touched |= t().simd_lt(ray.tmax).to_bitmask();
+                        touched[j] |= t().simd_lt(ray.tmax).to_bitmask();
                     }
-                    return zero.simd_gt(f32x8::ONE);
+                    return none;
                 }
                 t().simd_lt(ray.tmax)
             }
         }
     });
-    (occ | from_bvh, touched)
+    for j in 0..k {
+        occ[j] |= from_bvh[j];
+    }
+    (occ, touched)
 }

@@ -1,0 +1,282 @@
+//! Group traversal: up to [`GROUP`] 8-ray packets (64 rays) descend the BVH together.
+//!
+//! One 8-ray packet per traversal pays one box test per visited node for 8 rays; coherent rays (camera
+//! rays of an 8x8 pixel block, shadow rays of neighbouring points towards one light) visit nearly the
+//! same nodes, so a group shares the walk, after Wald, Boulos & Shirley 2007 ("Ray Tracing Deformable
+//! Scenes Using Dynamic Bounding Volume Hierarchies", their "first active ray" and interval-arithmetic
+//! culling; here the unit is an 8-lane packet, not a ray):
+//!
+//! - Each stack entry carries the index `first` of the first packet that may still hit the node.
+//!   A node is entered by testing packet `first` alone (one 8-lane slab test); only when it misses is
+//!   the whole group's interval test tried, and only when that cannot cull are packets `first + 1..`
+//!   tested until one hits. Packets before `first` are never tested below the node that dropped them.
+//! - The interval test bounds the slab distances of all rays of the group at once from the boxes of
+//!   their origins and inverse directions (`GroupBounds`): a node it culls is missed by every ray.
+//!   It is exact-conservative (computed in f64 from widened f32 inputs), and it exists only when every
+//!   active ray of the group points into the same octant; otherwise the group is not coherent and
+//!   [`Bvh::traverse_closest_group`] falls back to one traversal per packet.
+//! - At a leaf, packets `first..` each test the leaf's box before their primitives (a box test is
+//!   cheaper than the primitives of a leaf).
+//!
+//! Results do not depend on grouping: the leaf callbacks see the same (primitive, packet) pairs a
+//! per-packet traversal would reach, plus possibly more (culling is conservative), and the callers'
+//! hit recording is order-independent (ties go to the lower primitive id).
+
+use glam::{BVec3A, Vec3, Vec3A};
+
+use super::aabb::{intersect_aabb_x8, PacketRay};
+use super::{Bvh, BvhNode, MAX_DEPTH};
+use crate::simd::{f32x8, Ray8, Vec3x8};
+
+/// Packets per group.
+pub const GROUP: usize = 8;
+
+/// Interval bounds of a group of rays, mirrored so that every axis has positive directions: on an axis
+/// whose directions are negative, origins and boxes are negated (then `t = (b - o) * inv` with `inv > 0`).
+/// Kept in SSE vectors (`Vec3A`): the test costs about 15 vector instructions per node.
+#[derive(Clone, Copy, Debug)]
+struct GroupBounds {
+    /// Set on axes whose directions are negative.
+    neg: BVec3A,
+    o_lo: Vec3A,
+    o_hi: Vec3A,
+    inv_lo: Vec3A,
+    inv_hi: Vec3A,
+}
+
+impl GroupBounds {
+    /// Bounds of the active lanes (`tmax >= 0`) of `rays`; `None` when they do not all point into one
+    /// octant (a zero or non-finite direction component also gives `None`) or no lane is active.
+    fn new(rays: &[Ray8]) -> Option<Self> {
+        let inf = f32x8::splat(f32::INFINITY);
+        let mut lo = [inf; 6];
+        let mut hi = [-inf; 6];
+        for r in rays {
+            let act = r.tmax.simd_ge(f32x8::ZERO);
+            for (k, v) in [r.o.x, r.o.y, r.o.z, r.inv_d.x, r.inv_d.y, r.inv_d.z].into_iter().enumerate() {
+                lo[k] = lo[k].fast_min(act.select(v, inf));
+                hi[k] = hi[k].fast_max(act.select(v, -inf));
+            }
+        }
+        let lo = lo.map(|v| v.to_array().into_iter().fold(f32::INFINITY, f32::min));
+        let hi = hi.map(|v| v.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max));
+        // No active lane leaves infinities; so does a zero direction component (1/0).
+        if lo.iter().chain(hi.iter()).any(|v| !v.is_finite()) {
+            return None;
+        }
+        let (o_lo, o_hi) = (Vec3A::new(lo[0], lo[1], lo[2]), Vec3A::new(hi[0], hi[1], hi[2]));
+        let (i_lo, i_hi) = (Vec3A::new(lo[3], lo[4], lo[5]), Vec3A::new(hi[3], hi[4], hi[5]));
+        let pos = i_lo.cmpgt(Vec3A::ZERO);
+        let neg = i_hi.cmplt(Vec3A::ZERO);
+        if (pos | neg).bitmask() != 0b111 {
+            return None;
+        }
+        Some(Self {
+            neg,
+            o_lo: Vec3A::select(neg, -o_hi, o_lo),
+            o_hi: Vec3A::select(neg, -o_lo, o_hi),
+            inv_lo: Vec3A::select(neg, -i_hi, i_lo),
+            inv_hi: Vec3A::select(neg, -i_lo, i_hi),
+        })
+    }
+
+    /// True when no ray of the group can meet the box within `[0, tmax]`.
+    ///
+    /// Over the group, the entry distance of an axis is at least `(near plane - farthest origin) * inv`
+    /// at the inverse that makes it smallest, and the exit at most `(far plane - nearest origin) * inv`
+    /// at the one that makes it largest (for a fixed numerator the product is monotonic in `inv`, so
+    /// the extreme is the min or max of the two end products). Each computed value is within 2^-23
+    /// (relative) of its exact value, and the group's `inv` bounds are within 2^-24 of each lane's
+    /// exact `1/d`: culling only when `tn` exceeds `tf` by 2^-19 of their magnitudes is conservative.
+    #[inline(always)]
+    fn misses(&self, bmin: Vec3A, bmax: Vec3A, tmax: f32) -> bool {
+        let b0 = Vec3A::select(self.neg, -bmax, bmin);
+        let b1 = Vec3A::select(self.neg, -bmin, bmax);
+        let (d0, d1) = (b0 - self.o_hi, b1 - self.o_lo);
+        let near = (d0 * self.inv_lo).min(d0 * self.inv_hi);
+        let far = (d1 * self.inv_lo).max(d1 * self.inv_hi);
+        let tn = near.max_element().max(0.0);
+        let tf = far.min_element().min(tmax);
+        tn - tf > SLACK * (tn.abs() + tf.abs())
+    }
+}
+
+/// Relative slack of the interval test (see [`GroupBounds::misses`]).
+const SLACK: f32 = 1.0 / (1u32 << 19) as f32;
+
+/// Sum of the active lanes' directions of all packets, as `near_is_right` bits (see `traverse.rs`).
+fn near_bits(rays: &[Ray8]) -> u32 {
+    let mut s = Vec3x8::splat(Vec3::ZERO);
+    for r in rays {
+        let act = r.tmax.simd_ge(f32x8::ZERO);
+        s = s + Vec3x8::new(act.select(r.d.x, f32x8::ZERO), act.select(r.d.y, f32x8::ZERO), act.select(r.d.z, f32x8::ZERO));
+    }
+    let bit = |v: f32x8| (v.reduce_add() < 0.0) as u32;
+    bit(s.x) | (bit(s.y) << 1) | (bit(s.z) << 2)
+}
+
+/// Largest `tmax` of the group's packets (negative when none is active).
+fn group_tmax(rays: &[Ray8]) -> f32 {
+    let m = rays.iter().fold(f32x8::splat(f32::NEG_INFINITY), |m, r| m.fast_max(r.tmax));
+    m.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max)
+}
+
+impl Bvh {
+    /// Closest-hit traversal of up to [`GROUP`] packets together (see the module doc). `leaf(prim, j,
+    /// &mut rays[j])` has the contract of [`Bvh::traverse_closest_x8`]'s callback, for packet `j`.
+    /// A group whose active rays do not share one direction octant is traversed packet by packet.
+    pub fn traverse_closest_group(&self, rays: &mut [Ray8], mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
+        assert!(rays.len() <= GROUP, "at most {GROUP} packets per group");
+        if self.nodes.is_empty() || rays.is_empty() {
+            return;
+        }
+        let Some(gb) = GroupBounds::new(rays) else {
+            for (j, r) in rays.iter_mut().enumerate() {
+                self.traverse_closest_x8(r, |p, r| leaf(p, j, r));
+            }
+            return;
+        };
+        let k = rays.len();
+        let mut pr = [PacketRay::new(&rays[0]); GROUP];
+        for j in 1..k {
+            pr[j] = PacketRay::new(&rays[j]);
+        }
+        let near_right = near_bits(rays);
+        let mut tmax = group_tmax(rays);
+        let mut stack = [(0u32, 0u8); MAX_DEPTH];
+        let mut sp = 0usize;
+        let (mut node, mut first) = (0usize, 0usize);
+        loop {
+            let n = &self.nodes[node];
+            if let Some(f) = first_hit(n, &pr[..k], rays, first, &gb, tmax) {
+                let count = n.count() as usize;
+                if count == 0 {
+                    let r = (near_right >> n.axis()) & 1;
+                    stack[sp] = (n.left_first + (r ^ 1), f as u8);
+                    sp += 1;
+                    node = (n.left_first + r) as usize;
+                    first = f;
+                    continue;
+                }
+                let prims = &self.indices[n.left_first as usize..n.left_first as usize + count];
+                let (bmin, bmax) = (Vec3::from_array(n.min), Vec3::from_array(n.max));
+                for j in f..k {
+                    if j != f && !intersect_aabb_x8(bmin, bmax, &pr[j], rays[j].tmax).1.any() {
+                        continue;
+                    }
+                    for &p in prims {
+                        leaf(p, j, &mut rays[j]);
+                    }
+                }
+                tmax = group_tmax(rays);
+            }
+            if sp == 0 {
+                return;
+            }
+            sp -= 1;
+            (node, first) = (stack[sp].0 as usize, stack[sp].1 as usize);
+        }
+    }
+
+    /// Any-hit traversal of up to [`GROUP`] packets together: returns each packet's occluded mask, as
+    /// [`Bvh::traverse_any_x8`] would for that packet alone (same callback contract, for packet `j`).
+    /// Stops when every active lane of the group is occluded. A group whose active rays do not share
+    /// one direction octant is traversed packet by packet. The packets' `tmax` are used as working
+    /// state (inactive and occluded lanes end at -1); nothing else of them changes.
+    pub fn traverse_any_group(&self, rays: &mut [Ray8], mut leaf: impl FnMut(u32, usize, &Ray8) -> f32x8) -> [f32x8; GROUP] {
+        assert!(rays.len() <= GROUP, "at most {GROUP} packets per group");
+        let mut occluded = [f32x8::ZERO; GROUP];
+        if self.nodes.is_empty() || rays.is_empty() {
+            return occluded;
+        }
+        let Some(gb) = GroupBounds::new(rays) else {
+            for (j, r) in rays.iter().enumerate() {
+                occluded[j] = self.traverse_any_x8(r, |p, r| leaf(p, j, r));
+            }
+            return occluded;
+        };
+        let k = rays.len();
+        let off = f32x8::splat(-1.0);
+        // Inactive and occluded lanes get tmax = -1 (the any-hit callback contract).
+        let rs = rays;
+        let mut active = [f32x8::ZERO; GROUP];
+        let mut pending = 0u32; // packets with an active lane not yet occluded
+        for j in 0..k {
+            active[j] = rs[j].tmax.simd_gt(f32x8::ZERO);
+            rs[j].tmax = active[j].select(rs[j].tmax, off);
+            if active[j].any() {
+                pending |= 1 << j;
+            }
+        }
+        if pending == 0 {
+            return occluded;
+        }
+        let mut pr = [PacketRay::new(&rs[0]); GROUP];
+        for j in 1..k {
+            pr[j] = PacketRay::new(&rs[j]);
+        }
+        let near_right = near_bits(rs);
+        let tmax = group_tmax(rs);
+        let mut stack = [(0u32, 0u8); MAX_DEPTH];
+        let mut sp = 0usize;
+        let (mut node, mut first) = (0usize, 0usize);
+        loop {
+            // Packets that are done are skipped as `first`.
+            first += (pending >> first).trailing_zeros() as usize;
+            let n = &self.nodes[node];
+            if first < k {
+                if let Some(f) = first_hit(n, &pr[..k], rs, first, &gb, tmax) {
+                    let count = n.count() as usize;
+                    if count == 0 {
+                        let r = (near_right >> n.axis()) & 1;
+                        stack[sp] = (n.left_first + (r ^ 1), f as u8);
+                        sp += 1;
+                        node = (n.left_first + r) as usize;
+                        first = f;
+                        continue;
+                    }
+                    let prims = &self.indices[n.left_first as usize..n.left_first as usize + count];
+                    let (bmin, bmax) = (Vec3::from_array(n.min), Vec3::from_array(n.max));
+                    for j in f..k {
+                        if pending & (1 << j) == 0 || (j != f && !intersect_aabb_x8(bmin, bmax, &pr[j], rs[j].tmax).1.any()) {
+                            continue;
+                        }
+                        for &p in prims {
+                            let occ = leaf(p, j, &rs[j]) & active[j];
+                            if occ.any() {
+                                occluded[j] |= occ;
+                                rs[j].tmax = occluded[j].select(off, rs[j].tmax);
+                                if occluded[j].to_bitmask() == active[j].to_bitmask() {
+                                    pending &= !(1 << j);
+                                    if pending == 0 {
+                                        return occluded;
+                                    }
+                                    break;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            if sp == 0 {
+                return occluded;
+            }
+            sp -= 1;
+            (node, first) = (stack[sp].0 as usize, stack[sp].1 as usize);
+        }
+    }
+}
+
+/// Index of the first packet at or after `first` that overlaps the node's box, or `None` when none
+/// does (decided by the group's interval test when it can, else by testing the packets in turn).
+#[inline(always)]
+fn first_hit(n: &BvhNode, pr: &[PacketRay], rays: &[Ray8], first: usize, gb: &GroupBounds, tmax: f32) -> Option<usize> {
+    let (bmin, bmax) = (Vec3::from_array(n.min), Vec3::from_array(n.max));
+    if intersect_aabb_x8(bmin, bmax, &pr[first], rays[first].tmax).1.any() {
+        return Some(first);
+    }
+    if gb.misses(bmin.into(), bmax.into(), tmax) {
+        return None;
+    }
+    (first + 1..pr.len()).find(|&j| intersect_aabb_x8(bmin, bmax, &pr[j], rays[j].tmax).1.any())
+}
