@@ -3,15 +3,40 @@
 mod support;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use std::path::Path;
 use strata::render::render;
-use strata::scene::Profile;
+use strata::scene::{parse_scene, Profile, Scene};
 use strata::wavefront::Settings;
+
+/// `bench_spheres` with a lens (tiny aperture) and one moving sphere far behind the camera: the image is
+/// the same to the eye, but every ray now carries a shutter time and a lens sample and every primitive
+/// test handles time. Beside `render/bench_spheres.toml` it shows what a scene without those features
+/// does not pay.
+fn spheres_with_lens_and_motion() -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bench_spheres.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let text = text.replacen("fov = 45.0", "fov = 45.0\naperture = 0.001\nshutter = [0.0, 1.0]", 1)
+        + "\n[[shapes]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 60.0]\nradius = 0.5\nmaterial = \"ground\"\nmotion = [0.1, 0.0, 0.0]\n";
+    let scene = parse_scene(&path, &text).unwrap_or_else(|e| panic!("{e}"));
+    assert!(scene.features.lens && scene.features.motion);
+    scene
+}
+
+/// Name, samples per pixel, loader.
+type BenchScene = (&'static str, u32, fn() -> Scene);
 
 fn bench_render(c: &mut Criterion) {
     let mut g = c.benchmark_group("render");
     g.sample_size(10);
-    for (name, spp) in [("bench_spheres.toml", 4), ("showcase.toml", 4)] {
-        let scene = support::scene(name);
+    let scenes: [BenchScene; 5] = [
+        ("bench_spheres.toml", 4, || support::scene("bench_spheres.toml")),
+        ("bench_spheres+lens+motion", 4, spheres_with_lens_and_motion),
+        ("bench_csg.toml", 4, || support::scene("bench_csg.toml")),
+        ("glass.toml", 4, || support::scene("glass.toml")),
+        ("showcase.toml", 4, || support::scene("showcase.toml")),
+    ];
+    for (name, spp, load) in scenes {
+        let scene = load();
         let mut profile = Profile::builtin("bench");
         profile.spp = spp;
         let settings = Settings { profile, seed: 1 };

@@ -12,10 +12,12 @@ use strata::accel::GROUP;
 use strata::csg::{intervals_f64, CsgArena};
 use strata::scene::{Profile, Scene, Shape};
 use strata::wavefront::csg_merge::csg_merge;
+use strata::wavefront::generate::generate;
 use strata::wavefront::intersect::{intersect, prim_t_f64};
 use strata::wavefront::queues::NONE;
+use strata::wavefront::shade::{shade, ShadeOut};
 use strata::wavefront::shadow::{occluded_x8, occlusion_group};
-use strata::wavefront::{CsgCandidates, HitQueue, RayQueue};
+use strata::wavefront::{CsgCandidates, HitQueue, NeeQueue, PathTable, RayQueue};
 
 /// Nearest hit of one ray by the scalar f64 path (BVH f64 traversal + f64 kernels + planes).
 fn scalar_hit(scene: &Scene, q: &RayQueue, i: usize) -> (f64, u32) {
@@ -85,6 +87,163 @@ fn bench_intersect(c: &mut Criterion) {
         });
         g.finish();
     }
+}
+
+/// Camera rays of the whole image: validated (count, unit length, each ray within 3 pixels of its
+/// pixel's centre ray), then timed. Throughput: rays generated.
+fn bench_generate(c: &mut Criterion) {
+    let pool = support::pool();
+    let scene = support::scene("bench_spheres.toml");
+    let spp = 4;
+    let mut profile = Profile::builtin("bench");
+    profile.spp = spp;
+    let tiles = support::tiles(&scene, 16);
+    let (mut paths, mut q) = (PathTable::default(), RayQueue::new(false, false));
+    let (cam, pitch) = (&scene.camera, 2.0 * (scene.camera.half_w / scene.width as f32));
+    let mut checked = 0u64;
+    for t in &tiles {
+        paths.clear();
+        q.clear();
+        generate(&scene, &profile, 1, *t, 0..spp, &mut paths, &mut q);
+        assert_eq!(q.len() as u32, t.pixel_count() * spp);
+        for i in 0..q.len() {
+            let r = q.get(i);
+            let (px, py) = (paths.pixel[r.path as usize] % scene.width, paths.pixel[r.path as usize] / scene.width);
+            let (_, centre) = cam.ray(px as f32 + 0.5, py as f32 + 0.5, [0.0, 0.0]);
+            assert!((r.d.length() - 1.0).abs() < 1e-5 && r.d.angle_between(centre) < 3.0 * pitch, "ray {i} strays from its pixel");
+            checked += 1;
+        }
+    }
+    println!("generate validation: {checked} rays inside their pixels");
+    let mut g = c.benchmark_group("generate");
+    g.throughput(Throughput::Elements(checked));
+    g.sample_size(20);
+    g.bench_function("camera/bench_spheres.toml", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                tiles.par_iter().for_each_init(
+                    || (PathTable::default(), RayQueue::new(false, false)),
+                    |(paths, q), t| {
+                        paths.clear();
+                        q.clear();
+                        generate(&scene, &profile, 1, *t, 0..spp, paths, q);
+                        black_box(&q.dx);
+                    },
+                )
+            })
+        })
+    });
+    g.finish();
+}
+
+/// Incoherent secondary rays: from every camera hit of `bench_spheres`, a uniformly random direction
+/// (seeded), started 1e-3 back along the camera ray. Validated against the scalar f64 path, then timed.
+fn secondary_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
+    use rand_core::{Rng, SeedableRng};
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
+    let mut u = move || (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+    let (mut hits, mut cands) = (HitQueue::default(), CsgCandidates::default());
+    qs.iter()
+        .map(|q| {
+            intersect(scene, q, &mut hits, &mut cands);
+            let mut out = RayQueue::new(false, false);
+            for i in 0..q.len() {
+                if hits.prim[i] == NONE {
+                    continue;
+                }
+                let mut r = q.get(i);
+                r.o += r.d * (hits.t[i] - 1e-3);
+                let (z, phi) = (2.0 * u() - 1.0, std::f32::consts::TAU * u());
+                let s = (1.0 - z * z).max(0.0).sqrt();
+                r.d = glam::Vec3::new(s * phi.cos(), s * phi.sin(), z);
+                out.push(&r);
+            }
+            out.pad();
+            out
+        })
+        .collect()
+}
+
+fn bench_intersect_secondary(c: &mut Criterion) {
+    let pool = support::pool();
+    let scene = support::scene("bench_spheres.toml");
+    let qs = secondary_queues(&scene, &support::camera_queues(&scene, 1));
+    validate_intersect(&scene, &qs);
+    let mut g = c.benchmark_group("intersect");
+    g.throughput(Throughput::Elements(support::ray_count(&qs)));
+    g.sample_size(20);
+    g.bench_function("secondary/bench_spheres.toml", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                qs.par_iter().for_each_init(
+                    || (HitQueue::default(), CsgCandidates::default()),
+                    |(h, cands), q| {
+                        intersect(&scene, q, h, cands);
+                        black_box(&h.t);
+                    },
+                )
+            })
+        })
+    });
+    g.finish();
+}
+
+/// The shade stage on the camera hits of the showcase (glass, mirror, glossy, CSG, two lights):
+/// validated (every hit shaded into finite work: continuation rays and light-sample requests, the same
+/// counts on a second run), then timed. Throughput: rays shaded.
+fn bench_shade(c: &mut Criterion) {
+    let pool = support::pool();
+    let scene = support::scene("showcase.toml");
+    let spp = 4;
+    let mut profile = Profile::builtin("bench");
+    profile.spp = spp;
+    let mut inputs = Vec::new();
+    for t in support::tiles(&scene, 16) {
+        let (mut paths, mut q) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
+        generate(&scene, &profile, 1, t, 0..spp, &mut paths, &mut q);
+        q.pad();
+        let (mut hits, mut cands) = (HitQueue::default(), CsgCandidates::default());
+        intersect(&scene, &q, &mut hits, &mut cands);
+        let mut arena = CsgArena::new();
+        csg_merge(&scene, &q, &mut cands, &mut hits, &mut arena);
+        inputs.push((q, hits, paths));
+    }
+    let run = |(q, hits, paths): &(RayQueue, HitQueue, PathTable), w: &mut ShadeWork| {
+        w.paths.clone_from(paths);
+        w.next.clear();
+        w.nee.clear();
+        shade(&scene, &profile, 1, q, hits, &mut w.order, ShadeOut { paths: &mut w.paths, next: &mut w.next, nee: &mut w.nee });
+        (w.next.len(), w.nee.len())
+    };
+    let mut w = ShadeWork::default();
+    let first: Vec<_> = inputs.iter().map(|i| run(i, &mut w)).collect();
+    let again: Vec<_> = inputs.iter().map(|i| run(i, &mut w)).collect();
+    assert_eq!(first, again);
+    let (next, nee) = first.iter().fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let n: u64 = inputs.iter().map(|i| i.0.len() as u64).sum();
+    assert!(next > 0 && nee > 0 && (nee as u64) < n);
+    println!("shade validation: {n} rays shaded into {next} continuation rays and {nee} light-sample requests");
+    let mut g = c.benchmark_group("shade");
+    g.throughput(Throughput::Elements(n));
+    g.sample_size(20);
+    g.bench_function("camera_hits/showcase.toml", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                inputs.par_iter().for_each_init(ShadeWork::default, |w, i| {
+                    black_box(run(i, w));
+                })
+            })
+        })
+    });
+    g.finish();
+}
+
+#[derive(Default)]
+struct ShadeWork {
+    paths: PathTable,
+    next: RayQueue,
+    nee: NeeQueue,
+    order: Vec<u32>,
 }
 
 /// Shadow rays from every camera hit to the scene's first light, packed 8 at a time.
@@ -315,5 +474,5 @@ fn bench_csg_merge(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_intersect, bench_shadow, bench_csg_merge);
+criterion_group!(benches, bench_generate, bench_intersect, bench_intersect_secondary, bench_shade, bench_shadow, bench_csg_merge);
 criterion_main!(benches);

@@ -43,3 +43,14 @@ pub fn camera_queues(scene: &Scene, spp: u32) -> Vec<RayQueue> {
 pub fn ray_count(qs: &[RayQueue]) -> u64 {
     qs.iter().map(|q| q.len() as u64).sum()
 }
+
+/// The image cut into `side` x `side` tiles (the renderer's default tile is 16).
+pub fn tiles(scene: &Scene, side: u32) -> Vec<Tile> {
+    let mut out = Vec::new();
+    for y0 in (0..scene.height).step_by(side as usize) {
+        for x0 in (0..scene.width).step_by(side as usize) {
+            out.push(Tile { x0, y0, x1: (x0 + side).min(scene.width), y1: (y0 + side).min(scene.height) });
+        }
+    }
+    out
+}

@@ -136,7 +136,7 @@ impl RayQueue {
         self.len = 0;
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn push(&mut self, r: &RayItem) {
         // Padding from a previous `pad` is dropped first so pushes stay contiguous.
         if self.ox.len() != self.len {
@@ -325,7 +325,7 @@ impl NeeQueue {
 }
 
 /// One entry per camera path of the wavefront: where it lands and what it has gathered.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub struct PathTable {
     pub pixel: Vec<u32>,
     pub sample: Vec<u32>,

@@ -45,7 +45,7 @@ impl SurfaceHit {
 }
 
 /// Geometry at the nearest hit of ray `r`.
-#[inline]
+#[inline(always)]
 pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, flip: bool) -> SurfaceHit {
     let prim = &scene.prims[prim_id as usize];
     let shift = prim.motion * r.time;
