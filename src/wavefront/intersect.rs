@@ -96,17 +96,86 @@ fn empty_packet() -> Ray8 {
     Ray8 { o: z, d: Vec3x8::splat(Vec3::ONE), inv_d: Vec3x8::splat(Vec3::ONE), tmax: f32x8::splat(-1.0) }
 }
 
+/// Rays of one packet gathered through `order` (queue positions `q..q + 8`; positions past `len`
+/// are inactive lanes).
+#[inline(always)]
+fn gather_packet(rays: &RayQueue, order: &[u32], q: usize, len: usize) -> (Ray8, Option<f32x8>) {
+    let mut a = [[0.0f32; LANES]; 8];
+    a[3] = [1.0; LANES];
+    a[6] = [-1.0; LANES];
+    for l in 0..LANES.min(len.saturating_sub(q)) {
+        let i = order[q + l] as usize;
+        let v = [rays.ox[i], rays.oy[i], rays.oz[i], rays.dx[i], rays.dy[i], rays.dz[i], rays.tmax[i]];
+        for (k, x) in v.into_iter().enumerate() {
+            a[k][l] = x;
+        }
+        if rays.with_time {
+            a[7][l] = rays.time[i];
+        }
+    }
+    let f = |k: usize| f32x8::from(a[k]);
+    (Ray8::new(Vec3x8::new(f(0), f(1), f(2)), Vec3x8::new(f(3), f(4), f(5)), f(6)), rays.with_time.then(|| f(7)))
+}
+
+/// Direction octant of ray `i` (3 sign bits).
+#[inline(always)]
+fn octant(rays: &RayQueue, i: usize) -> usize {
+    rays.dx[i].is_sign_negative() as usize | (rays.dy[i].is_sign_negative() as usize) << 1 | (rays.dz[i].is_sign_negative() as usize) << 2
+}
+
+/// Partition the queue's rays by direction octant (stable: queue order, i.e. image order, within an
+/// octant) into `order`, so that packets and groups hold rays of one octant; `false` (and `order`
+/// untouched) when the queue is already coherent (at most one octant change per 64 rays, as camera rays
+/// are) and sorting would only cost.
+fn octant_order(rays: &RayQueue, order: &mut Vec<u32>) -> bool {
+    let len = rays.len();
+    // Octant changes, counted per packet from sign masks (padding lanes have d = +x, ignored).
+    let (mut changes, mut prev) = (0usize, u32::MAX);
+    for q in (0..len).step_by(LANES) {
+        let live = (1u32 << (len - q).min(LANES)) - 1;
+        let m = [&rays.dx, &rays.dy, &rays.dz].map(|v| load8(v, q).to_bitmask() & live);
+        let uniform = m.iter().all(|&b| b == 0 || b == live);
+        let oct = (m[0] & 1) | (m[1] & 1) << 1 | (m[2] & 1) << 2;
+        changes += (!uniform || (prev != u32::MAX && oct != prev)) as usize;
+        prev = oct;
+    }
+    if changes * 64 <= len {
+        return false;
+    }
+    let mut start = [0usize; 9];
+    for i in 0..len {
+        start[octant(rays, i) + 1] += 1;
+    }
+    for o in 0..8 {
+        start[o + 1] += start[o];
+    }
+    order.clear();
+    order.resize(len, 0);
+    for i in 0..len {
+        let o = octant(rays, i);
+        order[start[o]] = i as u32;
+        start[o] += 1;
+    }
+    true
+}
+
 pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mut CsgCandidates) {
     let n = rays.padded_len();
+    let len = rays.len();
     hits.reset(n);
     cands.clear();
+    let mut order = std::mem::take(&mut hits.order);
+    let sorted = octant_order(rays, &mut order);
+    // Queue position -> ray index.
+    let ray_at = |q: usize| if sorted { order[q] as usize } else { q };
     // Up to GROUP packets (64 rays) traverse the BVH together (`accel/group.rs`).
     for gbase in (0..n).step_by(LANES * GROUP) {
         let k = ((n - gbase) / LANES).min(GROUP);
         let mut times = [None; GROUP];
         let mut rs = [empty_packet(); GROUP];
         for j in 0..k {
-            (rs[j], times[j]) = load_packet(rays, gbase + j * LANES);
+            let q = gbase + j * LANES;
+            (rs[j], times[j]) = if sorted { gather_packet(rays, &order, q, len) } else { load_packet(rays, q) };
         }
         let none = i32x8::splat(NONE as i32);
         let mut ids = [none; GROUP];
@@ -128,7 +197,7 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
                 while bits != 0 {
                     let l = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
-                    cands.ray.push((gbase + j * LANES + l) as u32);
+                    cands.ray.push(ray_at(gbase + j * LANES + l) as u32);
                     cands.prim.push(pid);
                 }
                 return;
@@ -140,8 +209,17 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
             let found = ids[j].simd_eq(none);
             // Lanes without a hit keep the reset values (t = inf, NONE).
             let t = bytemuck::cast::<i32x8, f32x8>(found).select(f32x8::splat(f32::INFINITY), rs[j].tmax);
-            store8(&mut hits.t, base, t);
-            hits.prim[base..base + LANES].copy_from_slice(bytemuck::cast_slice(&ids[j].to_array()));
+            if sorted {
+                let (ta, ia) = (t.to_array(), ids[j].to_array());
+                for l in 0..LANES.min(len.saturating_sub(base)) {
+                    let i = order[base + l] as usize;
+                    (hits.t[i], hits.prim[i]) = (ta[l], ia[l] as u32);
+                }
+            } else {
+                store8(&mut hits.t, base, t);
+                hits.prim[base..base + LANES].copy_from_slice(bytemuck::cast_slice(&ids[j].to_array()));
+            }
         }
     }
+    hits.order = order;
 }

@@ -225,6 +225,8 @@ pub struct HitQueue {
     pub leaf: Vec<u32>,
     /// For CSG hits: the leaf's normal is reversed (surface of a subtracted solid).
     pub flip: Vec<bool>,
+    /// Scratch of the intersect stage: ray indices partitioned by direction octant.
+    pub order: Vec<u32>,
 }
 
 impl HitQueue {
