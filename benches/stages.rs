@@ -325,6 +325,18 @@ fn bench_shadow(c: &mut Criterion) {
     let mut g = c.benchmark_group("shadow");
     g.throughput(Throughput::Elements(n));
     g.sample_size(20);
+    // Packets of 8 traced one by one, and groups of 8 packets traced together (`accel/group.rs`).
+    g.bench_function("any_hit_packets/bench_spheres.toml", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                packets.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
+                    for p in ps {
+                        black_box(occluded_x8(&scene, &profile, p, None, arena));
+                    }
+                })
+            })
+        })
+    });
     g.bench_function("any_hit/bench_spheres.toml", |b| {
         b.iter(|| {
             pool.install(|| {

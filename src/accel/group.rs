@@ -130,7 +130,7 @@ impl Bvh {
         if self.nodes.is_empty() || rays.is_empty() {
             return;
         }
-        let Some(gb) = GroupBounds::new(rays) else {
+        let Some(gb) = (rays.len() > 1).then(|| GroupBounds::new(rays)).flatten() else {
             for (j, r) in rays.iter_mut().enumerate() {
                 self.traverse_closest_x8(r, |p, r| leaf(p, j, r));
             }
@@ -189,7 +189,7 @@ impl Bvh {
         if self.nodes.is_empty() || rays.is_empty() {
             return occluded;
         }
-        let Some(gb) = GroupBounds::new(rays) else {
+        let Some(gb) = (rays.len() > 1).then(|| GroupBounds::new(rays)).flatten() else {
             for (j, r) in rays.iter().enumerate() {
                 occluded[j] = self.traverse_any_x8(r, |p, r| leaf(p, j, r));
             }
