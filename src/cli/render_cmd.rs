@@ -350,6 +350,17 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
         t.shadow,
         t.accumulate
     );
+    // Per stage, the items it processed per CPU second of that stage (one core's rate).
+    let rate = |n: u64, secs: f64| if secs > 0.0 { format!("{:.1}", n as f64 / secs / 1e6) } else { "-".into() };
+    let traced = s.rays.camera + s.rays.secondary;
+    wl!(
+        "  stage rates (M per cpu s): generate {} camera rays, intersect {} rays, csg_merge {} candidates, shade {} hits, shadow {} shadow rays",
+        rate(s.rays.camera, t.generate),
+        rate(traced, t.intersect),
+        rate(s.csg_candidates, t.csg_merge),
+        rate(traced, t.shade),
+        rate(s.rays.shadow, t.shadow)
+    );
     if scene.features.csg {
         wl!("  csg candidates: {}", s.csg_candidates);
     }
