@@ -96,7 +96,8 @@ pub fn random_2d_keyed(key: u64, index: u32) -> [f32; 2] {
 #[inline]
 pub fn permute(i: u32, n: u32, key: u32) -> u32 {
     let n = n.max(1);
-    let mut i = i % n;
+    // Indices are usually below n: skip the division then.
+    let mut i = if i < n { i } else { i % n };
     // Mask of the smallest power of two >= n, minus one (0 for n == 1).
     let w = u32::MAX.checked_shr((n - 1).leading_zeros()).unwrap_or(0);
     // Shift amounts that reach across the word for any size: half and quarter of its bit count.

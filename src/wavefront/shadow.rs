@@ -22,6 +22,9 @@ use glam::Vec3;
 /// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
 const SHADOW_END: f32 = 1.0 - 1e-4;
 
+/// Lights whose sample-stream keys the shadow stage keeps per pixel.
+const KEY_CACHE: usize = 8;
+
 /// Rays per batch: one traversal group of [`GROUP`] packets.
 const BATCH: usize = GROUP * LANES;
 
@@ -74,22 +77,36 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     let area = Sampler2d::new(profile.light_strategy, if across { (spp * nl) as u32 } else { profile.light_samples });
     let delta = Sampler2d::new(Strategy::Center, 1);
     let walk = any_passable(scene, profile);
+    // Key of light `li`'s sample stream for request `i`: shared by a pixel's samples (across), or the
+    // sample's own.
+    let light_key = |i: usize, li: usize| {
+        let stream = hash_combine(nee.key[i], li as u64);
+        if across {
+            stream_key(seed, stream, dims::LIGHT)
+        } else {
+            stream_key(seed, hash_combine(stream, nee.sample[i] as u64), dims::LIGHT)
+        }
+    };
+    let mut keys = [0u64; KEY_CACHE];
+    let mut cached = None;
     for i in 0..nee.len() {
         let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
         let n = Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]);
         let w = Vec3::new(nee.wr[i], nee.wg[i], nee.wb[i]);
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3::new(nee.ox[i], nee.oy[i], nee.oz[i]);
+        // Across samples a light's stream is shared by the pixel's samples, whose requests are usually
+        // consecutive: the keys of the first KEY_CACHE lights are computed once per run of them.
+        if !across || cached != Some(nee.key[i]) {
+            cached = Some(nee.key[i]);
+            for (li, k) in keys.iter_mut().enumerate().take(scene.lights.len()) {
+                *k = light_key(i, li);
+            }
+        }
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
             let point = matches!(light, Light::Point { .. });
-            let stream = hash_combine(nee.key[i], li as u64);
-            // Across samples the stream is shared by the pixel's samples; otherwise each sample has its own.
-            let key = if across {
-                stream_key(seed, stream, dims::LIGHT)
-            } else {
-                stream_key(seed, hash_combine(stream, nee.sample[i] as u64), dims::LIGHT)
-            };
+            let key = if li < KEY_CACHE { keys[li] } else { light_key(i, li) };
             let (end, sampler) = if point { (1.0, &delta) } else { (SHADOW_END, &area) };
             for j in 0..ns {
                 let u = if across && !point {
