@@ -64,29 +64,31 @@ fn validate_intersect(scene: &Scene, qs: &[RayQueue]) {
 
 fn bench_intersect(c: &mut Criterion) {
     let pool = support::pool();
-    {
-        let (name, spp) = ("bench_spheres.toml", 1);
-        let scene = support::scene(name);
-        let qs = support::camera_queues(&scene, spp);
-        validate_intersect(&scene, &qs);
-        let mut g = c.benchmark_group("intersect");
-        g.throughput(Throughput::Elements(support::ray_count(&qs)));
-        g.sample_size(20);
-        g.bench_function(format!("camera/{name}"), |b| {
-            b.iter(|| {
-                pool.install(|| {
-                    qs.par_iter().for_each_init(
-                        || (HitQueue::default(), CsgCandidates::default()),
-                        |(h, cands), q| {
-                            intersect(&scene, q, h, cands);
-                            black_box(&h.t);
-                        },
-                    )
-                })
+    let scene = support::scene("bench_spheres.toml");
+    let qs = support::camera_queues(&scene, 1);
+    time_intersect(c, &pool, &scene, &qs, "camera/bench_spheres.toml");
+}
+
+/// Validate the intersect stage on `qs` against the scalar path, then time it as `intersect/{name}`.
+fn time_intersect(c: &mut Criterion, pool: &rayon::ThreadPool, scene: &Scene, qs: &[RayQueue], name: &str) {
+    validate_intersect(scene, qs);
+    let mut g = c.benchmark_group("intersect");
+    g.throughput(Throughput::Elements(support::ray_count(qs)));
+    g.sample_size(20);
+    g.bench_function(name, |b| {
+        b.iter(|| {
+            pool.install(|| {
+                qs.par_iter().for_each_init(
+                    || (HitQueue::default(), CsgCandidates::default()),
+                    |(h, cands), q| {
+                        intersect(scene, q, h, cands);
+                        black_box(&h.t);
+                    },
+                )
             })
-        });
-        g.finish();
-    }
+        })
+    });
+    g.finish();
 }
 
 /// Camera rays of the whole image: validated (count, unit length, each ray within 3 pixels of its
@@ -168,24 +170,7 @@ fn bench_intersect_secondary(c: &mut Criterion) {
     let pool = support::pool();
     let scene = support::scene("bench_spheres.toml");
     let qs = secondary_queues(&scene, &support::camera_queues(&scene, 1));
-    validate_intersect(&scene, &qs);
-    let mut g = c.benchmark_group("intersect");
-    g.throughput(Throughput::Elements(support::ray_count(&qs)));
-    g.sample_size(20);
-    g.bench_function("secondary/bench_spheres.toml", |b| {
-        b.iter(|| {
-            pool.install(|| {
-                qs.par_iter().for_each_init(
-                    || (HitQueue::default(), CsgCandidates::default()),
-                    |(h, cands), q| {
-                        intersect(&scene, q, h, cands);
-                        black_box(&h.t);
-                    },
-                )
-            })
-        })
-    });
-    g.finish();
+    time_intersect(c, &pool, &scene, &qs, "secondary/bench_spheres.toml");
 }
 
 /// The shade stage on the camera hits of the showcase (glass, mirror, glossy, CSG, two lights):

@@ -151,11 +151,7 @@ impl Bvh {
             if let Some(f) = first_hit(n, &pr[..k], rays, first, &gb, tmax) {
                 let count = n.count() as usize;
                 if count == 0 {
-                    let r = (near_right >> n.axis()) & 1;
-                    stack[sp] = (n.left_first + (r ^ 1), f as u8);
-                    sp += 1;
-                    node = (n.left_first + r) as usize;
-                    first = f;
+                    (node, first) = (descend(n, near_right, f, &mut stack, &mut sp), f);
                     continue;
                 }
                 let prims = &self.indices[n.left_first as usize..n.left_first as usize + count];
@@ -178,7 +174,11 @@ impl Bvh {
         }
     }
 
-    /// Any-hit traversal of up to [`GROUP`] packets together: returns each packet's occluded mask, as
+    /// Any-hit traversal of up to [`GROUP`] packets together. Its loop mirrors the closest-hit one on
+    /// purpose, as in `traverse.rs`: the two differ in what the leaf does to the packets and in the
+    /// early exit, inside the hottest loop of the renderer.
+    ///
+    /// Returns each packet's occluded mask, as
     /// [`Bvh::traverse_any_x8`] would for that packet alone (same callback contract, for packet `j`).
     /// Stops when every active lane of the group is occluded. A group whose active rays do not share
     /// one direction octant is traversed packet by packet. The packets' `tmax` are used as working
@@ -228,11 +228,7 @@ impl Bvh {
                 if let Some(f) = first_hit(n, &pr[..k], rs, first, &gb, tmax) {
                     let count = n.count() as usize;
                     if count == 0 {
-                        let r = (near_right >> n.axis()) & 1;
-                        stack[sp] = (n.left_first + (r ^ 1), f as u8);
-                        sp += 1;
-                        node = (n.left_first + r) as usize;
-                        first = f;
+                        (node, first) = (descend(n, near_right, f, &mut stack, &mut sp), f);
                         continue;
                     }
                     let prims = &self.indices[n.left_first as usize..n.left_first as usize + count];
@@ -265,6 +261,16 @@ impl Bvh {
             (node, first) = (stack[sp].0 as usize, stack[sp].1 as usize);
         }
     }
+}
+
+/// Push the far child of inner node `n` (with `f`, the group's first packet that hit `n`) and return the
+/// near child, by the group's `near_right` bits.
+#[inline(always)]
+fn descend(n: &BvhNode, near_right: u32, f: usize, stack: &mut [(u32, u8)], sp: &mut usize) -> usize {
+    let r = (near_right >> n.axis()) & 1;
+    stack[*sp] = (n.left_first + (r ^ 1), f as u8);
+    *sp += 1;
+    (n.left_first + r) as usize
 }
 
 /// Index of the first packet at or after `first` that overlaps the node's box, or `None` when none
