@@ -721,9 +721,9 @@ fn test_groups(rng: &mut Rand, spheres: &[Sphere], count: usize) -> Vec<Vec<Pack
 fn group_traversal_matches_brute_force_and_single_packets() {
     let mut rng = Rand::new(7);
     let spheres = random_spheres(&mut rng, 2_000);
-    // Padded bounds: `c - r` rounded in f32 can cut off a silhouette the grazing rays then hit.
-    let padded: Vec<Aabb> = spheres.iter().map(|s| Aabb::new(s.c - s.r * 1.0001, s.c + s.r * 1.0001)).collect();
-    let bvh = build_ok(&padded, &BuildOptions::default());
+    // Bounds rounded to nearest, as a naive build makes them: `c - r` can cut off a silhouette the
+    // grazing rays then hit; the per-lane test's padding catches those, and the group test must too.
+    let bvh = build_ok(&sphere_bounds(&spheres), &BuildOptions::default());
     let groups = test_groups(&mut rng, &spheres, 600);
     let (mut hits, mut active, mut occluded) = (0usize, 0usize, 0usize);
     for (g, group) in groups.iter().enumerate() {
@@ -749,7 +749,6 @@ fn group_traversal_matches_brute_force_and_single_packets() {
                 occluded += expect as usize;
             }
         }
-        assert!(occ[group.len()..].iter().all(|m| m.to_bitmask() == 0), "slots past the group stay empty");
     }
     println!("{hits} hits, {occluded} occluded of {active} active rays");
     assert!(hits > active / 5 && hits < active * 4 / 5, "{hits} hits of {active} rays");
@@ -821,11 +820,15 @@ fn group_culling_is_conservative_at_box_corners_and_edges() {
     for g in 0..400 {
         let scale = [1.0, 30.0, 1e3, 1e4][g % 4];
         let o = rng.dir().normalize() * 25.0 * scale;
+        // Every other group spreads its origins (shadow-ray-like) over a patch of the scale's size / 100.
+        let spread = if g % 8 >= 4 { 0.25 * scale } else { 0.0 };
         let b = boxes[rng.below(boxes.len() as u32) as usize];
         let group: Vec<Packet> = (0..GROUP)
             .map(|_| {
                 let mut p = Packet { o: [o; LANES], d: [Vec3::X; LANES], tmax: [f32::INFINITY; LANES] };
                 for i in 0..LANES {
+                    p.o[i] = o + rng.vec(-spread, spread);
+                    let o = p.o[i];
                     // A corner, or a point on an edge, nudged by a few ulps.
                     let mut target = Vec3::select(glam::BVec3::new(rng.chance(0.5), rng.chance(0.5), rng.chance(0.5)), b.min, b.max);
                     if rng.chance(0.5) {

@@ -79,6 +79,18 @@ impl Aabb {
         !(self.min.cmple(self.max).all())
     }
 
+    /// The box widened outward by 2^-21 of each coordinate's magnitude (about 4 ulps) plus the smallest
+    /// normal float: covers the rounding of corners computed from a few f32 operations. Empty boxes
+    /// stay empty.
+    #[inline]
+    pub fn widened_ulps(&self) -> Self {
+        if self.is_empty() {
+            return *self;
+        }
+        let e = |v: Vec3| v.abs() * (1.0 / (1u32 << 21) as f32) + Vec3::splat(f32::MIN_POSITIVE);
+        Self { min: self.min - e(self.min), max: self.max + e(self.max) }
+    }
+
     /// True when `o` lies inside `self` (boundaries included). An empty `o` is inside every box.
     #[inline]
     pub fn contains(&self, o: &Aabb) -> bool {

@@ -18,9 +18,10 @@
 //! - At a leaf, packets `first..` each test the leaf's box before their primitives (a box test is
 //!   cheaper than the primitives of a leaf).
 //!
-//! Results do not depend on grouping: the leaf callbacks see the same (primitive, packet) pairs a
-//! per-packet traversal would reach, plus possibly more (culling is conservative), and the callers'
-//! hit recording is order-independent (ties go to the lower primitive id).
+//! Results do not depend on grouping: every (primitive, packet) pair a per-packet traversal would reach
+//! is reached (the group test is at least as permissive as the padded per-lane test), possibly with
+//! more, and the callers' hit recording is order-independent (equal distances go to the lower
+//! primitive id: the intersect stage lets kernels report a hit at exactly the current distance).
 
 use glam::{BVec3A, Vec3, Vec3A};
 
@@ -38,6 +39,9 @@ pub const GROUP: usize = 8;
 struct GroupBounds {
     /// Set on axes whose directions are negative.
     neg: BVec3A,
+    /// Widening of node boxes in space: `PAD * max |o|` per axis, at least the per-lane test's absolute
+    /// padding (`ABS_PAD * |o|`, see `aabb.rs`), so the group never culls what one packet would enter.
+    pad: Vec3A,
     o_lo: Vec3A,
     o_hi: Vec3A,
     inv_lo: Vec3A,
@@ -73,6 +77,7 @@ impl GroupBounds {
         }
         Some(Self {
             neg,
+            pad: o_lo.abs().max(o_hi.abs()) * PAD + Vec3A::splat(f32::MIN_POSITIVE),
             o_lo: Vec3A::select(neg, -o_hi, o_lo),
             o_hi: Vec3A::select(neg, -o_lo, o_hi),
             inv_lo: Vec3A::select(neg, -i_hi, i_lo),
@@ -80,29 +85,37 @@ impl GroupBounds {
         })
     }
 
-    /// True when no ray of the group can meet the box within `[0, tmax]`.
+    /// True when no ray of the group can meet the box within `[0, tmax]`, and no packet of it would
+    /// pass the padded per-lane slab test either (so grouping never changes which leaves a packet sees).
     ///
     /// Over the group, the entry distance of an axis is at least `(near plane - farthest origin) * inv`
     /// at the inverse that makes it smallest, and the exit at most `(far plane - nearest origin) * inv`
     /// at the one that makes it largest (for a fixed numerator the product is monotonic in `inv`, so
-    /// the extreme is the min or max of the two end products). Each computed value is within 2^-23
-    /// (relative) of its exact value, and the group's `inv` bounds are within 2^-24 of each lane's
-    /// exact `1/d`: culling only when `tn` exceeds `tf` by 2^-19 of their magnitudes is conservative.
+    /// the extreme is the min or max of the two end products). The box is first widened by `pad`
+    /// (2^-20 of the largest origin coordinate, twice the lane test's absolute padding, which also
+    /// covers the roundings of `b - o`; primitive boxes rounded to nearest can cut off half an ulp of
+    /// a surface, and the lane test's padding is what catches such rays). Each computed distance is
+    /// then within 2^-23 (relative) of its exact value, the group's `inv` bounds within 2^-24 of each
+    /// lane's exact `1/d`, and the lane test scales `inv` by 1 +- 2^-21: culling only when `tn` exceeds
+    /// `tf` by 2^-19 of their magnitudes plus the smallest normal float (for subnormal distances) is
+    /// conservative.
     #[inline(always)]
     fn misses(&self, bmin: Vec3A, bmax: Vec3A, tmax: f32) -> bool {
-        let b0 = Vec3A::select(self.neg, -bmax, bmin);
-        let b1 = Vec3A::select(self.neg, -bmin, bmax);
+        let b0 = Vec3A::select(self.neg, -bmax, bmin) - self.pad;
+        let b1 = Vec3A::select(self.neg, -bmin, bmax) + self.pad;
         let (d0, d1) = (b0 - self.o_hi, b1 - self.o_lo);
         let near = (d0 * self.inv_lo).min(d0 * self.inv_hi);
         let far = (d1 * self.inv_lo).max(d1 * self.inv_hi);
         let tn = near.max_element().max(0.0);
         let tf = far.min_element().min(tmax);
-        tn - tf > SLACK * (tn.abs() + tf.abs())
+        tn - tf > SLACK * (tn.abs() + tf.abs()) + f32::MIN_POSITIVE
     }
 }
 
 /// Relative slack of the interval test (see [`GroupBounds::misses`]).
 const SLACK: f32 = 1.0 / (1u32 << 19) as f32;
+/// Spatial widening of node boxes relative to the largest origin coordinate (see [`GroupBounds::misses`]).
+const PAD: f32 = 1.0 / (1u32 << 20) as f32;
 
 /// Sum of the active lanes' directions of all packets, as `near_is_right` bits (see `traverse.rs`).
 fn near_bits(rays: &[Ray8]) -> u32 {

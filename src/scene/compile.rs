@@ -919,8 +919,13 @@ pub fn normal_matrix(t: &Affine3A) -> Mat3 {
     Mat3::from(t.matrix3).inverse().transpose()
 }
 
-/// World bounds of a primitive (None for unbounded planes).
+/// World bounds of a primitive (None for unbounded planes), widened outward by a few ulps: the corners
+/// are computed in f32 and rounded to nearest, which can cut off a sliver of the surface.
 pub fn prim_bounds(shape: &Shape, csg: &Csg) -> Option<Aabb> {
+    exact_bounds(shape, csg).map(|b| b.widened_ulps())
+}
+
+fn exact_bounds(shape: &Shape, csg: &Csg) -> Option<Aabb> {
     Some(match shape {
         Shape::Sphere { center, radius } => Aabb::new(*center - Vec3::splat(*radius), *center + Vec3::splat(*radius)),
         Shape::Ellipsoid(e) => affine_box_bounds(&e.world_to_object.inverse(), Vec3::ONE),

@@ -26,17 +26,20 @@ impl Tile {
         (self.x1 - self.x0) * (self.y1 - self.y0)
     }
 
-    /// The tile's pixels in Morton (Z) order: 8 consecutive pixels form a 4x2 block and 64 an 8x8
-    /// block, so the 8-ray packets and 64-ray traversal groups of camera rays are compact in the image
-    /// (row order made a group a 64x1 strip). Cells of the enclosing power-of-two square outside the
-    /// tile are skipped.
+    /// The tile's pixels in 8x8 blocks (row by row), each block in Morton (Z) order: 8 consecutive
+    /// pixels form a 4x2 block and 64 an 8x8 block, so the 8-ray packets and 64-ray traversal groups of
+    /// camera rays are compact in the image (row order made a group a 64x1 strip). Cells of a block
+    /// outside the tile are skipped, so the cost is at most 64 per block whatever the tile's shape.
     pub fn pixels_z_order(&self) -> impl Iterator<Item = (u32, u32)> {
         let (w, h) = (self.x1 - self.x0, self.y1 - self.y0);
-        let side = w.max(h).next_power_of_two() as u64;
         let (x0, y0) = (self.x0, self.y0);
-        (0..side * side).filter_map(move |code| {
-            let (x, y) = (compact_bits(code), compact_bits(code >> 1));
-            (x < w && y < h).then_some((x0 + x, y0 + y))
+        (0..h.div_ceil(8)).flat_map(move |by| {
+            (0..w.div_ceil(8)).flat_map(move |bx| {
+                (0..64u64).filter_map(move |code| {
+                    let (x, y) = (bx * 8 + compact_bits(code), by * 8 + compact_bits(code >> 1));
+                    (x < w && y < h).then_some((x0 + x, y0 + y))
+                })
+            })
         })
     }
 }
@@ -99,7 +102,7 @@ mod tests {
 
     #[test]
     fn z_order_visits_each_pixel_once_in_blocks() {
-        for (w, h) in [(16, 16), (5, 3), (64, 64), (1, 7), (17, 2)] {
+        for (w, h) in [(16, 16), (5, 3), (64, 64), (1, 7), (17, 2), (1024, 3), (3, 1000)] {
             let t = Tile { x0: 3, y0: 10, x1: 3 + w, y1: 10 + h };
             let px: Vec<_> = t.pixels_z_order().collect();
             assert_eq!(px.len() as u32, w * h);

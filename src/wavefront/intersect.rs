@@ -67,8 +67,25 @@ pub fn load_packet(rays: &RayQueue, i: usize) -> (Ray8, Option<f32x8>) {
     (Ray8::new(o, d, load8(&rays.tmax, i)), time)
 }
 
+/// Distance to `prim` for the packet, reporting hits at *exactly* the current best distance too (on
+/// lanes that have one): kernels accept `t < tmax`, so `tmax` is raised by one ulp for the call. With
+/// [`record`]'s tie rule, equal distances then go to the lower primitive id whatever the order in which
+/// primitives are met (traversal order depends on the packet's other rays, hence on tiles and queues).
+#[inline(always)]
+fn prim_t_ties(prim: &Prim, ray: &mut Ray8, ids: &i32x8, time: Option<f32x8>) -> f32x8 {
+    let tm = ray.tmax;
+    let found = !bytemuck::cast::<i32x8, f32x8>(ids.simd_eq(i32x8::splat(NONE as i32)));
+    let finite = tm.simd_lt(f32x8::splat(f32::INFINITY)) & tm.simd_gt(f32x8::ZERO);
+    let up = bytemuck::cast::<i32x8, f32x8>(bytemuck::cast::<f32x8, i32x8>(tm) + i32x8::splat(1));
+    ray.tmax = (found & finite).select(up, tm);
+    let t = prim_t_at_x8(prim, ray, time);
+    ray.tmax = tm;
+    t
+}
+
 /// Record hits of `t` on the lanes where it is nearer than the current best. Equal distances go to the
-/// lower primitive id, so the result does not depend on traversal order (packet composition).
+/// lower primitive id (the kernels report them through [`prim_t_ties`]), so the result does not depend
+/// on traversal order (packet composition).
 #[inline(always)]
 fn record(ray: &mut Ray8, ids: &mut i32x8, t: f32x8, prim: u32) {
     let closer = t.simd_lt(ray.tmax);
@@ -182,7 +199,7 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
         // Unbounded planes first: their hits lower tmax, which culls the BVH beyond them.
         for j in 0..k {
             for &pid in &scene.unbounded {
-                let t = prim_t_x8(&scene.prims[pid as usize], &rs[j]);
+                let t = prim_t_ties(&scene.prims[pid as usize], &mut rs[j], &ids[j], None);
                 record(&mut rs[j], &mut ids[j], t, pid);
             }
         }
@@ -202,7 +219,8 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
                 }
                 return;
             }
-            record(ray, &mut ids[j], prim_t_at_x8(prim, ray, times[j]), pid);
+            let t = prim_t_ties(prim, ray, &ids[j], times[j]);
+            record(ray, &mut ids[j], t, pid);
         });
         for j in 0..k {
             let base = gbase + j * LANES;
