@@ -1,6 +1,7 @@
-//! Stage 2: nearest hits of a ray queue, 8 rays per packet: BVH packet traversal with the SIMD primitive
-//! kernels at the leaves, then the unbounded planes. CSG solids are not solved here: a packet that reaches
-//! a solid's bounds records (ray, solid) candidates for `csg_merge`.
+//! Stage 2: nearest hits of a ray queue: the unbounded planes first, then groups of 8 packets of 8 rays
+//! traverse the BVH together (`accel/group.rs`) with the SIMD primitive kernels at the leaves. Queues of
+//! incoherent rays are first partitioned by direction octant. CSG solids are not solved here: a packet
+//! that reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
 use super::queues::{CsgCandidates, HitQueue, RayQueue, NONE};
 use crate::accel::{intersect_aabb_x8, PacketRay, GROUP};

@@ -1,6 +1,7 @@
 //! Stage 5: next-event estimation. Each request (a shading point) is expanded into light samples with the
-//! profile's light strategy; the shadow rays are packed 8 at a time (consecutive samples of one point are
-//! coherent) and traced with any-hit traversal; unoccluded samples add their contribution to the path.
+//! profile's light strategy; the shadow rays are packed in batches of 8 packets of 8 (consecutive samples
+//! of one point, and neighbouring points, are coherent) and traced together with any-hit group traversal;
+//! unoccluded samples add their contribution to the path.
 //! Smooth dielectrics block direct light (the light they pass is a caustic), except where they do not
 //! deflect it (null crossings, index-matched media, thin sheets), or everywhere under the profile's opt-in,
 //! non-physical transmissive shadows: lanes whose any-hit test met only such dielectrics are then walked
