@@ -59,16 +59,19 @@ fn resume_after_cancel_and_from_checkpoints_is_bit_identical() {
     let n = work_units(W, H, TILE, 0..SPP).len();
     assert!(n >= 60, "{n} units: too few to interrupt in the middle");
 
-    // Interrupt: the cancel flag goes up after 20 units (in-flight units still finish).
-    let cancel = AtomicBool::new(false);
-    let stop = |d: usize, _: usize| {
-        if d >= 20 {
-            cancel.store(true, Ordering::Relaxed);
-        }
-    };
     // Checkpoints after every unit: each snapshot must hold exactly the units it flags.
     let snaps: Mutex<Vec<(Film, Vec<bool>)>> = Mutex::new(Vec::new());
     let keep = |f: &Film, c: &[bool]| snaps.lock().unwrap().push((f.clone(), c.to_vec()));
+    // Interrupt: the cancel flag goes up after 20 units and 4 checkpoints (in-flight units still
+    // finish). How many units pass between two snapshots depends on scheduling (a checkpoint is skipped
+    // while another is being written, and units got faster), so the test waits for the snapshots it
+    // checks instead of hoping for them.
+    let cancel = AtomicBool::new(false);
+    let stop = |d: usize, _: usize| {
+        if d >= 20 && snaps.lock().unwrap().len() >= 4 {
+            cancel.store(true, Ordering::Relaxed);
+        }
+    };
     let mut j = job(&scene);
     j.cancel = Some(&cancel);
     j.progress = Some(&stop);
@@ -98,8 +101,6 @@ fn resume_after_cancel_and_from_checkpoints_is_bit_identical() {
     assert!(resumed == full, "resumed render differs from the uninterrupted one");
 
     let snaps = snaps.into_inner().unwrap();
-    // How many snapshots are taken depends on scheduling (a checkpoint is skipped while one is being
-    // written); enough of them to test four is all this needs.
     assert!(snaps.len() >= 4, "only {} checkpoints", snaps.len());
     for (k, (f, c)) in snaps.iter().enumerate() {
         assert_eq!(f.total_samples(), samples_of_units(&scene, c), "checkpoint {k} is inconsistent");
