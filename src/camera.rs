@@ -1,5 +1,6 @@
 //! Pinhole and thin-lens cameras with a shutter interval.
 
+use crate::simd::{f32x8, Vec3x8};
 use glam::Vec3;
 
 #[derive(Clone, Copy, Debug)]
@@ -48,6 +49,21 @@ impl Camera {
         let sx = (2.0 * x / self.width as f32 - 1.0) * self.half_w;
         let sy = (1.0 - 2.0 * y / self.height as f32) * self.half_h;
         self.forward + self.right * sx + self.up * sy
+    }
+
+    /// Unit directions of 8 pinhole rays through image points (x, y): [`Camera::pinhole_dir`] and
+    /// `normalize` lane by lane, the same operations in the same order (no fused multiply-adds), so the
+    /// bits equal those of [`Camera::ray`].
+    #[inline]
+    pub fn pinhole_dirs_x8(&self, x: f32x8, y: f32x8) -> Vec3x8 {
+        let (two, one) = (f32x8::splat(2.0), f32x8::ONE);
+        let sx = (two * x / f32x8::splat(self.width as f32) - one) * f32x8::splat(self.half_w);
+        let sy = (one - two * y / f32x8::splat(self.height as f32)) * f32x8::splat(self.half_h);
+        let (f, r, u) = (self.forward, self.right, self.up);
+        let s = |a: f32| f32x8::splat(a);
+        let d = Vec3x8::new(s(f.x) + s(r.x) * sx + s(u.x) * sy, s(f.y) + s(r.y) * sx + s(u.y) * sy, s(f.z) + s(r.z) * sx + s(u.z) * sy);
+        let inv_len = one / (d.x * d.x + d.y * d.y + d.z * d.z).sqrt();
+        d.scale(inv_len)
     }
 
     /// A camera ray through image point (x, y); `lens` is a point on the unit disk (ignored for a pinhole).

@@ -158,3 +158,41 @@ fn a_group_never_drops_a_hit_its_packet_finds_alone() {
         assert_eq!(hits_of(&scene, &rays)[k], alone[0], "behind {k} missing rays");
     }
 }
+
+#[test]
+fn pinhole_camera_rays_made_eight_at_a_time_equal_the_scalar_camera_bit_for_bit() {
+    use strata::sample::{sample_filter, stream_key, Sampler2d};
+    use strata::wavefront::generate::{generate, Tile};
+    use strata::wavefront::{dims, PathTable};
+    let scene = parse_scene(Path::new("s.toml"), &scene_text()).unwrap();
+    assert!(!scene.features.lens && !scene.features.motion && !scene.features.dispersion);
+    for (spp, samples, filter) in [(4, 0..4, "box"), (5, 1..4, "tent"), (9, 0..9, "gaussian")] {
+        let mut profile = profile();
+        profile.spp = spp;
+        profile.filter = match filter {
+            "box" => strata::sample::Filter::Box,
+            "tent" => strata::sample::Filter::Tent,
+            _ => strata::sample::Filter::Gaussian,
+        };
+        // An edge-sized tile and a full one; odd counts leave a partial last packet.
+        for tile in [Tile { x0: 3, y0: 2, x1: 16, y1: 9 }, Tile { x0: 0, y0: 0, x1: 16, y1: 16 }] {
+            let (mut paths, mut q) = (PathTable::default(), RayQueue::new(false, false));
+            generate(&scene, &profile, 11, tile, samples.clone(), &mut paths, &mut q);
+            assert_eq!(q.len() as u32, tile.pixel_count() * samples.len() as u32);
+            let area = Sampler2d::new(profile.pixel_strategy, spp);
+            for i in 0..q.len() {
+                let r = q.get(i);
+                let (pixel, s) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
+                let off = sample_filter(profile.filter, area.sample(stream_key(11, pixel as u64, dims::PIXEL), s));
+                let (x, y) = ((pixel % scene.width) as f32, (pixel / scene.width) as f32);
+                let (o, d) = scene.camera.ray(x + 0.5 + off[0], y + 0.5 + off[1], [0.0, 0.0]);
+                assert_eq!(
+                    (r.o.to_array().map(f32::to_bits), r.d.to_array().map(f32::to_bits)),
+                    (o.to_array().map(f32::to_bits), d.to_array().map(f32::to_bits)),
+                    "ray {i}"
+                );
+                assert_eq!((r.path as usize, r.tmax, r.throughput, r.depth), (i, f32::INFINITY, glam::Vec3::ONE, 0));
+            }
+        }
+    }
+}

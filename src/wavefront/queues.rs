@@ -167,6 +167,34 @@ impl RayQueue {
         self.len += 1;
     }
 
+    /// Append the first `n` (<= 8) of 8 camera rays from `o` along `d` (unit), for paths `first_path..`,
+    /// with the fields a new camera path starts with. For scenes without time or wavelength.
+    #[inline(always)]
+    pub fn push_camera(&mut self, o: Vec3, d: &crate::simd::Vec3x8, n: usize, first_path: u32) {
+        debug_assert!(!self.with_time && !self.with_lambda && n <= 8);
+        if self.ox.len() != self.len {
+            self.truncate_to_len();
+        }
+        let (dx, dy, dz) = (d.x.to_array(), d.y.to_array(), d.z.to_array());
+        self.ox.extend(std::iter::repeat_n(o.x, n));
+        self.oy.extend(std::iter::repeat_n(o.y, n));
+        self.oz.extend(std::iter::repeat_n(o.z, n));
+        self.dx.extend_from_slice(&dx[..n]);
+        self.dy.extend_from_slice(&dy[..n]);
+        self.dz.extend_from_slice(&dz[..n]);
+        self.tmax.extend(std::iter::repeat_n(f32::INFINITY, n));
+        for t in [&mut self.tr, &mut self.tg, &mut self.tb] {
+            t.extend(std::iter::repeat_n(1.0, n));
+        }
+        self.path.extend(first_path..first_path + n as u32);
+        self.branch.extend(std::iter::repeat_n(0, n));
+        self.depth.extend(std::iter::repeat_n(0, n));
+        self.diffuse.extend(std::iter::repeat_n(0, n));
+        self.flags.extend(std::iter::repeat_n(0, n));
+        self.media.extend(std::iter::repeat_n(MediumStack::default(), n));
+        self.len += n;
+    }
+
     fn truncate_to_len(&mut self) {
         let n = self.len;
         macro_rules! tr { ($($f:ident),*) => { $( self.$f.truncate(n); )* }; }
