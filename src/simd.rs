@@ -63,6 +63,27 @@ impl Vec3x8 {
     pub fn dot3(self, o: Vec3) -> f32x8 {
         self.x.mul_add(f32x8::splat(o.x), self.y.mul_add(f32x8::splat(o.y), self.z * f32x8::splat(o.z)))
     }
+    /// The dot product rounded exactly as glam's `Vec3::dot` (`(x x' + y y') + z z'`, no FMA): kernels
+    /// that must agree bit for bit with a scalar glam twin use it.
+    #[inline(always)]
+    pub fn dot_unfused(self, o: Self) -> f32x8 {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+    /// Lane-wise product by another packet of vectors.
+    #[inline(always)]
+    pub fn mul(self, o: Self) -> Self {
+        Self { x: self.x * o.x, y: self.y * o.y, z: self.z * o.z }
+    }
+    /// Lane-wise product by one vector.
+    #[inline(always)]
+    pub fn mul3(self, o: Vec3) -> Self {
+        Self { x: self.x * f32x8::splat(o.x), y: self.y * f32x8::splat(o.y), z: self.z * f32x8::splat(o.z) }
+    }
+    /// `mask ? a : b`, lane-wise.
+    #[inline(always)]
+    pub fn select(mask: f32x8, a: Self, b: Self) -> Self {
+        Self { x: mask.select(a.x, b.x), y: mask.select(a.y, b.y), z: mask.select(a.z, b.z) }
+    }
     #[inline(always)]
     pub fn cross(self, o: Self) -> Self {
         Self { x: self.y * o.z - self.z * o.y, y: self.z * o.x - self.x * o.z, z: self.x * o.y - self.y * o.x }

@@ -1,5 +1,6 @@
 //! Robust spawn points: move a hit point off its surface by a few ULPs of its magnitude.
 
+use crate::simd::{f32x8, u32x8, Vec3x8};
 use glam::Vec3;
 
 /// Offset in units of the ULP of the largest coordinate of `p` (Waechter & Binder use 256).
@@ -41,4 +42,13 @@ pub fn offset_ray_origin_scaled(p: Vec3, n: Vec3, magnitude: f32) -> Vec3 {
     // ulp(m) = 2^(exponent of m) * 2^-23: keep only the exponent bits.
     let ulp = f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON;
     n.mul_add(Vec3::splat(OFFSET_ULPS * ulp), p)
+}
+/// Eight lanes of [`offset_ray_origin_scaled`], bit-identical to it for finite inputs (same
+/// exponent masking, same fused multiply-add per component).
+#[inline(always)]
+pub fn offset_ray_origin_scaled_x8(p: Vec3x8, n: Vec3x8, magnitude: f32x8) -> Vec3x8 {
+    let m = p.x.abs().max(p.y.abs()).max(p.z.abs()).max(magnitude).max(f32x8::splat(MIN_SCALE));
+    let exp = bytemuck::cast::<f32x8, u32x8>(m) & u32x8::splat(0x7f80_0000);
+    let ulp = bytemuck::cast::<u32x8, f32x8>(exp) * f32x8::splat(f32::EPSILON);
+    n.mul_add(ulp * f32x8::splat(OFFSET_ULPS), p)
 }

@@ -14,10 +14,10 @@ use super::transmit::{any_passable, passes, transmittance_x8};
 use crate::accel::GROUP;
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, CsgArena};
-use crate::light::{sample_light, samples_for};
+use crate::light::{sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
-use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x8, store8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
 
 /// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
@@ -35,9 +35,19 @@ struct Batch {
     d: [[f32; BATCH]; 3],
     tmax: [f32; BATCH],
     time: [f32; BATCH],
-    contrib: [Vec3; BATCH],
+    contrib: [[f32; BATCH]; 3],
     path: [u32; BATCH],
     len: usize,
+}
+
+/// Eight shadow rays (one per request of a chunk) before they join a batch.
+struct Rays8 {
+    o: Vec3x8,
+    d: Vec3x8,
+    tmax: f32,
+    time: f32x8,
+    contrib: Vec3x8,
+    path: [u32; LANES],
 }
 
 impl Batch {
@@ -47,10 +57,48 @@ impl Batch {
             d: [[1.0; BATCH]; 3],
             tmax: [-1.0; BATCH],
             time: [0.0; BATCH],
-            contrib: [Vec3::ZERO; BATCH],
+            contrib: [[0.0; BATCH]; 3],
             path: [0; BATCH],
             len: 0,
         })
+    }
+
+    /// Append the lanes of `r` set in `lanes`: whole vectors when all 8 are set and the batch is at a
+    /// packet boundary, else lane by lane. The caller flushes first if fewer than 8 slots are free.
+    #[inline(always)]
+    fn append(&mut self, r: &Rays8, lanes: u32) {
+        let k = self.len;
+        debug_assert!(k + LANES <= BATCH);
+        let vs = [r.o.x, r.o.y, r.o.z, r.d.x, r.d.y, r.d.z, r.time, r.contrib.x, r.contrib.y, r.contrib.z];
+        if lanes == 0xff && k % LANES == 0 {
+            for a in 0..3 {
+                store8(&mut self.o[a], k, vs[a]);
+                store8(&mut self.d[a], k, vs[3 + a]);
+                store8(&mut self.contrib[a], k, vs[7 + a]);
+            }
+            store8(&mut self.time, k, r.time);
+            self.tmax[k..k + LANES].fill(r.tmax);
+            self.path[k..k + LANES].copy_from_slice(&r.path);
+            self.len += LANES;
+            return;
+        }
+        let a = vs.map(|v| v.to_array());
+        let mut bits = lanes;
+        let mut k = k;
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            for c in 0..3 {
+                self.o[c][k] = a[c][l];
+                self.d[c][k] = a[3 + c][l];
+                self.contrib[c][k] = a[7 + c][l];
+            }
+            self.time[k] = a[6][l];
+            self.tmax[k] = r.tmax;
+            self.path[k] = r.path[l];
+            k += 1;
+        }
+        self.len = k;
     }
 
     /// Packet `j` as a `Ray8` (lanes past `len` carry `tmax = -1`) and its shutter times.
@@ -64,6 +112,14 @@ impl Batch {
         );
         (ray, motion.then(|| v(&self.time)))
     }
+}
+
+/// Lanes `base..base + m` of a request field, as 8 lanes (past `m`: 0).
+#[inline(always)]
+fn lanes8(v: &[f32], base: usize, m: usize) -> f32x8 {
+    let mut a = [0.0f32; LANES];
+    a[..m].copy_from_slice(&v[base..base + m]);
+    f32x8::from(a)
 }
 
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
@@ -90,52 +146,65 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     };
     let mut keys = [0u64; KEY_CACHE];
     let mut cached = None;
-    for i in 0..nee.len() {
-        let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
-        let n = Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]);
-        let w = Vec3::new(nee.wr[i], nee.wg[i], nee.wb[i]);
+    // Requests are taken 8 at a time: one lane each, every light sample of the chunk computed as one
+    // 8-lane light sample. Per path, contributions still arrive in light order, then sample order.
+    for base in (0..nee.len()).step_by(LANES) {
+        let m = (nee.len() - base).min(LANES);
+        let live = (1u32 << m) - 1;
+        let f = |v: &Vec<f32>| lanes8(v, base, m);
+        let p = Vec3x8::new(f(&nee.px), f(&nee.py), f(&nee.pz));
+        let n = Vec3x8::new(f(&nee.nx), f(&nee.ny), f(&nee.nz));
+        let w = Vec3x8::new(f(&nee.wr), f(&nee.wg), f(&nee.wb));
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
-        let o = Vec3::new(nee.ox[i], nee.oy[i], nee.oz[i]);
-        // Across samples a light's stream is shared by the pixel's samples, whose requests are usually
-        // consecutive: the keys of the first KEY_CACHE lights are computed once per run of them.
-        if !across || cached != Some(nee.key[i]) {
-            cached = Some(nee.key[i]);
-            for (li, k) in keys.iter_mut().enumerate().take(scene.lights.len()) {
-                *k = light_key(i, li);
+        let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
+        let time = f(&nee.time);
+        let mut path = [0u32; LANES];
+        path[..m].copy_from_slice(&nee.path[base..base + m]);
+        // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
+        // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
+        // once per run of them.
+        let mut lane_keys = [[0u64; LANES]; KEY_CACHE];
+        for l in 0..m {
+            let i = base + l;
+            if !across || cached != Some(nee.key[i]) {
+                cached = Some(nee.key[i]);
+                for (li, k) in keys.iter_mut().enumerate().take(scene.lights.len()) {
+                    *k = light_key(i, li);
+                }
+            }
+            for li in 0..KEY_CACHE.min(scene.lights.len()) {
+                lane_keys[li][l] = keys[li];
             }
         }
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
             let point = matches!(light, Light::Point { .. });
-            let key = if li < KEY_CACHE { keys[li] } else { light_key(i, li) };
+            let key = |l: usize| if li < KEY_CACHE { lane_keys[li][l] } else { light_key(base + l, li) };
             let (end, sampler) = if point { (1.0, &delta) } else { (SHADOW_END, &area) };
+            let inv_ns = f32x8::splat(ns as f32);
             for j in 0..ns {
-                let u = if across && !point {
-                    sampler.sample(key, nee.sample[i] * ns + j)
-                } else {
-                    // All ns samples serve this one shading point: strata need no permutation.
-                    sampler.sample_unpermuted(key, j)
-                };
-                let Some(ls) = sample_light(light, p, u) else { continue };
-                let cos = n.dot(ls.wi);
-                if cos <= 0.0 {
+                let mut u = [[0.5f32; LANES]; 2];
+                for l in 0..m {
+                    let s = if across && !point {
+                        sampler.sample(key(l), nee.sample[base + l] * ns + j)
+                    } else {
+                        // All ns samples serve this one shading point: strata need no permutation.
+                        sampler.sample_unpermuted(key(l), j)
+                    };
+                    (u[0][l], u[1][l]) = (s[0], s[1]);
+                }
+                let ls = sample_light_x8(light, p, [f32x8::from(u[0]), f32x8::from(u[1])]);
+                let cos = n.dot_unfused(ls.wi);
+                let c = w.mul(ls.weight).scale(cos / inv_ns);
+                let lit = ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO);
+                let lanes = lit.to_bitmask() & live;
+                if lanes == 0 {
                     continue;
                 }
-                let c = w * ls.weight * (cos / ns as f32);
-                if c.max_element() <= 0.0 {
-                    continue;
+                if pk.len + LANES > BATCH {
+                    traced += flush(scene, profile, &mut pk, paths, arena, walk);
                 }
-                let k = pk.len;
-                let d = ls.target - o;
-                for a in 0..3 {
-                    pk.o[a][k] = o[a];
-                    pk.d[a][k] = d[a];
-                }
-                pk.tmax[k] = end;
-                pk.time[k] = nee.time[i];
-                pk.contrib[k] = c;
-                pk.path[k] = nee.path[i];
-                pk.len += 1;
+                pk.append(&Rays8 { o, d: ls.target - o, tmax: end, time, contrib: c, path }, lanes);
                 if pk.len == BATCH {
                     traced += flush(scene, profile, &mut pk, paths, arena, walk);
                 }
@@ -180,7 +249,8 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, paths: &mut PathTable
         for (l, t) in tr.iter().enumerate().take(lanes) {
             if bits & (1 << l) == 0 {
                 let q = j * LANES + l;
-                let c = if through & (1 << l) != 0 { pk.contrib[q] * *t } else { pk.contrib[q] };
+                let c = Vec3::new(pk.contrib[0][q], pk.contrib[1][q], pk.contrib[2][q]);
+                let c = if through & (1 << l) != 0 { c * *t } else { c };
                 paths.add(pk.path[q], c);
             }
         }
