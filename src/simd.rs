@@ -69,11 +69,6 @@ impl Vec3x8 {
     pub fn dot_unfused(self, o: Self) -> f32x8 {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
-    /// Lane-wise product by another packet of vectors.
-    #[inline(always)]
-    pub fn mul(self, o: Self) -> Self {
-        Self { x: self.x * o.x, y: self.y * o.y, z: self.z * o.z }
-    }
     /// Lane-wise product by one vector.
     #[inline(always)]
     pub fn mul3(self, o: Vec3) -> Self {
@@ -108,6 +103,15 @@ impl std::ops::Add for Vec3x8 {
     #[inline(always)]
     fn add(self, o: Self) -> Self {
         Self { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+    }
+}
+
+/// Lane-wise, component-wise product (colour times colour).
+impl std::ops::Mul for Vec3x8 {
+    type Output = Self;
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        Self { x: self.x * o.x, y: self.y * o.y, z: self.z * o.z }
     }
 }
 

@@ -70,7 +70,7 @@ impl Batch {
         let k = self.len;
         debug_assert!(k + LANES <= BATCH);
         let vs = [r.o.x, r.o.y, r.o.z, r.d.x, r.d.y, r.d.z, r.time, r.contrib.x, r.contrib.y, r.contrib.z];
-        if lanes == 0xff && k % LANES == 0 {
+        if lanes == 0xff && k.is_multiple_of(LANES) {
             for a in 0..3 {
                 store8(&mut self.o[a], k, vs[a]);
                 store8(&mut self.d[a], k, vs[3 + a]);
@@ -172,8 +172,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     *k = light_key(i, li);
                 }
             }
-            for li in 0..KEY_CACHE.min(scene.lights.len()) {
-                lane_keys[li][l] = keys[li];
+            for (lane_key, &k) in lane_keys.iter_mut().zip(&keys).take(scene.lights.len()) {
+                lane_key[l] = k;
             }
         }
         for (li, light) in scene.lights.iter().enumerate() {
@@ -195,7 +195,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 }
                 let ls = sample_light_x8(light, p, [f32x8::from(u[0]), f32x8::from(u[1])]);
                 let cos = n.dot_unfused(ls.wi);
-                let c = w.mul(ls.weight).scale(cos / inv_ns);
+                let c = (w * ls.weight).scale(cos / inv_ns);
                 let lit = ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO);
                 let lanes = lit.to_bitmask() & live;
                 if lanes == 0 {
