@@ -95,44 +95,97 @@ pub fn random_2d_keyed(key: u64, index: u32) -> [f32; 2] {
 /// Conventions: `n == 0` is treated as 1; `i >= n` is wrapped (`i % n`).
 #[inline]
 pub fn permute(i: u32, n: u32, key: u32) -> u32 {
-    let n = n.max(1);
+    let sh = PermuteShape::new(n);
+    let n = sh.n;
     // Indices are usually below n: skip the division then.
     let mut i = if i < n { i } else { i % n };
-    // Mask of the smallest power of two >= n, minus one (0 for n == 1).
-    let w = u32::MAX.checked_shr((n - 1).leading_zeros()).unwrap_or(0);
-    // Shift amounts that reach across the word for any size: half and quarter of its bit count.
-    let bits = 32 - w.leading_zeros();
-    let s1 = bits.div_ceil(2).max(1);
-    let s2 = bits.div_ceil(4).max(1);
-    // Mix the key first: keys differing in one bit must give unrelated permutations (otherwise
-    // `key ^ 1` would just compose the permutation with `i ^ 1`). Key-dependent odd multipliers make
-    // different keys give genuinely different permutations even for small n, where the fixed-shift
-    // steps are weak.
-    let key = mix32(key);
-    let m1 = (key >> 7) | 1;
-    let m2 = (key.rotate_left(13) ^ 0x2c1b_3c6d) | 1;
+    let k = PermuteKey::new(key);
     loop {
-        i ^= key;
-        i = i.wrapping_mul(m1) & w;
-        i ^= i >> s1;
-        i = i.wrapping_add(key >> 16).wrapping_mul(0x6f4f_2a35) & w;
-        i ^= i >> s2;
-        i = i.wrapping_mul(m2) & w;
-        i ^= i >> 1;
-        i ^= i >> s1;
+        i = k.scramble(i, &sh);
         if i < n {
             break;
         }
     }
-    // A final key-dependent rotation of 0..n (Kensler's `(i + key) % n`, without the division): it
-    // makes the position of any fixed `i` exactly uniform over keys, which cycle-walking alone is not.
-    let offset = ((key.rotate_left(7) as u64 * n as u64) >> 32) as u32;
-    let j = i.wrapping_add(offset);
-    if j >= n {
-        j - n
-    } else {
-        j
+    k.rotate(i, n)
+}
+
+/// The constants of [`permute`] that depend only on `n`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PermuteShape {
+    /// `max(n, 1)`.
+    pub n: u32,
+    /// Mask of the smallest power of two >= n, minus one (0 for n == 1).
+    w: u32,
+    /// Shift amounts that reach across the word for any size: half and quarter of its bit count.
+    s1: u32,
+    s2: u32,
+}
+
+impl PermuteShape {
+    #[inline(always)]
+    pub fn new(n: u32) -> PermuteShape {
+        let n = n.max(1);
+        let w = u32::MAX.checked_shr((n - 1).leading_zeros()).unwrap_or(0);
+        let bits = 32 - w.leading_zeros();
+        PermuteShape { n, w, s1: bits.div_ceil(2).max(1), s2: bits.div_ceil(4).max(1) }
     }
+}
+
+/// The constants of [`permute`] that depend only on the key.
+#[derive(Clone, Copy, Debug)]
+struct PermuteKey {
+    key: u32,
+    m1: u32,
+    m2: u32,
+}
+
+impl PermuteKey {
+    /// Mix the key first: keys differing in one bit must give unrelated permutations (otherwise
+    /// `key ^ 1` would just compose the permutation with `i ^ 1`). Key-dependent odd multipliers make
+    /// different keys give genuinely different permutations even for small n, where the fixed-shift
+    /// steps are weak.
+    #[inline(always)]
+    fn new(key: u32) -> PermuteKey {
+        let key = mix32(key);
+        PermuteKey { key, m1: (key >> 7) | 1, m2: (key.rotate_left(13) ^ 0x2c1b_3c6d) | 1 }
+    }
+
+    /// One round of the invertible word hash (a bijection of `0..=w`).
+    #[inline(always)]
+    fn scramble(&self, mut i: u32, sh: &PermuteShape) -> u32 {
+        let (w, s1, s2) = (sh.w, sh.s1, sh.s2);
+        i ^= self.key;
+        i = i.wrapping_mul(self.m1) & w;
+        i ^= i >> s1;
+        i = i.wrapping_add(self.key >> 16).wrapping_mul(0x6f4f_2a35) & w;
+        i ^= i >> s2;
+        i = i.wrapping_mul(self.m2) & w;
+        i ^= i >> 1;
+        i ^ (i >> s1)
+    }
+
+    /// A final key-dependent rotation of 0..n (Kensler's `(i + key) % n`, without the division): it
+    /// makes the position of any fixed `i` exactly uniform over keys, which cycle-walking alone is not.
+    #[inline(always)]
+    fn rotate(&self, i: u32, n: u32) -> u32 {
+        let offset = ((self.key.rotate_left(7) as u64 * n as u64) >> 32) as u32;
+        let j = i.wrapping_add(offset);
+        if j >= n {
+            j - n
+        } else {
+            j
+        }
+    }
+}
+
+/// [`permute`] for `n` a power of two (`sh = PermuteShape::new(n)`): the word is `0..n` itself, so
+/// one round always lands in range and there is no cycle-walking loop; `i` is wrapped by masking.
+/// Branch-free, so 8 lanes of it vectorise. Equal to `permute(i, n, key)`.
+#[inline(always)]
+pub fn permute_pow2(i: u32, sh: &PermuteShape, key: u32) -> u32 {
+    debug_assert!(sh.n.is_power_of_two());
+    let k = PermuteKey::new(key);
+    k.rotate(k.scramble(i & sh.w, sh), sh.n)
 }
 
 #[cfg(test)]
@@ -155,6 +208,19 @@ mod tests {
         assert!(unit_f32(u32::MAX) < 1.0);
         assert_eq!(unit_f32(u32::MAX), ONE_MINUS_EPSILON);
         assert_eq!(unit_f32(1 << 31), 0.5);
+    }
+
+    #[test]
+    fn permute_pow2_equals_permute() {
+        for n in (0..=20).map(|b| 1u32 << b) {
+            let sh = PermuteShape::new(n);
+            for key in 0..64u32 {
+                let key = mix32(key ^ n);
+                for i in (0..n.min(256)).chain([n, n + 3, u32::MAX]) {
+                    assert_eq!(permute_pow2(i, &sh, key), permute(i, n, key), "n={n} key={key} i={i}");
+                }
+            }
+        }
     }
 
     #[test]

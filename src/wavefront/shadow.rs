@@ -179,21 +179,18 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
             let point = matches!(light, Light::Point { .. });
-            let key = |l: usize| if li < KEY_CACHE { lane_keys[li][l] } else { light_key(base + l, li) };
+            let keys_li: [u64; LANES] =
+                if li < KEY_CACHE { lane_keys[li] } else { std::array::from_fn(|l| if l < m { light_key(base + l, li) } else { 0 }) };
             let (end, sampler) = if point { (1.0, &delta) } else { (SHADOW_END, &area) };
             let inv_ns = f32x8::splat(ns as f32);
+            let samples: [u32; LANES] = std::array::from_fn(|l| if l < m { nee.sample[base + l] } else { 0 });
             for j in 0..ns {
-                let mut u = [[0.5f32; LANES]; 2];
-                for l in 0..m {
-                    let s = if across && !point {
-                        sampler.sample(key(l), nee.sample[base + l] * ns + j)
-                    } else {
-                        // All ns samples serve this one shading point: strata need no permutation.
-                        sampler.sample_unpermuted(key(l), j)
-                    };
-                    (u[0][l], u[1][l]) = (s[0], s[1]);
-                }
-                let ls = sample_light_x8(light, p, [f32x8::from(u[0]), f32x8::from(u[1])]);
+                // Across: sample index = camera sample x ns + j of the pixel's set. Else all ns samples
+                // serve this one shading point: strata need no permutation.
+                let permuted = across && !point;
+                let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
+                let u = sampler.sample_x8(&keys_li, &index, permuted);
+                let ls = sample_light_x8(light, p, u);
                 let cos = n.dot_unfused(ls.wi);
                 let c = (w * ls.weight).scale(cos / inv_ns);
                 let lit = ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO);
