@@ -42,9 +42,7 @@ impl Texture {
                 // multiple of the cell size) lie exactly on a cell boundary, where the parity would flip with
                 // the sign of the hit point's rounding error (noise that depends on the ray's origin).
                 let q = (p / scale + Vec3::splat(CHECKER_SHIFT)).floor();
-                // i64 parity: cells far from the origin stay exact.
-                let s = q.x as i64 + q.y as i64 + q.z as i64;
-                if s.rem_euclid(2) == 0 {
+                if checker_parity(q) == 0 {
                     a
                 } else {
                     b
@@ -52,6 +50,18 @@ impl Texture {
             }
         }
     }
+}
+
+/// Parity (0 or 1) of `q.x + q.y + q.z` for integer-valued `q`, in float operations, exact for every
+/// finite float: each component's parity is `q - 2 floor(q / 2)` (exact: halving, flooring and
+/// doubling an integer-valued float lose nothing), and the sum of three parities is odd when it is 1
+/// or 3. Equal to `(q.x as i64 + q.y as i64 + q.z as i64).rem_euclid(2)` wherever that does not
+/// saturate (`|q| < 2^63`), without the three float-to-integer conversions.
+#[inline(always)]
+pub fn checker_parity(q: Vec3) -> u32 {
+    let par = q - (q * 0.5).floor() * 2.0;
+    let s = par.x + par.y + par.z;
+    (s == 1.0 || s == 3.0) as u32
 }
 
 /// Materials, by kind. Shading partitions hits by [`Material::kind`] and runs one loop per kind.
@@ -213,5 +223,32 @@ impl std::fmt::Debug for Scene {
             .field("lights", &self.lights.len())
             .field("features", &self.features)
             .finish()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checker_parity_matches_integer_parity() {
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for k in 0..20_000 {
+            // Integers of every magnitude up to 2^62, both signs, and small ones around zero.
+            let v = [0; 3].map(|_| {
+                let r = next();
+                let mag = if k % 2 == 0 { (r % 64) as f32 - 32.0 } else { ((r >> 8) as f32) * 2f32.powi((r % 40) as i32 - 40) };
+                (if r & 1 == 0 { mag } else { -mag }).floor()
+            });
+            let q = Vec3::from_array(v);
+            let want = (q.x as i64 + q.y as i64 + q.z as i64).rem_euclid(2) as u32;
+            assert_eq!(checker_parity(q), want, "{q}");
+        }
     }
 }

@@ -154,6 +154,8 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
 
     let ctx = Ctx { scene, profile, seed };
     let ShadeOut { paths, next, nee } = out;
+    // The point key of the last Lambert hit: a pixel's samples are usually consecutive and share it.
+    let mut last_point: Option<((u32, u32, u16), u64)> = None;
     for b in 0..=MaterialKind::COUNT {
         for &i in &order[counts[b]..counts[b + 1]] {
             let i = i as usize;
@@ -188,7 +190,13 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                     if !scene.lights.is_empty() {
                         // The light is sampled from the hit point itself: the spawn offset is only there to
                         // keep the shadow ray off this surface, it must not move the shading point.
-                        nee.push(hit.p, p_off, hit.n_facing, w * FRAC_1_PI, r.path, point_key(pixel, r.branch, r.depth), sample, r.time);
+                        let id = (pixel, r.branch, r.depth);
+                        let key = match last_point {
+                            Some((last, key)) if last == id => key,
+                            _ => point_key(pixel, r.branch, r.depth),
+                        };
+                        last_point = Some((id, key));
+                        nee.push(hit.p, p_off, hit.n_facing, w * FRAC_1_PI, r.path, key, sample, r.time);
                     }
                     if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
                         // Its own strategy: borrowing the pixel strategy made `center` pixels bounce
