@@ -3,7 +3,7 @@
 //! `tmax = -1`, which no kernel hits). Queues are cleared, never freed: a wavefront reuses them for the
 //! next tile, so after warm-up nothing allocates.
 
-use crate::simd::pad_to_lanes;
+use crate::simd::{pad_to_lanes, LANES};
 use glam::Vec3;
 
 /// Ray flag: the ray left a specular or glossy surface (emission it finds counts).
@@ -351,6 +351,37 @@ impl NeeQueue {
         self.key.push(key);
         self.sample.push(sample);
         self.time.push(time);
+    }
+}
+
+/// Up to 8 next-event requests as lane arrays (see [`NeeQueue::push_rows`]).
+pub struct NeeRows<'a> {
+    pub p: &'a [[f32; LANES]; 3],
+    pub o: [&'a [f32; LANES]; 3],
+    pub n: &'a [[f32; LANES]; 3],
+    pub w: &'a [[f32; LANES]; 3],
+    pub path: &'a [u32; LANES],
+    pub key: &'a [u64; LANES],
+    pub sample: &'a [u32; LANES],
+    pub time: &'a [f32; LANES],
+}
+
+impl NeeQueue {
+    /// Append the first `m` lanes of `r` (as `m` calls of [`NeeQueue::push`] would, one copy per field).
+    #[inline]
+    pub fn push_rows(&mut self, m: usize, r: NeeRows) {
+        let fields = [&mut self.px, &mut self.py, &mut self.pz, &mut self.nx, &mut self.ny, &mut self.nz, &mut self.wr, &mut self.wg, &mut self.wb];
+        let src = [&r.p[0], &r.p[1], &r.p[2], &r.n[0], &r.n[1], &r.n[2], &r.w[0], &r.w[1], &r.w[2]];
+        for (f, s) in fields.into_iter().zip(src) {
+            f.extend_from_slice(&s[..m]);
+        }
+        self.ox.extend_from_slice(&r.o[0][..m]);
+        self.oy.extend_from_slice(&r.o[1][..m]);
+        self.oz.extend_from_slice(&r.o[2][..m]);
+        self.path.extend_from_slice(&r.path[..m]);
+        self.key.extend_from_slice(&r.key[..m]);
+        self.sample.extend_from_slice(&r.sample[..m]);
+        self.time.extend_from_slice(&r.time[..m]);
     }
 }
 

@@ -5,8 +5,9 @@
 
 use super::dims;
 use super::medium;
-use super::queues::{HitQueue, MediumStack, NeeQueue, PathTable, RayItem, RayQueue, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
-use crate::geometry::{normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, refine_sphere_point};
+use super::queues::{HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
+use crate::simd::{f32x8, Vec3x8, LANES};
+use crate::geometry::{normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_sphere_point};
 use crate::optics::{
     beer_lambert, fresnel_dielectric, fresnel_schlick, reflect, refract, sample_ggx_reflect, sample_ggx_reflect_weight,
     sample_hemisphere_cos,
@@ -157,18 +158,17 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
     // The point key of the last Lambert hit: a pixel's samples are usually consecutive and share it.
     let mut last_point: Option<((u32, u32, u16), u64)> = None;
     for b in 0..=MaterialKind::COUNT {
+        if b == MaterialKind::Lambert as usize {
+            for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
+                ctx.lambert_x8(rays, hits, chunk, paths, nee, next, &mut last_point);
+            }
+            continue;
+        }
         for &i in &order[counts[b]..counts[b + 1]] {
             let i = i as usize;
             let mut r = rays.get(i);
             let t = hits.t[i];
-            // Beer-Lambert absorption along the segment just travelled inside a medium.
-            if let Some(m) = medium::current(scene, r.media) {
-                if let Material::Dielectric(d) = &scene.materials[m as usize] {
-                    if d.sigma_a != Vec3::ZERO {
-                        r.throughput *= beer_lambert(d.sigma_a, t * r.d.length());
-                    }
-                }
-            }
+            absorb(scene, &mut r, t);
             if b == MISS_BUCKET {
                 paths.add(r.path, r.throughput * scene.background);
                 continue;
@@ -183,37 +183,8 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         paths.add(r.path, r.throughput * *radiance);
                     }
                 }
-                Material::Lambert { albedo } => {
-                    let a = albedo.eval(hit.p - scene.prims[hits.prim[i] as usize].motion * r.time);
-                    let w = r.throughput * a;
-                    let p_off = hit.spawn(hit.n_facing);
-                    if !scene.lights.is_empty() {
-                        // The light is sampled from the hit point itself: the spawn offset is only there to
-                        // keep the shadow ray off this surface, it must not move the shading point.
-                        let id = (pixel, r.branch, r.depth);
-                        let key = match last_point {
-                            Some((last, key)) if last == id => key,
-                            _ => point_key(pixel, r.branch, r.depth),
-                        };
-                        last_point = Some((id, key));
-                        nee.push(hit.p, p_off, hit.n_facing, w * FRAC_1_PI, r.path, key, sample, r.time);
-                    }
-                    if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
-                        // Its own strategy: borrowing the pixel strategy made `center` pixels bounce
-                        // every path in the one direction (0.5, 0.5) maps to, a biased estimate.
-                        let u = sample_2d(
-                            profile.diffuse_strategy,
-                            seed,
-                            branch_stream(pixel, r.branch),
-                            dims::DIFFUSE + r.depth as u32,
-                            sample,
-                            profile.spp,
-                        );
-                        let wi = sample_hemisphere_cos(hit.n_facing, u);
-                        let child = RayItem { o: p_off, d: wi, throughput: w, diffuse: r.diffuse + 1, flags: FLAG_DIFFUSE, ..next_of(&r) };
-                        ctx.spawn(next, child, pixel, sample, 0);
-                    }
-                }
+                // Shaded 8 at a time by `Ctx::lambert_x8`.
+                Material::Lambert { .. } => unreachable!("Lambert hits are shaded by lambert_x8"),
                 Material::Mirror { tint } => {
                     if (r.depth as u32) < profile.max_depth {
                         let d = reflect(-r.d.normalize(), hit.n_facing);
@@ -258,6 +229,18 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
     }
 }
 
+/// Beer-Lambert absorption along the segment just travelled inside a medium (of length `t |d|`).
+#[inline(always)]
+fn absorb(scene: &Scene, r: &mut RayItem, t: f32) {
+    if let Some(m) = medium::current(scene, r.media) {
+        if let Material::Dielectric(d) = &scene.materials[m as usize] {
+            if d.sigma_a != Vec3::ZERO {
+                r.throughput *= beer_lambert(d.sigma_a, t * r.d.length());
+            }
+        }
+    }
+}
+
 /// A child ray inheriting the parent's bookkeeping, one bounce deeper.
 #[inline]
 fn next_of(r: &RayItem) -> RayItem {
@@ -271,6 +254,101 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
+    /// Up to 8 Lambert hits (`idx`, ray indices): the geometry of each hit (shape dispatch) and its
+    /// albedo lane by lane, then the next-event request's weight and shadow-ray origin as 8-lane
+    /// arithmetic, appended to the request queue as rows; diffuse bounces, when the profile asks for
+    /// them, lane by lane. Same requests and rays, in the same order, as shading the hits one by one.
+    #[allow(clippy::too_many_arguments)]
+    fn lambert_x8(
+        &self,
+        rays: &RayQueue,
+        hits: &HitQueue,
+        idx: &[u32],
+        paths: &mut PathTable,
+        nee: &mut NeeQueue,
+        next: &mut RayQueue,
+        last_point: &mut Option<((u32, u32, u16), u64)>,
+    ) {
+        let (scene, profile) = (self.scene, self.profile);
+        let m = idx.len();
+        let mut p = [[0.0f32; LANES]; 3];
+        let mut nf = [[0.0f32; LANES]; 3];
+        let mut w = [[0.0f32; LANES]; 3];
+        let mut scale = [0.0f32; LANES];
+        let mut keys = [0u64; LANES];
+        let mut samples = [0u32; LANES];
+        let mut pixels = [0u32; LANES];
+        let mut items = [RayItem::default(); LANES];
+        for (l, &i) in idx.iter().enumerate() {
+            let i = i as usize;
+            let mut r = rays.get(i);
+            absorb(scene, &mut r, hits.t[i]);
+            let hit = surface_hit(scene, &r, hits.t[i], hits.prim[i], hits.leaf[i], hits.flip[i]);
+            let (pixel, sample) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
+            let Material::Lambert { albedo } = &scene.materials[hit.material as usize] else {
+                unreachable!("lambert_x8 is given Lambert hits only")
+            };
+            let a = albedo.eval(hit.p - scene.prims[hits.prim[i] as usize].motion * r.time);
+            let wl = r.throughput * a;
+            let id = (pixel, r.branch, r.depth);
+            let key = match *last_point {
+                Some((last, key)) if last == id => key,
+                _ => point_key(pixel, r.branch, r.depth),
+            };
+            *last_point = Some((id, key));
+            for c in 0..3 {
+                p[c][l] = hit.p[c];
+                nf[c][l] = hit.n_facing[c];
+                w[c][l] = wl[c];
+            }
+            (scale[l], keys[l], samples[l], pixels[l], items[l]) = (hit.error_scale, key, sample, pixel, r);
+        }
+        let v = |a: &[f32; LANES]| f32x8::from(*a);
+        let pv = Vec3x8::new(v(&p[0]), v(&p[1]), v(&p[2]));
+        let nv = Vec3x8::new(v(&nf[0]), v(&nf[1]), v(&nf[2]));
+        // The light is sampled from the hit point itself: the spawn offset is only there to keep the
+        // shadow ray off this surface, it must not move the shading point.
+        let off = offset_ray_origin_scaled_x8(pv, nv, v(&scale));
+        let (ox, oy, oz) = (off.x.to_array(), off.y.to_array(), off.z.to_array());
+        if !scene.lights.is_empty() {
+            let inv_pi = f32x8::splat(FRAC_1_PI);
+            let wr = [v(&w[0]) * inv_pi, v(&w[1]) * inv_pi, v(&w[2]) * inv_pi].map(|x| x.to_array());
+            let paths_of: [u32; LANES] = std::array::from_fn(|l| items[l].path);
+            let times: [f32; LANES] = std::array::from_fn(|l| items[l].time);
+            nee.push_rows(m, NeeRows { p: &p, o: [&ox, &oy, &oz], n: &nf, w: &wr, path: &paths_of, key: &keys, sample: &samples, time: &times });
+        }
+        if profile.diffuse_depth == 0 {
+            return;
+        }
+        for l in 0..m {
+            let r = &items[l];
+            if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
+                // Its own strategy: borrowing the pixel strategy made `center` pixels bounce
+                // every path in the one direction (0.5, 0.5) maps to, a biased estimate.
+                let u = sample_2d(
+                    profile.diffuse_strategy,
+                    self.seed,
+                    branch_stream(pixels[l], r.branch),
+                    dims::DIFFUSE + r.depth as u32,
+                    samples[l],
+                    profile.spp,
+                );
+                let n = Vec3::new(nf[0][l], nf[1][l], nf[2][l]);
+                let wi = sample_hemisphere_cos(n, u);
+                let o = Vec3::new(ox[l], oy[l], oz[l]);
+                let child = RayItem {
+                    o,
+                    d: wi,
+                    throughput: Vec3::new(w[0][l], w[1][l], w[2][l]),
+                    diffuse: r.diffuse + 1,
+                    flags: FLAG_DIFFUSE,
+                    ..next_of(r)
+                };
+                self.spawn(next, child, pixels[l], samples[l], 0);
+            }
+        }
+    }
+
     /// Queue a child ray, after an unbiased Russian roulette on low throughput.
     #[inline]
     fn spawn(&self, next: &mut RayQueue, mut child: RayItem, pixel: u32, sample: u32, which: u32) {
