@@ -221,7 +221,7 @@ impl RayQueue {
     }
 
     /// The ray at index `i` (tests, debugging and scalar stages).
-    #[inline]
+    #[inline(always)]
     pub fn get(&self, i: usize) -> RayItem {
         RayItem {
             o: Vec3::new(self.ox[i], self.oy[i], self.oz[i]),
@@ -370,18 +370,25 @@ impl NeeQueue {
     /// Append the first `m` lanes of `r` (as `m` calls of [`NeeQueue::push`] would, one copy per field).
     #[inline]
     pub fn push_rows(&mut self, m: usize, r: NeeRows) {
-        let fields = [&mut self.px, &mut self.py, &mut self.pz, &mut self.nx, &mut self.ny, &mut self.nz, &mut self.wr, &mut self.wg, &mut self.wb];
-        let src = [&r.p[0], &r.p[1], &r.p[2], &r.n[0], &r.n[1], &r.n[2], &r.w[0], &r.w[1], &r.w[2]];
-        for (f, s) in fields.into_iter().zip(src) {
-            f.extend_from_slice(&s[..m]);
+        // Whole rows are fixed-size copies (inlined); a partial row is a call to memcpy.
+        #[inline(always)]
+        fn put<T: Copy>(v: &mut Vec<T>, s: &[T; LANES], m: usize) {
+            if m == LANES {
+                v.extend_from_slice(s);
+            } else {
+                v.extend_from_slice(&s[..m]);
+            }
         }
-        self.ox.extend_from_slice(&r.o[0][..m]);
-        self.oy.extend_from_slice(&r.o[1][..m]);
-        self.oz.extend_from_slice(&r.o[2][..m]);
-        self.path.extend_from_slice(&r.path[..m]);
-        self.key.extend_from_slice(&r.key[..m]);
-        self.sample.extend_from_slice(&r.sample[..m]);
-        self.time.extend_from_slice(&r.time[..m]);
+        for c in 0..3 {
+            put([&mut self.px, &mut self.py, &mut self.pz][c], &r.p[c], m);
+            put([&mut self.ox, &mut self.oy, &mut self.oz][c], r.o[c], m);
+            put([&mut self.nx, &mut self.ny, &mut self.nz][c], &r.n[c], m);
+            put([&mut self.wr, &mut self.wg, &mut self.wb][c], &r.w[c], m);
+        }
+        put(&mut self.path, r.path, m);
+        put(&mut self.key, r.key, m);
+        put(&mut self.sample, r.sample, m);
+        put(&mut self.time, r.time, m);
     }
 }
 
