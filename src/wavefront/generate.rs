@@ -7,7 +7,7 @@
 use super::dims;
 use super::queues::{MediumStack, PathTable, RayItem, RayQueue};
 use crate::optics::{sample_wavelength, sample_wavelength_pdf, wavelength_to_rgb};
-use crate::sample::{sample_1d, sample_disk_concentric, sample_filter, stream_key, Sampler2d};
+use crate::sample::{sample_1d, sample_disk_concentric, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
 use crate::scene::{Profile, Scene};
 use crate::simd::{f32x8, LANES};
 use glam::Vec3;
@@ -114,27 +114,43 @@ fn generate_pinhole(
 ) {
     let cam = &scene.camera;
     let area = Sampler2d::new(profile.pixel_strategy, profile.spp);
-    let mut xs = [0.0f32; LANES];
-    let mut ys = [0.0f32; LANES];
+    // Per lane: pixel centre, sample stream key and index; image positions are made 8 at a time.
+    let mut cx = [0.0f32; LANES];
+    let mut cy = [0.0f32; LANES];
+    let mut keys = [0u64; LANES];
+    let mut index = [0u32; LANES];
     let mut k = 0;
+    let emit = |k: usize, cx: &[f32; LANES], cy: &[f32; LANES], keys: &[u64; LANES], index: &[u32; LANES], paths: &PathTable, rays: &mut RayQueue| {
+        let u = area.sample_x8(keys, index, true);
+        let off = if profile.filter == Filter::Box {
+            sample_filter_x8(Filter::Box, u)
+        } else {
+            // Tent and Gaussian stay scalar: their 8-lane twins round differently.
+            let (u0, u1) = (u[0].to_array(), u[1].to_array());
+            let mut o = [[0.0f32; LANES]; 2];
+            for l in 0..LANES {
+                [o[0][l], o[1][l]] = sample_filter(profile.filter, [u0[l], u1[l]]);
+            }
+            [f32x8::from(o[0]), f32x8::from(o[1])]
+        };
+        let d = cam.pinhole_dirs_x8(f32x8::from(*cx) + off[0], f32x8::from(*cy) + off[1]);
+        rays.push_camera(cam.position, &d, k, (paths.len() - k) as u32);
+    };
     for (x, y) in tile.pixels_z_order() {
         let pixel = y * scene.width + x;
         let area_key = stream_key(seed, pixel as u64, dims::PIXEL);
         for s in samples.clone() {
-            let off = sample_filter(profile.filter, area.sample(area_key, s));
-            (xs[k], ys[k]) = (x as f32 + 0.5 + off[0], y as f32 + 0.5 + off[1]);
+            (cx[k], cy[k], keys[k], index[k]) = (x as f32 + 0.5, y as f32 + 0.5, area_key, s);
             paths.push(pixel, s);
             k += 1;
             if k == LANES {
-                let d = cam.pinhole_dirs_x8(f32x8::from(xs), f32x8::from(ys));
-                rays.push_camera(cam.position, &d, LANES, paths.len() as u32 - LANES as u32);
+                emit(LANES, &cx, &cy, &keys, &index, paths, rays);
                 k = 0;
             }
         }
     }
     if k > 0 {
-        let d = cam.pinhole_dirs_x8(f32x8::from(xs), f32x8::from(ys));
-        rays.push_camera(cam.position, &d, k, (paths.len() - k) as u32);
+        emit(k, &cx, &cy, &keys, &index, paths, rays);
     }
 }
 
