@@ -259,6 +259,8 @@ impl Ctx<'_> {
     /// arithmetic, appended to the request queue as rows; diffuse bounces, when the profile asks for
     /// them, lane by lane. Same requests and rays, in the same order, as shading the hits one by one.
     #[allow(clippy::too_many_arguments)]
+    // Out of line (one call per 8 hits): keeps it a separate entry in profiles.
+    #[inline(never)]
     fn lambert_x8(
         &self,
         rays: &RayQueue,
