@@ -17,7 +17,7 @@ use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
-use crate::simd::{f32x8, store8, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x8, load8, store8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
 
 /// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
@@ -117,6 +117,10 @@ impl Batch {
 /// Lanes `base..base + m` of a request field, as 8 lanes (past `m`: 0).
 #[inline(always)]
 fn lanes8(v: &[f32], base: usize, m: usize) -> f32x8 {
+    if m == LANES {
+        // A fixed-size load (a variable-length copy is a call to memmove).
+        return load8(v, base);
+    }
     let mut a = [0.0f32; LANES];
     a[..m].copy_from_slice(&v[base..base + m]);
     f32x8::from(a)
@@ -158,8 +162,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
         let time = f(&nee.time);
-        let mut path = [0u32; LANES];
-        path[..m].copy_from_slice(&nee.path[base..base + m]);
+        let path: [u32; LANES] = std::array::from_fn(|l| if l < m { nee.path[base + l] } else { 0 });
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
