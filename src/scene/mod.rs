@@ -15,6 +15,7 @@ use crate::camera::Camera;
 use crate::csg::Csg;
 use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
 use crate::optics::Ior;
+use crate::simd::{f32x8, Vec3x8};
 use glam::Vec3;
 
 /// Shift of the checker cells, in cells (see [`Texture::eval`]).
@@ -50,6 +51,31 @@ impl Texture {
             }
         }
     }
+}
+
+impl Texture {
+    /// The texture as checker parameters `(a, b, scale)` for [`checker_eval_x8`]: a constant is a
+    /// checker whose two colours are equal.
+    #[inline(always)]
+    pub fn checker_params(&self) -> (Vec3, Vec3, f32) {
+        match *self {
+            Texture::Constant(c) => (c, c, 1.0),
+            Texture::Checker { a, b, scale } => (a, b, scale),
+        }
+    }
+}
+
+/// Eight lanes of [`Texture::eval`] from [`Texture::checker_params`] per lane (`a`, `b`, `scale`) at
+/// points `p`: the same operations (so the same cells and the same colours) as the scalar.
+#[inline(always)]
+pub fn checker_eval_x8(a: Vec3x8, b: Vec3x8, scale: f32x8, p: Vec3x8) -> Vec3x8 {
+    let shift = f32x8::splat(CHECKER_SHIFT);
+    let q = Vec3x8::new((p.x / scale + shift).floor(), (p.y / scale + shift).floor(), (p.z / scale + shift).floor());
+    let (half, two) = (f32x8::splat(0.5), f32x8::splat(2.0));
+    let par = |v: f32x8| v - (v * half).floor() * two;
+    let s = par(q.x) + par(q.y) + par(q.z);
+    let odd = s.simd_eq(f32x8::ONE) | s.simd_eq(f32x8::splat(3.0));
+    Vec3x8::select(odd, b, a)
 }
 
 /// Parity (0 or 1) of `q.x + q.y + q.z` for integer-valued `q`, in float operations, exact for every
@@ -229,6 +255,55 @@ impl std::fmt::Debug for Scene {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::LANES;
+
+    /// [`checker_eval_x8`] against [`Texture::eval`] lane by lane: checkers of several scales (and a
+    /// constant) at points on cell boundaries, near zero and far away; same colour in every lane.
+    #[test]
+    fn checker_x8_matches_scalar() {
+        let texs = [
+            Texture::Checker { a: Vec3::new(0.9, 0.1, 0.2), b: Vec3::new(0.1, 0.8, 0.3), scale: 0.5 },
+            Texture::Checker { a: Vec3::ONE, b: Vec3::ZERO, scale: 1e-3 },
+            Texture::Checker { a: Vec3::splat(0.25), b: Vec3::splat(0.75), scale: 7.0 },
+            Texture::Constant(Vec3::new(0.3, 0.4, 0.5)),
+        ];
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let (mut checked, mut odd) = (0, 0);
+        for round in 0..2000 {
+            let pts: [Vec3; LANES] = std::array::from_fn(|l| {
+                let r = next();
+                let mag = [1.0f32, 0.5, 1e4, 1e-4][(r % 4) as usize];
+                let c = |k: u32| (((r >> (8 + 16 * k)) & 0xffff) as f32 / 32768.0 - 1.0) * mag;
+                // Every fourth lane exactly on a cell boundary.
+                if l % 4 == 0 {
+                    (Vec3::new(c(0), c(1), c(2)) * 4.0).round() * 0.5
+                } else {
+                    Vec3::new(c(0), c(1), c(2))
+                }
+            });
+            let texs_l: [Texture; LANES] = std::array::from_fn(|l| texs[(round + l) % texs.len()]);
+            let params = texs_l.map(|t| t.checker_params());
+            let lane3 = |f: &dyn Fn(usize) -> Vec3| {
+                let v: [Vec3; LANES] = std::array::from_fn(f);
+                Vec3x8::new(f32x8::from(v.map(|u| u.x)), f32x8::from(v.map(|u| u.y)), f32x8::from(v.map(|u| u.z)))
+            };
+            let got =
+                checker_eval_x8(lane3(&|l| params[l].0), lane3(&|l| params[l].1), f32x8::from(params.map(|p| p.2)), lane3(&|l| pts[l]));
+            for l in 0..LANES {
+                let want = texs_l[l].eval(pts[l]);
+                assert_eq!(got.lane(l), want, "{:?} at {}", texs_l[l], pts[l]);
+                odd += (want == params[l].1 && params[l].0 != params[l].1) as u32;
+                checked += 1;
+            }
+        }
+        assert!(checked == 16_000 && odd > 2000, "both colours must occur: {odd}");
+    }
 
     #[test]
     fn checker_parity_matches_integer_parity() {

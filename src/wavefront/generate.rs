@@ -120,7 +120,13 @@ fn generate_pinhole(
     let mut keys = [0u64; LANES];
     let mut index = [0u32; LANES];
     let mut k = 0;
-    let emit = |k: usize, cx: &[f32; LANES], cy: &[f32; LANES], keys: &[u64; LANES], index: &[u32; LANES], paths: &PathTable, rays: &mut RayQueue| {
+    let emit = |k: usize,
+                cx: &[f32; LANES],
+                cy: &[f32; LANES],
+                keys: &[u64; LANES],
+                index: &[u32; LANES],
+                paths: &PathTable,
+                rays: &mut RayQueue| {
         let u = area.sample_x8(keys, index, true);
         let off = if profile.filter == Filter::Box {
             sample_filter_x8(Filter::Box, u)

@@ -6,14 +6,16 @@
 use super::dims;
 use super::medium;
 use super::queues::{HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
-use crate::simd::{f32x8, Vec3x8, LANES};
-use crate::geometry::{normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_sphere_point};
+use crate::geometry::{
+    normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_sphere_point,
+};
 use crate::optics::{
     beer_lambert, fresnel_dielectric, fresnel_schlick, reflect, refract, sample_ggx_reflect, sample_ggx_reflect_weight,
     sample_hemisphere_cos,
 };
 use crate::sample::{hash_combine, random_f32, sample_2d};
-use crate::scene::{Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape};
+use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape};
+use crate::simd::{f32x8, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
@@ -275,7 +277,11 @@ impl Ctx<'_> {
         let m = idx.len();
         let mut p = [[0.0f32; LANES]; 3];
         let mut nf = [[0.0f32; LANES]; 3];
-        let mut w = [[0.0f32; LANES]; 3];
+        let mut thr = [[0.0f32; LANES]; 3];
+        let mut tex_at = [[0.0f32; LANES]; 3];
+        let mut tex_a = [[0.0f32; LANES]; 3];
+        let mut tex_b = [[0.0f32; LANES]; 3];
+        let mut tex_scale = [1.0f32; LANES];
         let mut scale = [0.0f32; LANES];
         let mut keys = [0u64; LANES];
         let mut samples = [0u32; LANES];
@@ -290,8 +296,8 @@ impl Ctx<'_> {
             let Material::Lambert { albedo } = &scene.materials[hit.material as usize] else {
                 unreachable!("lambert_x8 is given Lambert hits only")
             };
-            let a = albedo.eval(hit.p - scene.prims[hits.prim[i] as usize].motion * r.time);
-            let wl = r.throughput * a;
+            let at = hit.p - scene.prims[hits.prim[i] as usize].motion * r.time;
+            let (ta, tb, ts) = albedo.checker_params();
             let id = (pixel, r.branch, r.depth);
             let key = match *last_point {
                 Some((last, key)) if last == id => key,
@@ -301,11 +307,20 @@ impl Ctx<'_> {
             for c in 0..3 {
                 p[c][l] = hit.p[c];
                 nf[c][l] = hit.n_facing[c];
-                w[c][l] = wl[c];
+                tex_at[c][l] = at[c];
+                tex_a[c][l] = ta[c];
+                tex_b[c][l] = tb[c];
+                thr[c][l] = r.throughput[c];
             }
+            tex_scale[l] = ts;
             (scale[l], keys[l], samples[l], pixels[l], items[l]) = (hit.error_scale, key, sample, pixel, r);
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
+        let v3 = |a: &[[f32; LANES]; 3]| Vec3x8::new(v(&a[0]), v(&a[1]), v(&a[2]));
+        // Albedo (checker or constant) and the path weight, 8 lanes.
+        let albedo = checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), v3(&tex_at));
+        let wv = v3(&thr) * albedo;
+        let w = [wv.x.to_array(), wv.y.to_array(), wv.z.to_array()];
         let pv = Vec3x8::new(v(&p[0]), v(&p[1]), v(&p[2]));
         let nv = Vec3x8::new(v(&nf[0]), v(&nf[1]), v(&nf[2]));
         // The light is sampled from the hit point itself: the spawn offset is only there to keep the
@@ -317,7 +332,10 @@ impl Ctx<'_> {
             let wr = [v(&w[0]) * inv_pi, v(&w[1]) * inv_pi, v(&w[2]) * inv_pi].map(|x| x.to_array());
             let paths_of: [u32; LANES] = std::array::from_fn(|l| items[l].path);
             let times: [f32; LANES] = std::array::from_fn(|l| items[l].time);
-            nee.push_rows(m, NeeRows { p: &p, o: [&ox, &oy, &oz], n: &nf, w: &wr, path: &paths_of, key: &keys, sample: &samples, time: &times });
+            nee.push_rows(
+                m,
+                NeeRows { p: &p, o: [&ox, &oy, &oz], n: &nf, w: &wr, path: &paths_of, key: &keys, sample: &samples, time: &times },
+            );
         }
         if profile.diffuse_depth == 0 {
             return;
