@@ -278,7 +278,6 @@ impl Ctx<'_> {
         let mut p = [[0.0f32; LANES]; 3];
         let mut nf = [[0.0f32; LANES]; 3];
         let mut thr = [[0.0f32; LANES]; 3];
-        let mut tex_at = [[0.0f32; LANES]; 3];
         let mut tex_a = [[0.0f32; LANES]; 3];
         let mut tex_b = [[0.0f32; LANES]; 3];
         let mut tex_scale = [1.0f32; LANES];
@@ -287,16 +286,41 @@ impl Ctx<'_> {
         let mut samples = [0u32; LANES];
         let mut pixels = [0u32; LANES];
         let mut items = [RayItem::default(); LANES];
+        // Spheres (the common case) take their geometry in 8 lanes below: lanes in `sph`, with the ray,
+        // distance, centre (moved to the ray's time) and radius.
+        let mut sph = 0u32;
+        let (mut ro, mut rd) = ([[0.0f32; LANES]; 3], [[1.0f32; LANES]; 3]);
+        let (mut rt, mut sc, mut sr) = ([0.0f32; LANES], [[0.0f32; LANES]; 3], [1.0f32; LANES]);
+        let mut shift = [[0.0f32; LANES]; 3];
         for (l, &i) in idx.iter().enumerate() {
             let i = i as usize;
             let mut r = rays.get(i);
             absorb(scene, &mut r, hits.t[i]);
-            let hit = surface_hit(scene, &r, hits.t[i], hits.prim[i], hits.leaf[i], hits.flip[i]);
+            let prim = &scene.prims[hits.prim[i] as usize];
+            let sh = prim.motion * r.time;
+            let material = match prim.shape {
+                Shape::Sphere { center, radius } => {
+                    sph |= 1 << l;
+                    let c = center + sh;
+                    for k in 0..3 {
+                        (ro[k][l], rd[k][l], sc[k][l]) = (r.o[k], r.d[k], c[k]);
+                    }
+                    (rt[l], sr[l]) = (hits.t[i], radius);
+                    prim.material
+                }
+                _ => {
+                    let hit = surface_hit(scene, &r, hits.t[i], hits.prim[i], hits.leaf[i], hits.flip[i]);
+                    for k in 0..3 {
+                        (p[k][l], nf[k][l]) = (hit.p[k], hit.n_facing[k]);
+                    }
+                    scale[l] = hit.error_scale;
+                    hit.material
+                }
+            };
             let (pixel, sample) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
-            let Material::Lambert { albedo } = &scene.materials[hit.material as usize] else {
+            let Material::Lambert { albedo } = &scene.materials[material as usize] else {
                 unreachable!("lambert_x8 is given Lambert hits only")
             };
-            let at = hit.p - scene.prims[hits.prim[i] as usize].motion * r.time;
             let (ta, tb, ts) = albedo.checker_params();
             let id = (pixel, r.branch, r.depth);
             let key = match *last_point {
@@ -305,20 +329,49 @@ impl Ctx<'_> {
             };
             *last_point = Some((id, key));
             for c in 0..3 {
-                p[c][l] = hit.p[c];
-                nf[c][l] = hit.n_facing[c];
-                tex_at[c][l] = at[c];
+                shift[c][l] = sh[c];
                 tex_a[c][l] = ta[c];
                 tex_b[c][l] = tb[c];
                 thr[c][l] = r.throughput[c];
             }
             tex_scale[l] = ts;
-            (scale[l], keys[l], samples[l], pixels[l], items[l]) = (hit.error_scale, key, sample, pixel, r);
+            (keys[l], samples[l], pixels[l], items[l]) = (key, sample, pixel, r);
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
         let v3 = |a: &[[f32; LANES]; 3]| Vec3x8::new(v(&a[0]), v(&a[1]), v(&a[2]));
+        if sph != 0 {
+            // `surface_hit` of spheres, 8 lanes, the same operations: o + t d, re-projected onto the
+            // sphere in f64, the normalised radial normal, turned to face the ray.
+            let (o, d, c) = (v3(&ro), v3(&rd), v3(&sc));
+            let naive = o + d.scale(v(&rt));
+            let pn = [naive.x.to_array(), naive.y.to_array(), naive.z.to_array()];
+            let mut refined = [[0.0f32; LANES]; 3];
+            for l in 0..LANES {
+                let pl = Vec3::new(pn[0][l], pn[1][l], pn[2][l]);
+                let q = refine_sphere_point(Vec3::new(sc[0][l], sc[1][l], sc[2][l]), sr[l], pl);
+                for k in 0..3 {
+                    refined[k][l] = q[k];
+                }
+            }
+            let ps = v3(&refined);
+            let rel = ps - c;
+            let rcp = f32x8::ONE / rel.dot_unfused(rel).sqrt();
+            let ok = rcp.is_finite() & rcp.simd_gt(f32x8::ZERO);
+            let n = Vec3x8::select(ok, rel.scale(rcp), Vec3x8::splat(Vec3::ZERO));
+            let front = d.dot_unfused(n).simd_lt(f32x8::ZERO);
+            let neg = Vec3x8::new(-n.x, -n.y, -n.z);
+            let n_facing = Vec3x8::select(front, n, neg);
+            let mask =
+                f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if sph & (1 << l) != 0 { f32::from_bits(u32::MAX) } else { 0.0 }));
+            let (pv, nv) = (Vec3x8::select(mask, ps, v3(&p)), Vec3x8::select(mask, n_facing, v3(&nf)));
+            p = [pv.x.to_array(), pv.y.to_array(), pv.z.to_array()];
+            nf = [nv.x.to_array(), nv.y.to_array(), nv.z.to_array()];
+            scale = mask.select(f32x8::ZERO, v(&scale)).to_array();
+        }
+        // Texture lookups happen in the primitive's frame at the ray's time.
+        let ps = v3(&p) - v3(&shift);
         // Albedo (checker or constant) and the path weight, 8 lanes.
-        let albedo = checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), v3(&tex_at));
+        let albedo = checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), ps);
         let wv = v3(&thr) * albedo;
         let w = [wv.x.to_array(), wv.y.to_array(), wv.z.to_array()];
         let pv = Vec3x8::new(v(&p[0]), v(&p[1]), v(&p[2]));
