@@ -275,9 +275,32 @@ impl Ctx<'_> {
     ) {
         let (scene, profile) = (self.scene, self.profile);
         let m = idx.len();
+        // Ray fields as lane arrays, straight from the queue: one vector load per field when the chunk
+        // is a run of consecutive rays (the usual case: a queue whose hits are mostly Lambert), else one
+        // load per lane. Lanes past `m` repeat the chunk's first ray.
+        let i0 = idx[0] as usize;
+        let run = m == LANES && idx[LANES - 1] as usize == i0 + LANES - 1;
+        let at = |l: usize| idx[l.min(m - 1)] as usize;
+        fn gather<T: Copy + Default>(v: &[T], run: bool, i0: usize, at: impl Fn(usize) -> usize) -> [T; LANES] {
+            if run {
+                v[i0..i0 + LANES].try_into().unwrap()
+            } else {
+                std::array::from_fn(|l| v[at(l)])
+            }
+        }
+        let ro = [gather(&rays.ox, run, i0, at), gather(&rays.oy, run, i0, at), gather(&rays.oz, run, i0, at)];
+        let rd = [gather(&rays.dx, run, i0, at), gather(&rays.dy, run, i0, at), gather(&rays.dz, run, i0, at)];
+        let mut thr = [gather(&rays.tr, run, i0, at), gather(&rays.tg, run, i0, at), gather(&rays.tb, run, i0, at)];
+        let rt = gather(&hits.t, run, i0, at);
+        let times = if rays.with_time { gather(&rays.time, run, i0, at) } else { [0.0; LANES] };
+        let path = gather(&rays.path, run, i0, at);
+        let branch = gather(&rays.branch, run, i0, at);
+        let depth = gather(&rays.depth, run, i0, at);
+        let media = gather(&rays.media, run, i0, at);
+        let prims = gather(&hits.prim, run, i0, at);
+
         let mut p = [[0.0f32; LANES]; 3];
         let mut nf = [[0.0f32; LANES]; 3];
-        let mut thr = [[0.0f32; LANES]; 3];
         let mut tex_a = [[0.0f32; LANES]; 3];
         let mut tex_b = [[0.0f32; LANES]; 3];
         let mut tex_scale = [1.0f32; LANES];
@@ -285,31 +308,35 @@ impl Ctx<'_> {
         let mut keys = [0u64; LANES];
         let mut samples = [0u32; LANES];
         let mut pixels = [0u32; LANES];
-        let mut items = [RayItem::default(); LANES];
-        // Spheres (the common case) take their geometry in 8 lanes below: lanes in `sph`, with the ray,
-        // distance, centre (moved to the ray's time) and radius.
+        // Spheres (the common case) take their geometry in 8 lanes below: lanes in `sph`, with their
+        // centre moved to the ray's time, and radius.
         let mut sph = 0u32;
-        let (mut ro, mut rd) = ([[0.0f32; LANES]; 3], [[1.0f32; LANES]; 3]);
-        let (mut rt, mut sc, mut sr) = ([0.0f32; LANES], [[0.0f32; LANES]; 3], [1.0f32; LANES]);
+        let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
         let mut shift = [[0.0f32; LANES]; 3];
         for (l, &i) in idx.iter().enumerate() {
             let i = i as usize;
-            let mut r = rays.get(i);
-            absorb(scene, &mut r, hits.t[i]);
-            let prim = &scene.prims[hits.prim[i] as usize];
-            let sh = prim.motion * r.time;
+            if media[l] != MediumStack::default() {
+                // Inside a medium: Beer-Lambert along the segment just travelled.
+                let mut r = rays.get(i);
+                absorb(scene, &mut r, rt[l]);
+                for k in 0..3 {
+                    thr[k][l] = r.throughput[k];
+                }
+            }
+            let prim = &scene.prims[prims[l] as usize];
+            let sh = prim.motion * times[l];
             let material = match prim.shape {
                 Shape::Sphere { center, radius } => {
                     sph |= 1 << l;
                     let c = center + sh;
                     for k in 0..3 {
-                        (ro[k][l], rd[k][l], sc[k][l]) = (r.o[k], r.d[k], c[k]);
+                        sc[k][l] = c[k];
                     }
-                    (rt[l], sr[l]) = (hits.t[i], radius);
+                    sr[l] = radius;
                     prim.material
                 }
                 _ => {
-                    let hit = surface_hit(scene, &r, hits.t[i], hits.prim[i], hits.leaf[i], hits.flip[i]);
+                    let hit = surface_hit(scene, &rays.get(i), rt[l], prims[l], hits.leaf[i], hits.flip[i]);
                     for k in 0..3 {
                         (p[k][l], nf[k][l]) = (hit.p[k], hit.n_facing[k]);
                     }
@@ -317,25 +344,24 @@ impl Ctx<'_> {
                     hit.material
                 }
             };
-            let (pixel, sample) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
+            let (pixel, sample) = (paths.pixel[path[l] as usize], paths.sample[path[l] as usize]);
             let Material::Lambert { albedo } = &scene.materials[material as usize] else {
                 unreachable!("lambert_x8 is given Lambert hits only")
             };
             let (ta, tb, ts) = albedo.checker_params();
-            let id = (pixel, r.branch, r.depth);
+            let id = (pixel, branch[l], depth[l]);
             let key = match *last_point {
                 Some((last, key)) if last == id => key,
-                _ => point_key(pixel, r.branch, r.depth),
+                _ => point_key(pixel, branch[l], depth[l]),
             };
             *last_point = Some((id, key));
             for c in 0..3 {
                 shift[c][l] = sh[c];
                 tex_a[c][l] = ta[c];
                 tex_b[c][l] = tb[c];
-                thr[c][l] = r.throughput[c];
             }
             tex_scale[l] = ts;
-            (keys[l], samples[l], pixels[l], items[l]) = (key, sample, pixel, r);
+            (keys[l], samples[l], pixels[l]) = (key, sample, pixel);
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
         let v3 = |a: &[[f32; LANES]; 3]| Vec3x8::new(v(&a[0]), v(&a[1]), v(&a[2]));
@@ -383,18 +409,16 @@ impl Ctx<'_> {
         if !scene.lights.is_empty() {
             let inv_pi = f32x8::splat(FRAC_1_PI);
             let wr = [v(&w[0]) * inv_pi, v(&w[1]) * inv_pi, v(&w[2]) * inv_pi].map(|x| x.to_array());
-            let paths_of: [u32; LANES] = std::array::from_fn(|l| items[l].path);
-            let times: [f32; LANES] = std::array::from_fn(|l| items[l].time);
             nee.push_rows(
                 m,
-                NeeRows { p: &p, o: [&ox, &oy, &oz], n: &nf, w: &wr, path: &paths_of, key: &keys, sample: &samples, time: &times },
+                NeeRows { p: &p, o: [&ox, &oy, &oz], n: &nf, w: &wr, path: &path, key: &keys, sample: &samples, time: &times },
             );
         }
         if profile.diffuse_depth == 0 {
             return;
         }
-        for l in 0..m {
-            let r = &items[l];
+        for (l, &i) in idx.iter().enumerate() {
+            let r = &rays.get(i as usize);
             if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
                 // Its own strategy: borrowing the pixel strategy made `center` pixels bounce
                 // every path in the one direction (0.5, 0.5) maps to, a biased estimate.
