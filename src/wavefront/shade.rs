@@ -319,8 +319,8 @@ impl Ctx<'_> {
                 // Inside a medium: Beer-Lambert along the segment just travelled.
                 let mut r = rays.get(i);
                 absorb(scene, &mut r, rt[l]);
-                for k in 0..3 {
-                    thr[k][l] = r.throughput[k];
+                for (t, c) in thr.iter_mut().zip(r.throughput.to_array()) {
+                    t[l] = c;
                 }
             }
             let prim = &scene.prims[prims[l] as usize];
