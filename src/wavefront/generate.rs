@@ -120,43 +120,41 @@ fn generate_pinhole(
     let mut keys = [0u64; LANES];
     let mut index = [0u32; LANES];
     let mut k = 0;
-    let emit = |k: usize,
-                cx: &[f32; LANES],
-                cy: &[f32; LANES],
-                keys: &[u64; LANES],
-                index: &[u32; LANES],
-                paths: &PathTable,
-                rays: &mut RayQueue| {
-        let u = area.sample_x8(keys, index, true);
-        let off = if profile.filter == Filter::Box {
-            sample_filter_x8(Filter::Box, u)
-        } else {
-            // Tent and Gaussian stay scalar: their 8-lane twins round differently.
-            let (u0, u1) = (u[0].to_array(), u[1].to_array());
-            let mut o = [[0.0f32; LANES]; 2];
-            for l in 0..LANES {
-                [o[0][l], o[1][l]] = sample_filter(profile.filter, [u0[l], u1[l]]);
-            }
-            [f32x8::from(o[0]), f32x8::from(o[1])]
+    // Path of the next ray to emit (paths are made a pixel at a time, ahead of the rays).
+    let mut next_path = paths.len() as u32;
+    let emit =
+        |k: usize, cx: &[f32; LANES], cy: &[f32; LANES], keys: &[u64; LANES], index: &[u32; LANES], first: u32, rays: &mut RayQueue| {
+            let u = area.sample_x8(keys, index, true);
+            let off = if profile.filter == Filter::Box {
+                sample_filter_x8(Filter::Box, u)
+            } else {
+                // Tent and Gaussian stay scalar: their 8-lane twins round differently.
+                let (u0, u1) = (u[0].to_array(), u[1].to_array());
+                let mut o = [[0.0f32; LANES]; 2];
+                for l in 0..LANES {
+                    [o[0][l], o[1][l]] = sample_filter(profile.filter, [u0[l], u1[l]]);
+                }
+                [f32x8::from(o[0]), f32x8::from(o[1])]
+            };
+            let d = cam.pinhole_dirs_x8(f32x8::from(*cx) + off[0], f32x8::from(*cy) + off[1]);
+            rays.push_camera(cam.position, &d, k, first);
         };
-        let d = cam.pinhole_dirs_x8(f32x8::from(*cx) + off[0], f32x8::from(*cy) + off[1]);
-        rays.push_camera(cam.position, &d, k, (paths.len() - k) as u32);
-    };
     for (x, y) in tile.pixels_z_order() {
         let pixel = y * scene.width + x;
         let area_key = stream_key(seed, pixel as u64, dims::PIXEL);
+        paths.push_pixel(pixel, samples.clone());
         for s in samples.clone() {
             (cx[k], cy[k], keys[k], index[k]) = (x as f32 + 0.5, y as f32 + 0.5, area_key, s);
-            paths.push(pixel, s);
             k += 1;
             if k == LANES {
-                emit(LANES, &cx, &cy, &keys, &index, paths, rays);
+                emit(LANES, &cx, &cy, &keys, &index, next_path, rays);
+                next_path += LANES as u32;
                 k = 0;
             }
         }
     }
     if k > 0 {
-        emit(k, &cx, &cy, &keys, &index, paths, rays);
+        emit(k, &cx, &cy, &keys, &index, next_path, rays);
     }
 }
 

@@ -425,6 +425,19 @@ impl PathTable {
         self.lb.push(0.0);
         (self.pixel.len() - 1) as u32
     }
+    /// Paths for samples `samples` of one pixel (as one [`PathTable::push`] per sample, in order);
+    /// returns the first new path's index.
+    #[inline]
+    pub fn push_pixel(&mut self, pixel: u32, samples: std::ops::Range<u32>) -> u32 {
+        let first = self.pixel.len() as u32;
+        let n = samples.len();
+        self.pixel.extend(std::iter::repeat_n(pixel, n));
+        self.sample.extend(samples);
+        for v in [&mut self.lr, &mut self.lg, &mut self.lb] {
+            v.resize(v.len() + n, 0.0);
+        }
+        first
+    }
     #[inline]
     pub fn add(&mut self, path: u32, c: Vec3) {
         let i = path as usize;
