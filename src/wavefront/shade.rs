@@ -281,6 +281,7 @@ impl Ctx<'_> {
         let i0 = idx[0] as usize;
         let run = m == LANES && idx[LANES - 1] as usize == i0 + LANES - 1;
         let at = |l: usize| idx[l.min(m - 1)] as usize;
+        #[inline(always)]
         fn gather<T: Copy + Default>(v: &[T], run: bool, i0: usize, at: impl Fn(usize) -> usize) -> [T; LANES] {
             if run {
                 v[i0..i0 + LANES].try_into().unwrap()
