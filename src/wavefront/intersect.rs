@@ -4,7 +4,7 @@
 //! that reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
 use super::queues::{CsgCandidates, HitQueue, RayQueue, NONE};
-use crate::accel::{intersect_aabb_x8, splat_ray, PacketRay, GROUP};
+use crate::accel::{intersect_aabb_x8, splat_ray, Bvh8Stack, PacketRay, GROUP};
 use crate::geometry::{
     intersect_disk_f64, intersect_disk_x8, intersect_ellipsoid_f64, intersect_ellipsoid_x8, intersect_obox_f64, intersect_obox_x8,
     intersect_plane_f64, intersect_plane_x8, intersect_quad_f64, intersect_quad_x8, intersect_sphere_f64, intersect_sphere_x8, MISS,
@@ -295,6 +295,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
 fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQueue, cands: &mut CsgCandidates, mode: Traversal) {
     let len = rays.len();
     let none = i32x8::splat(NONE as i32);
+    let mut stack = Bvh8Stack::default();
     for base in (0..len).step_by(LANES) {
         let (mut ray, time) = gather_packet(rays, order, base, len);
         let mut ids = none;
@@ -304,7 +305,7 @@ fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQ
         }
         let live = LANES.min(len - base);
         if mode == Traversal::WidePackets {
-            scene.bvh8.traverse_closest_x8(&mut ray, |bi, r| {
+            scene.bvh8.traverse_closest_x8(&mut ray, &mut stack, |bi, r| {
                 hit_bounded(scene, bi, r, &mut ids, time, cands, 0xff, |l| order[base + l]);
             });
             let found = ids.simd_eq(none);
@@ -326,7 +327,7 @@ fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQ
             let mut id = i32x8::splat(ia[l]);
             let t1 = ta.map(|t| f32x8::splat(t[l]));
             let r0 = r;
-            scene.bvh8.traverse_closest_splat(&r0, |bi, tmax| {
+            scene.bvh8.traverse_closest_splat(&r0, &mut stack, |bi, tmax| {
                 hit_bounded(scene, bi, &mut r, &mut id, t1, cands, 1, |_| i as u32);
                 *tmax = r.tmax.to_array()[0];
             });
