@@ -9,7 +9,7 @@ use glam::{DVec3, Vec3};
 use rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use strata::accel::{
-    build_bvh, intersect_aabb_f64, intersect_aabb_x8, intersect_children_single, transpose8x8, Aabb, BuildOptions, Bvh, Bvh8, Bvh8Node, Bvh8Stack,
+    build_bvh, intersect_aabb_f64, intersect_aabb_x8, intersect_children_single, transpose8x8, Aabb, BuildOptions, Bvh, Bvh8, Bvh8Node, Bvh8Stack, Collapse,
     PacketRay, MAX_DEPTH, WIDTH,
 };
 use strata::csg::CsgArena;
@@ -75,10 +75,16 @@ fn random_boxes(rng: &mut Rand, n: usize, half_extent: f32, max_size: f32) -> Ve
 
 fn collapse_ok(bounds: &[Aabb], opts: &BuildOptions) -> (Bvh, Bvh8) {
     let bvh = build_bvh(bounds, opts);
-    let w = Bvh8::from_bvh(&bvh);
-    if let Err(e) = w.validate(bounds) {
-        panic!("Bvh8::validate failed for {} boxes ({opts:?}): {e}", bounds.len());
+    let greedy = Bvh8::from_bvh(&bvh, Collapse::Greedy);
+    if let Err(e) = greedy.validate(bounds) {
+        panic!("Bvh8::validate failed for {} boxes ({opts:?}, greedy collapse): {e}", bounds.len());
     }
+    let w = Bvh8::from_bvh(&bvh, Collapse::Sah);
+    if let Err(e) = w.validate(bounds) {
+        panic!("Bvh8::validate failed for {} boxes ({opts:?}, SAH collapse): {e}", bounds.len());
+    }
+    // The SAH collapse is optimal over all cuts of the binary tree, the greedy one is one of them.
+    assert!(w.sah_cost() <= greedy.sah_cost() * (1.0 + 1e-5), "SAH collapse {} > greedy {}", w.sah_cost(), greedy.sah_cost());
     (bvh, w)
 }
 
@@ -111,7 +117,8 @@ fn bvh8_invariants_on_random_and_degenerate_sets() {
         if n >= 100 {
             // Greedy collapse fills nodes: on random sets, at least 5 children per node on average.
             let slots: usize = w.nodes.iter().map(|n| n.child_count()).sum();
-            println!("{n} boxes, max_leaf {max_leaf}: {slots} slots in {} nodes, {inner} binary inner", w.nodes.len());
+            // Most binary inner nodes are flattened into their wide parents.
+            assert!(2 * w.nodes.len() < inner, "{n} boxes, max_leaf {max_leaf}: {slots} slots in {} nodes, {inner} binary inner", w.nodes.len());
         }
     }
     // Empty input: an empty tree.
