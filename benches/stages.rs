@@ -13,7 +13,7 @@ use strata::csg::{intervals_f64, CsgArena};
 use strata::scene::{Profile, Scene, Shape};
 use strata::wavefront::csg_merge::csg_merge;
 use strata::wavefront::generate::generate;
-use strata::wavefront::intersect::{intersect, intersect_with, prim_t_f64, Traversal};
+use strata::wavefront::intersect::{intersect, intersect_with, prim_t_f64, Traversal, INCOHERENT};
 use strata::wavefront::queues::NONE;
 use strata::wavefront::shade::{shade, ShadeOut};
 use strata::wavefront::shadow::{occluded_x8, occlusion_group};
@@ -171,10 +171,9 @@ fn bench_intersect_secondary(c: &mut Criterion) {
     let pool = support::pool();
     let scene = support::scene("bench_spheres.toml");
     let qs = secondary_queues(&scene, &support::camera_queues(&scene, 1));
-    // The traversals of incoherent queues side by side (`Traversal`); `intersect` uses `INCOHERENT`.
-    time_intersect(c, &pool, &scene, &qs, "secondary/bench_spheres.toml", Traversal::Groups);
-    time_intersect(c, &pool, &scene, &qs, "secondary_wide_single/bench_spheres.toml", Traversal::WideSingle);
-    time_intersect(c, &pool, &scene, &qs, "secondary_wide_packets/bench_spheres.toml", Traversal::WidePackets);
+    // What `intersect` does (`INCOHERENT`: wide packets), and the group traversal beside it.
+    time_intersect(c, &pool, &scene, &qs, "secondary/bench_spheres.toml", INCOHERENT);
+    time_intersect(c, &pool, &scene, &qs, "secondary_groups/bench_spheres.toml", Traversal::Groups);
 }
 
 /// The shade stage on the camera hits of the showcase (glass, mirror, glossy, CSG, two lights):

@@ -615,9 +615,11 @@ fn stage_queue(rng: &mut Rand, scene: &Scene, n: usize, s: f32, coherent: bool) 
 /// incoherent queues. (CSG candidates may differ: which ones are recorded depends on the `tmax` a ray
 /// has when it reaches a solid, hence on the visiting order; csg_merge's result does not.)
 type Hits = Vec<(u32, u32, u32, bool)>;
-fn stage_hits(scene: &Scene, q: &RayQueue, traversal: Traversal) -> (Hits, Hits) {
+fn stage_hits(scene: &Scene, q: &RayQueue, traversal: Traversal, incoherent: bool) -> (Hits, Hits) {
     let (mut hits, mut cands, mut arena) = (HitQueue::default(), CsgCandidates::default(), CsgArena::new());
     intersect_with(scene, q, &mut hits, &mut cands, traversal);
+    // The stage fills its octant order only for queues it treats as incoherent (those that take `traversal`).
+    assert_eq!(hits.order.len() == q.len(), incoherent, "queue coherence misjudged");
     let list = |h: &HitQueue| (0..q.len()).map(|i| (h.t[i].to_bits(), h.prim[i], h.leaf[i], h.flip[i])).collect();
     let before = list(&hits);
     csg_merge(scene, q, &mut cands, &mut hits, &mut arena);
@@ -629,18 +631,17 @@ fn intersect_stage_is_identical_with_the_wide_bvh() {
     let mut rng = Rand::new(88);
     let mut hit = 0usize;
     for (s, motion, csg) in [(1.0f32, false, false), (1.0, true, false), (1.0, false, true), (1e4, false, false), (1e-4, true, true)] {
-        let scene = stage_scene(&mut rng, 240, s, motion, csg);
-        assert!(!scene.bvh8.is_empty());
+        let mut scene = stage_scene(&mut rng, 240, s, motion, csg);
+        // Built whatever the tree's size (the scene builds it only from `WIDE_MIN_NODES` nodes).
+        scene.bvh8 = Bvh8::from_bvh(&scene.bvh, Collapse::Sah);
         for coherent in [false, true] {
             let q = stage_queue(&mut rng, &scene, 3000, s, coherent);
-            let groups = stage_hits(&scene, &q, Traversal::Groups);
-            for traversal in [Traversal::WidePackets, Traversal::WideSingle] {
-                let wide = stage_hits(&scene, &q, traversal);
-                for (stage, g, w) in [("intersect", &groups.0, &wide.0), ("csg_merge", &groups.1, &wide.1)] {
-                    for (i, (g, w)) in g.iter().zip(w).enumerate() {
-                        let r = q.get(i);
-                        assert_eq!(g, w, "after {stage}, {traversal:?}, scale {s}, motion {motion}, csg {csg}, coherent {coherent}: ray {i} o {:?} d {:?}", r.o, r.d);
-                    }
+            let groups = stage_hits(&scene, &q, Traversal::Groups, !coherent);
+            let wide = stage_hits(&scene, &q, Traversal::Wide, !coherent);
+            for (stage, g, w) in [("intersect", &groups.0, &wide.0), ("csg_merge", &groups.1, &wide.1)] {
+                for (i, (g, w)) in g.iter().zip(w).enumerate() {
+                    let r = q.get(i);
+                    assert_eq!(g, w, "after {stage}, scale {s}, motion {motion}, csg {csg}, coherent {coherent}: ray {i} o {:?} d {:?}", r.o, r.d);
                 }
             }
             hit += groups.1.iter().filter(|h| h.1 != u32::MAX).count();

@@ -29,8 +29,8 @@ pub use aabb::{intersect_aabb_f64, intersect_aabb_x8, slab_interval_f64, Aabb, P
 pub use build::build_bvh;
 pub use group::GROUP;
 pub use node::{BvhNode, MAX_LEAF_COUNT};
-pub use wide::{Bvh8, Bvh8Node, Collapse, WIDTH};
-pub use wide_traverse::{intersect_children_single, splat_ray, transpose8x8, Bvh8Stack};
+pub use wide::{Bvh8, Bvh8Node, Collapse, WIDE_MIN_NODES, WIDTH};
+pub use wide_traverse::{intersect_children_single, transpose8x8, Bvh8Stack};
 
 /// Maximum number of levels of a built tree (a root-only tree has depth 1). The build guarantees it
 /// by switching to object-median splits when an SAH split would leave too few levels; traversal

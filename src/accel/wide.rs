@@ -17,6 +17,25 @@ use bytemuck::{Pod, Zeroable};
 /// Children per wide node.
 pub const WIDTH: usize = 8;
 
+/// Smallest binary tree (in nodes) for which the scene builds a [`Bvh8`] (`scene::compile`), i.e. for
+/// which the intersect stage sends incoherent rays through the wide BVH. Below it, groups of packets
+/// through the binary tree were faster: the top levels, where a packet's rays still enter the same
+/// nodes, are most of a small tree, and there a group shares one box test among 64 rays while the wide
+/// packet traversal tests each ray. Secondary rays of the intersect benchmark's construction, one
+/// thread, best of 15, M rays/s groups / wide:
+///
+/// | scene (binary nodes)                        | groups | wide  |
+/// |---------------------------------------------|--------|-------|
+/// | glass.toml (3 shapes)                       | 54.0   | 48.0  |
+/// | showcase.toml (7 shapes)                    | 44.6   | 42.4  |
+/// | first 40 of bench_spheres' spheres (77)     | 44.6   | 41.9  |
+/// | first 160 (313)                             | 29.9   | 29.1  |
+/// | bench_csg.toml (415)                        | 22.0   | 25.3  |
+/// | first 320 (603)                             | 22.4   | 23.3  |
+/// | first 640 (1189)                            | 16.7   | 18.1  |
+/// | bench_spheres.toml, 1000 spheres (1811)     | 13.9   | 15.1  |
+pub const WIDE_MIN_NODES: usize = 400;
+
 /// One wide node: `repr(C, align(64))`, `Pod`, 256 bytes (4 cache lines), no padding.
 ///
 /// | bytes    | field    | content                                                                    |

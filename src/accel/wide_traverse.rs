@@ -188,7 +188,7 @@ pub fn intersect_children_single(n: &Bvh8Node, ray: &Ray8, lane: usize) -> (f32x
 
 /// A packet whose 8 lanes are the one ray `(o, d)` (`inv_d = 1 / d` as [`Ray8::new`] computes it).
 #[inline(always)]
-pub fn splat_ray(o: Vec3, d: Vec3, tmax: f32) -> Ray8 {
+fn splat_ray(o: Vec3, d: Vec3, tmax: f32) -> Ray8 {
     Ray8::new(Vec3x8::splat(o), Vec3x8::splat(d), f32x8::splat(tmax))
 }
 
@@ -198,18 +198,15 @@ impl Bvh8 {
     /// Children whose box the ray's padded slab interval does not overlap within `[0, tmax]` are
     /// skipped, as the packet test decides for this ray's lane (see the module doc). Nothing happens
     /// when `tmax < 0` (an inactive ray).
-    pub fn traverse_closest_single(&self, o: Vec3, d: Vec3, tmax: f32, stack: &mut Bvh8Stack, leaf: impl FnMut(u32, &mut f32)) {
-        self.traverse_closest_splat(&splat_ray(o, d, tmax), stack, leaf);
-    }
-
-    /// [`Bvh8::traverse_closest_single`] for a ray given as a splatted packet (every lane the same
-    /// ray, as [`splat_ray`] makes it); its lane 0 `tmax` is the starting `tmax`.
-    pub fn traverse_closest_splat(&self, ray: &Ray8, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, &mut f32)) {
-        let mut tmax = ray.tmax.to_array()[0];
+    ///
+    /// Not used by the intersect stage (`wavefront::intersect::INCOHERENT` has the measurement: its
+    /// octant-sorted packets share node tests and leaf calls that a lone ray pays alone).
+    pub fn traverse_closest_single(&self, o: Vec3, d: Vec3, tmax: f32, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, &mut f32)) {
+        let mut tmax = tmax;
         if self.nodes.is_empty() || !(tmax >= 0.0) {
             return;
         }
-        let ls = LaneSlabs::new(ray);
+        let ls = LaneSlabs::new(&splat_ray(o, d, tmax));
         let (s, oct) = (ls.lane(0), ls.oct[0]);
         let stack = &mut stack.0[..];
         let mut sp = 0usize;

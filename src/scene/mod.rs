@@ -186,7 +186,8 @@ pub struct Scene {
     pub bounds: Vec<Aabb>,
     /// The BVH indexes `bounded` (prim ids); unbounded prims (planes) are tested against every packet.
     pub bvh: Bvh,
-    /// The same tree collapsed to 8 children per node, for incoherent rays (`wavefront::intersect`).
+    /// The same tree collapsed to 8 children per node, for incoherent rays (`wavefront::intersect`);
+    /// empty when `bvh` has fewer than `accel::WIDE_MIN_NODES` nodes (groups are faster there).
     pub bvh8: Bvh8,
     pub bounded: Vec<u32>,
     pub unbounded: Vec<u32>,

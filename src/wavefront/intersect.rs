@@ -1,10 +1,12 @@
-//! Stage 2: nearest hits of a ray queue: the unbounded planes first, then groups of 8 packets of 8 rays
-//! traverse the BVH together (`accel/group.rs`) with the SIMD primitive kernels at the leaves. Queues of
-//! incoherent rays are first partitioned by direction octant. CSG solids are not solved here: a packet
+//! Stage 2: nearest hits of a ray queue: the unbounded planes first, then the BVH with the SIMD
+//! primitive kernels at the leaves. Coherent queues (camera rays) traverse the binary BVH in groups of 8
+//! packets of 8 rays (`accel/group.rs`). Queues of incoherent rays are first partitioned by direction
+//! octant and gathered into packets, which traverse the 8-wide BVH (`accel/wide_traverse.rs`) when the
+//! scene has one, else go through the same group traversal. CSG solids are not solved here: a packet
 //! that reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
 use super::queues::{CsgCandidates, HitQueue, RayQueue, NONE};
-use crate::accel::{intersect_aabb_x8, splat_ray, Bvh8Stack, PacketRay, GROUP};
+use crate::accel::{intersect_aabb_x8, Bvh8Stack, PacketRay, GROUP};
 use crate::geometry::{
     intersect_disk_f64, intersect_disk_x8, intersect_ellipsoid_f64, intersect_ellipsoid_x8, intersect_obox_f64, intersect_obox_x8,
     intersect_plane_f64, intersect_plane_x8, intersect_quad_f64, intersect_quad_x8, intersect_sphere_f64, intersect_sphere_x8, MISS,
@@ -185,11 +187,10 @@ fn octant_order(rays: &RayQueue, order: &mut Vec<u32>) -> bool {
 pub enum Traversal {
     /// Groups of 8 octant-sorted packets through the binary BVH (`accel/group.rs`).
     Groups,
-    /// One ray at a time through the 8-wide BVH (`accel/wide.rs`); leaves test the ray splatted over
-    /// 8 lanes.
-    WideSingle,
-    /// Octant-sorted 8-ray packets through the 8-wide BVH, one box test per child.
-    WidePackets,
+    /// Octant-sorted 8-ray packets through the 8-wide BVH (`accel/wide_traverse.rs`), when the scene
+    /// has one (`scene.bvh8`, built for scenes of at least `WIDE_MIN_NODES` binary nodes); else
+    /// `Groups`.
+    Wide,
 }
 
 /// Nearest hits of `rays` (see the module doc), incoherent queues by [`INCOHERENT`].
@@ -197,12 +198,19 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
     intersect_with(scene, rays, hits, cands, INCOHERENT);
 }
 
-/// The traversal of incoherent queues that [`intersect`] uses.
-pub const INCOHERENT: Traversal = Traversal::Groups;
+/// The traversal of incoherent queues that [`intersect`] uses. Chosen by measurement
+/// (`cargo bench --bench stages -- intersect/secondary`, and per scene size, see `WIDE_MIN_NODES`):
+/// on the benchmark's secondary rays (1000 spheres) the wide packets intersect 8% more rays per second
+/// than groups. One ray at a time through the wide BVH (`Bvh8::traverse_closest_single`, leaves
+/// testing the ray splatted over 8 lanes) was measured too and dropped: 7.6 M rays/s against 13.9 for
+/// groups and 15.1 for wide packets (one thread, best of 15): octant-sorted secondary rays of one tile
+/// are coherent enough that a packet shares most node tests and leaf calls (0.36 leaf calls per ray
+/// for packets, 0.84 primitive tests per ray alone), and a lone ray's node loop is bound by latency.
+pub const INCOHERENT: Traversal = Traversal::Wide;
 
 /// Test bounded primitive `bi` (an index into `scene.bounded`) against the packet and record its hits;
-/// a CSG solid instead records a (ray, solid) candidate for each lane of `lanes` whose slab interval
-/// reaches its bounds, `ray_of(lane)` naming the ray.
+/// a CSG solid instead records a (ray, solid) candidate for each lane whose slab interval reaches its
+/// bounds, `ray_of(lane)` naming the ray.
 #[inline(always)]
 fn hit_bounded(
     scene: &Scene,
@@ -211,7 +219,6 @@ fn hit_bounded(
     ids: &mut i32x8,
     time: Option<f32x8>,
     cands: &mut CsgCandidates,
-    lanes: u32,
     ray_of: impl Fn(usize) -> u32,
 ) {
     let pid = scene.bounded[bi as usize];
@@ -220,7 +227,7 @@ fn hit_bounded(
         let b = &scene.bounds[pid as usize];
         // The swept bounds already cover the motion: test the world-space packet.
         let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(ray), ray.tmax);
-        let mut bits = mask.to_bitmask() & lanes;
+        let mut bits = mask.to_bitmask();
         while bits != 0 {
             let l = bits.trailing_zeros() as usize;
             bits &= bits - 1;
@@ -242,8 +249,8 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     cands.clear();
     let mut order = std::mem::take(&mut hits.order);
     let sorted = octant_order(rays, &mut order);
-    if sorted && incoherent != Traversal::Groups {
-        intersect_wide(scene, rays, &order, hits, cands, incoherent);
+    if sorted && incoherent == Traversal::Wide && !scene.bvh8.is_empty() {
+        intersect_wide(scene, rays, &order, hits, cands);
         hits.order = order;
         return;
     }
@@ -268,7 +275,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
             }
         }
         scene.bvh.traverse_closest_group(&mut rs[..k], |bi, j, ray| {
-            hit_bounded(scene, bi, ray, &mut ids[j], times[j], cands, 0xff, |l| ray_at(gbase + j * LANES + l) as u32);
+            hit_bounded(scene, bi, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
         });
         for j in 0..k {
             let base = gbase + j * LANES;
@@ -290,9 +297,9 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     hits.order = order;
 }
 
-/// An octant-sorted queue through the 8-wide BVH (`scene.bvh8`): packets of 8 rays are gathered in
-/// `order` and meet the planes together, then traverse as packets or one ray at a time.
-fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQueue, cands: &mut CsgCandidates, mode: Traversal) {
+/// An octant-sorted queue through the 8-wide BVH (`scene.bvh8`): packets of 8 rays gathered in `order`
+/// meet the planes, then traverse the wide BVH (`Bvh8::traverse_closest_x8`).
+fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQueue, cands: &mut CsgCandidates) {
     let len = rays.len();
     let none = i32x8::splat(NONE as i32);
     let mut stack = Bvh8Stack::default();
@@ -303,36 +310,15 @@ fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQ
             let t = prim_t_ties(&scene.prims[pid as usize], &mut ray, &ids, None);
             record(&mut ray, &mut ids, t, pid);
         }
-        let live = LANES.min(len - base);
-        if mode == Traversal::WidePackets {
-            scene.bvh8.traverse_closest_x8(&mut ray, &mut stack, |bi, r| {
-                hit_bounded(scene, bi, r, &mut ids, time, cands, 0xff, |l| order[base + l]);
-            });
-            let found = ids.simd_eq(none);
-            let t = bytemuck::cast::<i32x8, f32x8>(found).select(f32x8::splat(f32::INFINITY), ray.tmax);
-            let (ta, ia) = (t.to_array(), ids.to_array());
-            for l in 0..live {
-                let i = order[base + l] as usize;
-                (hits.t[i], hits.prim[i]) = (ta[l], ia[l] as u32);
-            }
-            continue;
-        }
-        let (tm, ia) = (ray.tmax.to_array(), ids.to_array());
-        let ta = time.map(|t| t.to_array());
-        for l in 0..live {
+        scene.bvh8.traverse_closest_x8(&mut ray, &mut stack, |bi, r| {
+            hit_bounded(scene, bi, r, &mut ids, time, cands, |l| order[base + l]);
+        });
+        let found = ids.simd_eq(none);
+        let t = bytemuck::cast::<i32x8, f32x8>(found).select(f32x8::splat(f32::INFINITY), ray.tmax);
+        let (ta, ia) = (t.to_array(), ids.to_array());
+        for l in 0..LANES.min(len - base) {
             let i = order[base + l] as usize;
-            let o = Vec3::new(rays.ox[i], rays.oy[i], rays.oz[i]);
-            let d = Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]);
-            let mut r = splat_ray(o, d, tm[l]);
-            let mut id = i32x8::splat(ia[l]);
-            let t1 = ta.map(|t| f32x8::splat(t[l]));
-            let r0 = r;
-            scene.bvh8.traverse_closest_splat(&r0, &mut stack, |bi, tmax| {
-                hit_bounded(scene, bi, &mut r, &mut id, t1, cands, 1, |_| i as u32);
-                *tmax = r.tmax.to_array()[0];
-            });
-            let found = id.to_array()[0] != NONE as i32;
-            (hits.t[i], hits.prim[i]) = (if found { r.tmax.to_array()[0] } else { f32::INFINITY }, id.to_array()[0] as u32);
+            (hits.t[i], hits.prim[i]) = (ta[l], ia[l] as u32);
         }
     }
 }
