@@ -9,8 +9,8 @@ use glam::{DVec3, Vec3};
 use rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use strata::accel::{
-    build_bvh, intersect_aabb_f64, intersect_aabb_x8, intersect_children_single, transpose8x8, Aabb, BuildOptions, Bvh, Bvh8, Bvh8Node, Bvh8Stack, Collapse,
-    PacketRay, MAX_DEPTH, WIDTH,
+    build_bvh, intersect_aabb_f64, intersect_aabb_x8, intersect_children_single, transpose8x8, Aabb, BuildOptions, Bvh, Bvh8, Bvh8Node,
+    Bvh8Stack, Collapse, PacketRay, MAX_DEPTH, WIDTH,
 };
 use strata::csg::CsgArena;
 use strata::scene::{parse_scene, Scene};
@@ -88,8 +88,11 @@ fn collapse_ok(bounds: &[Aabb], opts: &BuildOptions) -> (Bvh, Bvh8) {
     (bvh, w)
 }
 
-/// Leaves as (first, count, box bits) of the binary and of the wide tree.
-fn leaves(bvh: &Bvh, w: &Bvh8) -> (BTreeSet<(u32, u32, [u32; 6])>, BTreeSet<(u32, u32, [u32; 6])>) {
+/// Leaves as (first, count, box bits).
+type Leaves = BTreeSet<(u32, u32, [u32; 6])>;
+
+/// The leaves of the binary and of the wide tree.
+fn leaves(bvh: &Bvh, w: &Bvh8) -> (Leaves, Leaves) {
     let bits = |b: Aabb| [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z].map(f32::to_bits);
     let bin = bvh.nodes.iter().filter(|n| n.is_leaf()).map(|n| (n.left_first, n.count(), bits(n.aabb()))).collect();
     let wide = w
@@ -118,7 +121,11 @@ fn bvh8_invariants_on_random_and_degenerate_sets() {
             // Greedy collapse fills nodes: on random sets, at least 5 children per node on average.
             let slots: usize = w.nodes.iter().map(|n| n.child_count()).sum();
             // Most binary inner nodes are flattened into their wide parents.
-            assert!(2 * w.nodes.len() < inner, "{n} boxes, max_leaf {max_leaf}: {slots} slots in {} nodes, {inner} binary inner", w.nodes.len());
+            assert!(
+                2 * w.nodes.len() < inner,
+                "{n} boxes, max_leaf {max_leaf}: {slots} slots in {} nodes, {inner} binary inner",
+                w.nodes.len()
+            );
         }
     }
     // Empty input: an empty tree.
@@ -150,9 +157,7 @@ fn bvh8_validate_catches_corruption() {
         f(&mut w);
         w.validate(&bounds)
     };
-    let leaf_slot = |w: &Bvh8| {
-        w.nodes.iter().enumerate().find_map(|(k, n)| (0..WIDTH).find(|&i| n.count[i] > 0).map(|i| (k, i))).unwrap()
-    };
+    let leaf_slot = |w: &Bvh8| w.nodes.iter().enumerate().find_map(|(k, n)| (0..WIDTH).find(|&i| n.count[i] > 0).map(|i| (k, i))).unwrap();
     // A leaf slot shrunk (its last primitive then belongs to no leaf).
     assert!(corrupt(&|w| {
         let (k, i) = leaf_slot(w);
@@ -555,7 +560,12 @@ fn stage_scene(rng: &mut Rand, n: usize, s: f32, motion: bool, csg: bool) -> Sce
                 format!("type = \"box\"\nmin = {}\nmax = {}\ntransform = {{ rotate = {} }}\n", v(c - h), v(c + h), v(rot))
             }
             3 => format!("type = \"quad\"\norigin = {}\nu = {}\nv = {}\n", v(c), v(rng.vec(-2.0, 2.0) * s), v(rng.vec(-2.0, 2.0) * s)),
-            4 => format!("type = \"disk\"\ncenter = {}\nnormal = {}\nradius = {:e}\n", v(c), v(rng.dir().normalize()), rng.range(0.2, 1.5) * s),
+            4 => format!(
+                "type = \"disk\"\ncenter = {}\nnormal = {}\nradius = {:e}\n",
+                v(c),
+                v(rng.dir().normalize()),
+                rng.range(0.2, 1.5) * s
+            ),
             _ if csg => {
                 let h = rng.range(0.3, 1.0) * s;
                 format!(
@@ -641,7 +651,11 @@ fn intersect_stage_is_identical_with_the_wide_bvh() {
             for (stage, g, w) in [("intersect", &groups.0, &wide.0), ("csg_merge", &groups.1, &wide.1)] {
                 for (i, (g, w)) in g.iter().zip(w).enumerate() {
                     let r = q.get(i);
-                    assert_eq!(g, w, "after {stage}, scale {s}, motion {motion}, csg {csg}, coherent {coherent}: ray {i} o {:?} d {:?}", r.o, r.d);
+                    assert_eq!(
+                        g, w,
+                        "after {stage}, scale {s}, motion {motion}, csg {csg}, coherent {coherent}: ray {i} o {:?} d {:?}",
+                        r.o, r.d
+                    );
                 }
             }
             hit += groups.1.iter().filter(|h| h.1 != u32::MAX).count();
