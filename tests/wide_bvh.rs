@@ -252,6 +252,13 @@ fn random_node(rng: &mut Rand, s: f32) -> Bvh8Node {
             min += Vec3::splat(1e3 * s);
             max += Vec3::splat(1e3 * s);
         }
+        if rng.chance(0.03) {
+            // Beyond the f32 range in t for rays parallel to an axis (1e30 * 2^60 overflows): entry
+            // distances of +inf, which a ray with tmax = inf still enters.
+            let a = rng.below(3) as usize;
+            min[a] = 1e30;
+            max[a] = 2e30;
+        }
         for a in 0..3 {
             n.bounds[a][i] = min[a];
             n.bounds[a + 3][i] = max[a];
@@ -273,7 +280,11 @@ fn single_ray_slab_matches_packet_slab() {
             if rng.chance(0.3) {
                 let i = rng.below(node.child_count() as u32) as usize;
                 let a = rng.below(3) as usize;
-                o[a] = node.bounds[a + 3 * rng.below(2) as usize][i];
+                let plane = node.bounds[a + 3 * rng.below(2) as usize][i];
+                // (Origins stay within the packet test's domain, |o| < 2^68.)
+                if plane.abs() < 1e20 {
+                    o[a] = plane;
+                }
             }
             o
         });
@@ -662,4 +673,45 @@ fn intersect_stage_is_identical_with_the_wide_bvh() {
         }
     }
     assert!(hit > 10_000, "{hit} hits");
+}
+
+#[test]
+fn entry_distances_beyond_the_f32_range_are_entered() {
+    // A box at x = 1e30 met by rays along +x with d.x = 1e-9: entry at t = 1e39, +inf in f32, where the
+    // packet test still enters it (inf <= inf with tmax = inf). The wide traversals must too. (The box
+    // spans +-1e30 on the axes the rays are parallel to: a parallel axis's padded slab ends at about
+    // its distance times 2^60, `INV_D_CLAMP`, which must overflow too.)
+    let mut rng = Rand::new(89);
+    let mut prims = random_prims(&mut rng, 60, 1.0);
+    prims.push(Prim::Box(Aabb::new(Vec3::new(1e30, -1e30, -1e30), Vec3::new(2e30, 1e30, 1e30))));
+    let far = prims.len() as u32 - 1;
+    let bounds: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
+    let (_, w) = collapse_ok(&bounds, &BuildOptions::default());
+    let mut st = Bvh8Stack::default();
+    let rays: Vec<(Vec3, Vec3)> = (0..8).map(|k| (Vec3::new(-15.0, 15.5 - k as f32, 15.5), Vec3::new(1e-9, 0.0, -0.0))).collect();
+    let mut packet_best = [None; LANES];
+    let mut ray = packet(std::array::from_fn(|l| rays[l].0), std::array::from_fn(|l| rays[l].1), [f32::INFINITY; LANES]);
+    w.traverse_closest_x8(&mut ray, &mut st, |p, r| {
+        let mut tm = r.tmax.to_array();
+        for (l, &(o, d)) in rays.iter().enumerate() {
+            if let Some(t) = prims[p as usize].hit(o.as_dvec3(), d.as_dvec3()) {
+                if let Some(nt) = record(&mut packet_best[l], p, t) {
+                    tm[l] = nt;
+                }
+            }
+        }
+        r.tmax = f32x8::from(tm);
+    });
+    for (l, &(o, d)) in rays.iter().enumerate() {
+        let want = brute_closest(&prims, o, d, f32::INFINITY);
+        assert_eq!(want.map(|h| h.1), Some(far), "lane {l}: the far box is the only hit");
+        let mut best = None;
+        w.traverse_closest_single(o, d, f32::INFINITY, &mut st, |p, tm| {
+            if let Some(nt) = prims[p as usize].hit(o.as_dvec3(), d.as_dvec3()).and_then(|t| record(&mut best, p, t)) {
+                *tm = nt;
+            }
+        });
+        assert_eq!(best, want, "single ray {l}");
+        assert_eq!(packet_best[l], want, "packet lane {l}");
+    }
 }

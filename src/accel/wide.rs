@@ -152,7 +152,7 @@ impl Bvh8 {
         let mut c = 0.0;
         for n in &self.nodes {
             for i in 0..n.child_count() {
-                let a = n.child_aabb(i).surface_area() as f64;
+                let a = area_f64(&n.child_aabb(i));
                 c += if n.count[i] == 0 { a * SAH_TRAVERSAL_COST as f64 } else { a * n.count[i] as f64 * SAH_INTERSECT_COST as f64 };
             }
         }
@@ -192,28 +192,30 @@ struct SahCollapse {
 impl SahCollapse {
     fn new(bvh: &Bvh) -> Self {
         let m = bvh.nodes.len();
-        let mut cost = vec![[f32::INFINITY; WIDTH + 1]; m];
+        // f64: the surface area of a finite f32 box can overflow f32.
+        let mut cost = vec![[f64::INFINITY; WIDTH + 1]; m];
         let mut split = vec![[(0u8, 0u8); WIDTH + 1]; m];
         // Children come after their parent in `nodes`: reverse order visits children first.
         for n in (0..m).rev() {
             let node = &bvh.nodes[n];
-            let area = node.aabb().surface_area();
+            let area = area_f64(&node.aabb());
             if node.is_leaf() {
-                cost[n] = [area * node.count() as f32 * SAH_INTERSECT_COST; WIDTH + 1];
+                cost[n] = [area * node.count() as f64 * SAH_INTERSECT_COST as f64; WIDTH + 1];
                 continue;
             }
             let (l, r) = (node.left_first as usize, node.left_first as usize + 1);
             // dist[j]: the children's best use of at most j slots together.
-            let mut dist = [(f32::INFINITY, (0u8, 0u8)); WIDTH + 1];
+            let mut dist = [(f64::INFINITY, (0u8, 0u8)); WIDTH + 1];
             for (j, dj) in dist.iter_mut().enumerate().skip(2) {
                 for k in 1..j {
                     let c = cost[l][k] + cost[r][j - k];
-                    if c < dj.0 {
+                    // The first split is taken whatever its cost (a valid choice even if not finite).
+                    if c < dj.0 || k == 1 {
                         *dj = (c, (k as u8, (j - k) as u8));
                     }
                 }
             }
-            cost[n][1] = area * SAH_TRAVERSAL_COST + dist[WIDTH].0;
+            cost[n][1] = area * SAH_TRAVERSAL_COST as f64 + dist[WIDTH].0;
             for j in 2..=WIDTH {
                 (cost[n][j], split[n][j]) = if dist[j].0 < cost[n][j - 1] { dist[j] } else { (cost[n][j - 1], split[n][j - 1]) };
             }
@@ -247,6 +249,15 @@ impl SahCollapse {
     }
 }
 
+/// Surface area in f64 (that of a finite f32 box can overflow f32); 0 for an empty box.
+fn area_f64(b: &Aabb) -> f64 {
+    if b.is_empty() {
+        return 0.0;
+    }
+    let e = b.max.as_dvec3() - b.min.as_dvec3();
+    2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+}
+
 /// The binary nodes that become the children of the wide node standing for binary node `b`: its two
 /// children, then repeatedly the two children of the inner one of largest surface area in its place,
 /// up to [`WIDTH`]. A leaf `b` (a root-only tree) gives itself.
@@ -258,7 +269,7 @@ fn collapse_greedy(bvh: &Bvh, b: usize) -> Vec<usize> {
     let l = n.left_first as usize;
     let mut ch = vec![l, l + 1];
     while ch.len() < WIDTH {
-        let area = |c: usize| bvh.nodes[c].aabb().surface_area();
+        let area = |c: usize| area_f64(&bvh.nodes[c].aabb());
         let Some(i) =
             (0..ch.len()).filter(|&i| !bvh.nodes[ch[i]].is_leaf()).max_by(|&i, &j| area(ch[i]).total_cmp(&area(ch[j])).then(j.cmp(&i)))
         else {

@@ -171,12 +171,11 @@ pub fn transpose8x8(mut x: u64) -> u64 {
     x ^ t ^ (t << 28)
 }
 
-/// Push the children of `n` whose `key` (entry distance) is finite, farthest deepest, so that the
-/// nearest is on top; `lanes(i)` gives child `i`'s lane mask.
+/// Push the children of `n` in `hit` (bit `i` = child `i`), farthest (by `key`, the entry distance)
+/// deepest, so that the nearest is on top; `lanes(i)` gives child `i`'s lane mask. (An entry distance
+/// can be +inf, for a box beyond the f32 range that a ray with `tmax = inf` enters: it is pushed last.)
 #[inline(always)]
-fn push_children(n: &Bvh8Node, key: f32x8, lanes: impl Fn(usize) -> u32, stack: &mut [Entry], sp: &mut usize) {
-    let inf = f32x8::splat(f32::INFINITY);
-    let hit = key.simd_lt(inf).to_bitmask();
+fn push_children(n: &Bvh8Node, key: f32x8, hit: u32, lanes: impl Fn(usize) -> u32, stack: &mut [Entry], sp: &mut usize) {
     let ka = key.to_array();
     let mut bits = hit;
     while bits != 0 {
@@ -227,7 +226,7 @@ impl Bvh8 {
         loop {
             let n = &self.nodes[node];
             let (tn, hit) = slab8_oct(oct, n, &s, f32x8::splat(tmax));
-            push_children(n, hit.select(tn, f32x8::splat(f32::INFINITY)), |_| 1, stack, &mut sp);
+            push_children(n, tn, hit.to_bitmask(), |_| 1, stack, &mut sp);
             loop {
                 if sp == 0 {
                     return;
@@ -263,7 +262,7 @@ impl Bvh8 {
         loop {
             let n = &self.nodes[node];
             let (tn, hit) = slab8_oct(oct, n, &s, tm);
-            push_children(n, hit.select(tn, f32x8::splat(f32::INFINITY)), |_| 1, stack, &mut sp);
+            push_children(n, tn, hit.to_bitmask(), |_| 1, stack, &mut sp);
             loop {
                 if sp == 0 {
                     return false;
@@ -303,17 +302,21 @@ impl Bvh8 {
         let (mut node, mut lanes) = (0usize, active);
         loop {
             let n = &self.nodes[node];
-            let (mut key, mut m) = (inf, 0u64);
+            // key: each child's smallest entry distance over the lanes that enter it; m: lane l's child
+            // mask in byte l; any: the children some lane enters.
+            let (mut key, mut m, mut any) = (inf, 0u64, 0u32);
             let mut rest = lanes;
             while rest != 0 {
                 let l = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
                 let (tn, hit) = slab8_oct(ls.oct[l], n, &ls.lane(l), f32x8::splat(tm[l]));
                 key = key.fast_min(hit.select(tn, inf));
-                m |= (hit.to_bitmask() as u64) << (8 * l);
+                let bits = hit.to_bitmask();
+                m |= (bits as u64) << (8 * l);
+                any |= bits;
             }
             let m = transpose8x8(m);
-            push_children(n, key, |i| ((m >> (8 * i)) & 0xff) as u32, stack, &mut sp);
+            push_children(n, key, any, |i| ((m >> (8 * i)) & 0xff) as u32, stack, &mut sp);
             loop {
                 if sp == 0 {
                     return;
