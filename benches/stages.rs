@@ -13,7 +13,7 @@ use strata::csg::{intervals_f64, CsgArena};
 use strata::scene::{Profile, Scene, Shape};
 use strata::wavefront::csg_merge::csg_merge;
 use strata::wavefront::generate::generate;
-use strata::wavefront::intersect::{intersect, prim_t_f64};
+use strata::wavefront::intersect::{intersect, intersect_with, prim_t_f64, Traversal, INCOHERENT};
 use strata::wavefront::queues::NONE;
 use strata::wavefront::shade::{shade, ShadeOut};
 use strata::wavefront::shadow::{occluded_x8, occlusion_group};
@@ -39,11 +39,11 @@ fn scalar_hit(scene: &Scene, q: &RayQueue, i: usize) -> (f64, u32) {
 }
 
 /// Checksum of hit distances by the SIMD stage and by the scalar path; they must agree.
-fn validate_intersect(scene: &Scene, qs: &[RayQueue]) {
+fn validate_intersect(scene: &Scene, qs: &[RayQueue], incoherent: Traversal) {
     let (mut simd_sum, mut scalar_sum, mut mismatches, mut n) = (0.0f64, 0.0f64, 0usize, 0usize);
     let (mut hits, mut cands) = (HitQueue::default(), CsgCandidates::default());
     for q in qs.iter().step_by(7) {
-        intersect(scene, q, &mut hits, &mut cands);
+        intersect_with(scene, q, &mut hits, &mut cands, incoherent);
         for i in 0..q.len() {
             let (t, p) = scalar_hit(scene, q, i);
             n += 1;
@@ -66,12 +66,13 @@ fn bench_intersect(c: &mut Criterion) {
     let pool = support::pool();
     let scene = support::scene("bench_spheres.toml");
     let qs = support::camera_queues(&scene, 1);
-    time_intersect(c, &pool, &scene, &qs, "camera/bench_spheres.toml");
+    time_intersect(c, &pool, &scene, &qs, "camera/bench_spheres.toml", Traversal::Groups);
 }
 
-/// Validate the intersect stage on `qs` against the scalar path, then time it as `intersect/{name}`.
-fn time_intersect(c: &mut Criterion, pool: &rayon::ThreadPool, scene: &Scene, qs: &[RayQueue], name: &str) {
-    validate_intersect(scene, qs);
+/// Validate the intersect stage on `qs` against the scalar path, then time it as `intersect/{name}`
+/// with `incoherent` as the traversal of incoherent queues.
+fn time_intersect(c: &mut Criterion, pool: &rayon::ThreadPool, scene: &Scene, qs: &[RayQueue], name: &str, incoherent: Traversal) {
+    validate_intersect(scene, qs, incoherent);
     let mut g = c.benchmark_group("intersect");
     g.throughput(Throughput::Elements(support::ray_count(qs)));
     g.sample_size(20);
@@ -81,7 +82,7 @@ fn time_intersect(c: &mut Criterion, pool: &rayon::ThreadPool, scene: &Scene, qs
                 qs.par_iter().for_each_init(
                     || (HitQueue::default(), CsgCandidates::default()),
                     |(h, cands), q| {
-                        intersect(scene, q, h, cands);
+                        intersect_with(scene, q, h, cands, incoherent);
                         black_box(&h.t);
                     },
                 )
@@ -170,7 +171,9 @@ fn bench_intersect_secondary(c: &mut Criterion) {
     let pool = support::pool();
     let scene = support::scene("bench_spheres.toml");
     let qs = secondary_queues(&scene, &support::camera_queues(&scene, 1));
-    time_intersect(c, &pool, &scene, &qs, "secondary/bench_spheres.toml");
+    // What `intersect` does (`INCOHERENT`: wide packets), and the group traversal beside it.
+    time_intersect(c, &pool, &scene, &qs, "secondary/bench_spheres.toml", INCOHERENT);
+    time_intersect(c, &pool, &scene, &qs, "secondary_groups/bench_spheres.toml", Traversal::Groups);
 }
 
 /// The shade stage on the camera hits of the showcase (glass, mirror, glossy, CSG, two lights):

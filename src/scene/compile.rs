@@ -5,7 +5,7 @@
 use super::error::{read_text, InputError, Source};
 use super::format::{CameraDef, LightDef, MaterialDef, SceneFile, ShapeDef, TransformDef, S, V3};
 use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS};
-use crate::accel::{build_bvh, Aabb, BuildOptions};
+use crate::accel::{build_bvh, Aabb, BuildOptions, Bvh8, Collapse, WIDE_MIN_NODES};
 use crate::camera::Camera;
 use crate::csg::{self, Csg, CsgTree, Op};
 use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
@@ -166,6 +166,9 @@ impl Compiler<'_> {
         }
         let bvh_bounds: Vec<Aabb> = bounded.iter().map(|&i| bounds[i as usize]).collect();
         let bvh = build_bvh(&bvh_bounds, &BuildOptions::default());
+        // Only trees large enough for the wide traversal to pay (see `WIDE_MIN_NODES`); the collapse is
+        // linear in the node count, a few percent of the binary build.
+        let bvh8 = if bvh.nodes.len() >= WIDE_MIN_NODES { Bvh8::from_bvh(&bvh, Collapse::Sah) } else { Bvh8::default() };
 
         let mut features = Features {
             csg: self.prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })),
@@ -205,6 +208,7 @@ impl Compiler<'_> {
             prims: std::mem::take(&mut self.prims),
             bounds,
             bvh,
+            bvh8,
             bounded,
             unbounded,
             csg: std::mem::replace(&mut self.csg, Csg::new()),

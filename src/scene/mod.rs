@@ -10,7 +10,7 @@ pub use compile::{load_scene, parse_scene};
 pub use error::InputError;
 pub use profile::{Branching, Profile};
 
-use crate::accel::{Aabb, Bvh};
+use crate::accel::{Aabb, Bvh, Bvh8};
 use crate::camera::Camera;
 use crate::csg::Csg;
 use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
@@ -222,6 +222,9 @@ pub struct Scene {
     pub bounds: Vec<Aabb>,
     /// The BVH indexes `bounded` (prim ids); unbounded prims (planes) are tested against every packet.
     pub bvh: Bvh,
+    /// The same tree collapsed to 8 children per node, for incoherent rays (`wavefront::intersect`);
+    /// empty when `bvh` has fewer than `accel::WIDE_MIN_NODES` nodes (groups are faster there).
+    pub bvh8: Bvh8,
     pub bounded: Vec<u32>,
     pub unbounded: Vec<u32>,
     pub csg: Csg,

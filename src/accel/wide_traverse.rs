@@ -1,0 +1,342 @@
+//! Traversal of the 8-wide BVH ([`Bvh8`]): 8-ray packets whose lanes each test a node's 8 children at
+//! once (the intersect stage's traversal of incoherent rays), and one ray at a time (closest and any
+//! hit).
+//!
+//! Node test: one ray against the 8 child boxes, one `f32x8` per plane (Wald, Benthin & Boulos 2008,
+//! "Getting Rid of Packets"; Embree's single-ray kernels). The per-ray constants are the packet test's
+//! ([`PacketRay`]: every lane of it holds that lane's ray's constants bit for bit), and each plane
+//! distance is the same FMA with the same operands as in [`intersect_aabb_x8`]. The one difference:
+//! the packet test sorts a slab's two distances with min/max, the single-ray test takes the near plane
+//! by the ray's direction sign (the min plane where `PacketRay`'s clamped `inv_d >= 0`, so a zero
+//! component counts with the sign of its zero, as there). The two agree whenever the padded distances
+//! are in order (near <= far). They are out of order only when the relative padding of `inv_d` exceeds
+//! the slab's width, which needs the slab to lie behind the origin on that axis (`(min + max) / 2 < o`
+//! for a positive direction); the near-plane value is then a negative far distance for the packet
+//! test, which misses as the single-ray test does (`tests/wide_bvh.rs` compares the two masks and
+//! entry distances bit for bit on random, flat and one-ulp boxes, at scales 1e-4 to 1e4). The octant
+//! is a const parameter of the kernel (`slab8`), so the bounds rows are fixed offsets.
+//!
+//! Knowing the near plane is also what makes an empty slot (min = +inf, max = -inf) miss: its near
+//! distance is +inf, its far distance -inf, and no NaN arises (`inf * inv + c` with `inv` finite and
+//! non-zero, `c` finite).
+//!
+//! Children that pass are pushed far-to-near, so the nearest is popped first; each entry keeps its
+//! entry distance and is skipped when popped after a closer hit lowered `tmax` below it (the box test
+//! with the new `tmax` would fail too). The order is computed without branches: a child's stack
+//! position is the number of hit children farther than it (ties: the higher slot is farther).
+//!
+//! The stack is caller-owned scratch ([`Bvh8Stack`]): it has room for the worst case, `(WIDTH - 1) *
+//! MAX_DEPTH + 1` entries (7 KiB), and zeroing a local array that size on each call cost about 30% of
+//! the single-ray time (140 -> 97 ns/ray) and 10% of the packet time (62 -> 55 ns/ray).
+//!
+//! Packet variants measured (single thread, best of 9, secondary rays of the intersect benchmark,
+//! traversal with the bare sphere kernel at the leaves; binary packets 53 ns/ray, groups 54):
+//!
+//! | packet traversal of the wide BVH                                          | ns/ray |
+//! |---------------------------------------------------------------------------|--------|
+//! | each child box tested with the packet (8 x 8-lane tests, horizontal min)  | 65     |
+//! | each lane tests the 8 children, lanes of the entry only (kept)            | 55     |
+//! | the same, all 8 lanes every node (no data-dependent loop)                 | 73     |
+//! | kept, with the SAH collapse instead of the greedy one                     | 52.5   |
+//! | one ray at a time (single-ray traversal)                                  | 108    |
+
+use glam::Vec3;
+
+#[cfg(doc)]
+use super::aabb::intersect_aabb_x8;
+use super::aabb::PacketRay;
+use super::wide::{Bvh8, Bvh8Node, WIDTH};
+use super::MAX_DEPTH;
+use crate::simd::{f32x8, i32x8, Ray8, Vec3x8};
+
+/// Stack entries of wide traversal: a wide node is no deeper than the binary node it collapses (each
+/// wide level consumes at least one binary level, so depth <= [`MAX_DEPTH`]), and visiting it leaves at
+/// most `WIDTH - 1` more entries pending.
+const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+
+/// A pending child: its slot fields (`count` 0: an inner node), the smallest entry distance over the
+/// lanes that entered it, and those lanes (bit `l` = lane `l`; bit 0 for a single ray).
+#[derive(Clone, Copy, Debug, Default)]
+struct Entry {
+    child: u32,
+    count: u32,
+    tn: f32,
+    lanes: u32,
+}
+
+/// Caller-owned traversal stack of [`Bvh8`], reused across traversals (see the module doc).
+#[derive(Clone, Debug)]
+pub struct Bvh8Stack(Vec<Entry>);
+
+impl Default for Bvh8Stack {
+    fn default() -> Self {
+        Self(vec![Entry::default(); STACK])
+    }
+}
+
+/// The folded slab constants of one ray per axis, splatted: `(inv, c)` of the near plane and of the
+/// far plane.
+#[derive(Clone, Copy, Debug)]
+struct Slab {
+    inv_n: [f32x8; 3],
+    c_n: [f32x8; 3],
+    inv_f: [f32x8; 3],
+    c_f: [f32x8; 3],
+}
+
+/// Distances of one ray to the 8 child boxes of `n`: `(tnear, hit)`, `tnear = max(0, near planes)`,
+/// `hit` where `tnear <= min(far planes, tmax)`. Bit `a` of `OCT` is set when the ray's direction is
+/// negative on axis `a` (near plane = the box max).
+#[inline(always)]
+fn slab8<const OCT: usize>(n: &Bvh8Node, s: &Slab, tmax: f32x8) -> (f32x8, f32x8) {
+    let row = |i: usize| f32x8::from(n.bounds[i]);
+    let d = |a: usize| {
+        let neg = (OCT >> a) & 1 == 1;
+        let (near, far) = if neg { (a + 3, a) } else { (a, a + 3) };
+        (row(near).mul_add(s.inv_n[a], s.c_n[a]), row(far).mul_add(s.inv_f[a], s.c_f[a]))
+    };
+    let ((nx, fx), (ny, fy), (nz, fz)) = (d(0), d(1), d(2));
+    let tn = nx.fast_max(ny).fast_max(nz.fast_max(f32x8::ZERO));
+    let tf = fx.fast_min(fy).fast_min(fz.fast_min(tmax));
+    (tn, tn.simd_le(tf))
+}
+
+/// [`slab8`] for a run-time octant (a predictable branch: a ray's octant never changes, and an
+/// octant-sorted packet's lanes share one).
+#[inline(always)]
+fn slab8_oct(oct: u32, n: &Bvh8Node, s: &Slab, tmax: f32x8) -> (f32x8, f32x8) {
+    match oct & 7 {
+        0 => slab8::<0>(n, s, tmax),
+        1 => slab8::<1>(n, s, tmax),
+        2 => slab8::<2>(n, s, tmax),
+        3 => slab8::<3>(n, s, tmax),
+        4 => slab8::<4>(n, s, tmax),
+        5 => slab8::<5>(n, s, tmax),
+        6 => slab8::<6>(n, s, tmax),
+        _ => slab8::<7>(n, s, tmax),
+    }
+}
+
+/// The slab constants of the 8 rays of a packet (lane `l` of each vector is ray `l`'s), with each lane's
+/// octant bits.
+#[derive(Clone, Copy, Debug)]
+struct LaneSlabs {
+    oct: [u32; 8],
+    inv_n: [[f32; 8]; 3],
+    c_n: [[f32; 8]; 3],
+    inv_f: [[f32; 8]; 3],
+    c_f: [[f32; 8]; 3],
+}
+
+impl LaneSlabs {
+    #[inline(always)]
+    fn new(ray: &Ray8) -> Self {
+        let pr = PacketRay::new(ray);
+        let ax = |v: Vec3x8| [v.x, v.y, v.z];
+        let (il, cl, ih, ch) = (ax(pr.inv_lo), ax(pr.c_lo), ax(pr.inv_hi), ax(pr.c_hi));
+        let mut r = Self { oct: [0; 8], inv_n: [[0.0; 8]; 3], c_n: [[0.0; 8]; 3], inv_f: [[0.0; 8]; 3], c_f: [[0.0; 8]; 3] };
+        let mut neg = i32x8::ZERO;
+        for a in 0..3 {
+            // `PacketRay` takes the min plane as the near one exactly where its clamped inv_d >= 0; the
+            // scaled `inv_lo` keeps that sign (it is never 0 for a finite direction).
+            let pos = il[a].simd_ge(f32x8::ZERO);
+            r.inv_n[a] = pos.select(il[a], ih[a]).to_array();
+            r.c_n[a] = pos.select(cl[a], ch[a]).to_array();
+            r.inv_f[a] = pos.select(ih[a], il[a]).to_array();
+            r.c_f[a] = pos.select(ch[a], cl[a]).to_array();
+            neg |= !bytemuck::cast::<f32x8, i32x8>(pos) & i32x8::splat(1 << a);
+        }
+        r.oct = bytemuck::cast(neg.to_array());
+        r
+    }
+
+    /// Lane `l`'s constants, splatted.
+    #[inline(always)]
+    fn lane(&self, l: usize) -> Slab {
+        let s = |v: &[[f32; 8]; 3]| [f32x8::splat(v[0][l]), f32x8::splat(v[1][l]), f32x8::splat(v[2][l])];
+        Slab { inv_n: s(&self.inv_n), c_n: s(&self.c_n), inv_f: s(&self.inv_f), c_f: s(&self.c_f) }
+    }
+}
+
+/// Transpose an 8x8 bit matrix held row by row in the bytes of `x` (row `r` in byte `r`, column `c` in
+/// bit `c` of it): Hacker's Delight, 2nd ed., 7-3 ("transpose8"), stated there for the layout mirrored
+/// on both axes, which commutes with transposition.
+#[inline(always)]
+pub fn transpose8x8(mut x: u64) -> u64 {
+    let t = (x ^ (x >> 7)) & 0x00AA_00AA_00AA_00AA;
+    x ^= t ^ (t << 7);
+    let t = (x ^ (x >> 14)) & 0x0000_CCCC_0000_CCCC;
+    x ^= t ^ (t << 14);
+    let t = (x ^ (x >> 28)) & 0x0000_0000_F0F0_F0F0;
+    x ^ t ^ (t << 28)
+}
+
+/// Push the children of `n` in `hit` (bit `i` = child `i`), farthest (by `key`, the entry distance)
+/// deepest, so that the nearest is on top; `lanes(i)` gives child `i`'s lane mask. (An entry distance
+/// can be +inf, for a box beyond the f32 range that a ray with `tmax = inf` enters: it is pushed last.)
+#[inline(always)]
+fn push_children(n: &Bvh8Node, key: f32x8, hit: u32, lanes: impl Fn(usize) -> u32, stack: &mut [Entry], sp: &mut usize) {
+    let ka = key.to_array();
+    let mut bits = hit;
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let k = f32x8::splat(ka[i]);
+        let higher = !((2u32 << i) - 1);
+        let farther = (key.simd_gt(k).to_bitmask() | (key.simd_eq(k).to_bitmask() & higher)) & hit;
+        stack[*sp + farther.count_ones() as usize] = Entry { child: n.child[i], count: n.count[i], tn: ka[i], lanes: lanes(i) };
+    }
+    *sp += hit.count_ones() as usize;
+}
+
+/// Ray `lane` of `ray` against the 8 children of `n` with the single-ray kernel the traversals use:
+/// `(tnear, hit bits)`, bit `i` for child `i` (tnear of missed children is unspecified). Against
+/// [`intersect_aabb_x8`] in `tests/wide_bvh.rs`.
+pub fn intersect_children_single(n: &Bvh8Node, ray: &Ray8, lane: usize) -> (f32x8, u32) {
+    let ls = LaneSlabs::new(ray);
+    let (tn, hit) = slab8_oct(ls.oct[lane], n, &ls.lane(lane), f32x8::splat(ray.tmax.to_array()[lane]));
+    (tn, hit.to_bitmask())
+}
+
+/// A packet whose 8 lanes are the one ray `(o, d)` (`inv_d = 1 / d` as [`Ray8::new`] computes it).
+#[inline(always)]
+fn splat_ray(o: Vec3, d: Vec3, tmax: f32) -> Ray8 {
+    Ray8::new(Vec3x8::splat(o), Vec3x8::splat(d), f32x8::splat(tmax))
+}
+
+impl Bvh8 {
+    /// Closest-hit traversal of one ray. `leaf(prim, &mut tmax)` is called for each primitive of each
+    /// visited leaf; it lowers `tmax` when the primitive is hit nearer (the caller records which).
+    /// Children whose box the ray's padded slab interval does not overlap within `[0, tmax]` are
+    /// skipped, as the packet test decides for this ray's lane (see the module doc). Nothing happens
+    /// when `tmax < 0` (an inactive ray).
+    ///
+    /// Not used by the intersect stage (`wavefront::intersect::INCOHERENT` has the measurement: its
+    /// octant-sorted packets share node tests and leaf calls that a lone ray pays alone).
+    pub fn traverse_closest_single(&self, o: Vec3, d: Vec3, tmax: f32, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, &mut f32)) {
+        let mut tmax = tmax;
+        if self.nodes.is_empty() || !(tmax >= 0.0) {
+            return;
+        }
+        let ls = LaneSlabs::new(&splat_ray(o, d, tmax));
+        let (s, oct) = (ls.lane(0), ls.oct[0]);
+        let stack = &mut stack.0[..];
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            let (tn, hit) = slab8_oct(oct, n, &s, f32x8::splat(tmax));
+            push_children(n, tn, hit.to_bitmask(), |_| 1, stack, &mut sp);
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                let e = stack[sp];
+                if e.tn > tmax {
+                    continue;
+                }
+                if e.count == 0 {
+                    node = e.child as usize;
+                    break;
+                }
+                for &p in &self.indices[e.child as usize..(e.child + e.count) as usize] {
+                    leaf(p, &mut tmax);
+                }
+            }
+        }
+    }
+
+    /// Any-hit (occlusion) traversal of one ray: true as soon as `leaf(prim, tmax)` returns true. The
+    /// loop mirrors the closest-hit one (as `traverse.rs` keeps its two loops apart). Nothing is visited
+    /// when `tmax <= 0` (the packet any-hit convention).
+    pub fn traverse_any_single(&self, o: Vec3, d: Vec3, tmax: f32, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, f32) -> bool) -> bool {
+        if self.nodes.is_empty() || !(tmax > 0.0) {
+            return false;
+        }
+        let ls = LaneSlabs::new(&splat_ray(o, d, tmax));
+        let (s, oct, tm) = (ls.lane(0), ls.oct[0], f32x8::splat(tmax));
+        let stack = &mut stack.0[..];
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            let (tn, hit) = slab8_oct(oct, n, &s, tm);
+            push_children(n, tn, hit.to_bitmask(), |_| 1, stack, &mut sp);
+            loop {
+                if sp == 0 {
+                    return false;
+                }
+                sp -= 1;
+                let e = stack[sp];
+                if e.count == 0 {
+                    node = e.child as usize;
+                    break;
+                }
+                for &p in &self.indices[e.child as usize..(e.child + e.count) as usize] {
+                    if leaf(p, tmax) {
+                        return true;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Closest-hit traversal of an 8-ray packet in which each lane tests a node's 8 children with one
+    /// single-ray test, and only the lanes that entered a child test that child's children: every stack
+    /// entry carries its lane mask ([`transpose8x8`] turns the lanes' child masks into the children's
+    /// lane masks). Children are pushed near-first by the smallest entry distance over their lanes; a
+    /// popped entry keeps only the lanes whose `tmax` still reaches that distance. Leaves test the whole
+    /// packet. The callback contract is [`super::Bvh::traverse_closest_x8`]'s (lanes with `tmax < 0`
+    /// are inactive).
+    pub fn traverse_closest_x8(&self, ray: &mut Ray8, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, &mut Ray8)) {
+        let active = ray.tmax.simd_ge(f32x8::ZERO).to_bitmask();
+        if self.nodes.is_empty() || active == 0 {
+            return;
+        }
+        let ls = LaneSlabs::new(ray);
+        let inf = f32x8::splat(f32::INFINITY);
+        let mut tm = ray.tmax.to_array();
+        let stack = &mut stack.0[..];
+        let mut sp = 0usize;
+        let (mut node, mut lanes) = (0usize, active);
+        loop {
+            let n = &self.nodes[node];
+            // key: each child's smallest entry distance over the lanes that enter it; m: lane l's child
+            // mask in byte l; any: the children some lane enters.
+            let (mut key, mut m, mut any) = (inf, 0u64, 0u32);
+            let mut rest = lanes;
+            while rest != 0 {
+                let l = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                let (tn, hit) = slab8_oct(ls.oct[l], n, &ls.lane(l), f32x8::splat(tm[l]));
+                key = key.fast_min(hit.select(tn, inf));
+                let bits = hit.to_bitmask();
+                m |= (bits as u64) << (8 * l);
+                any |= bits;
+            }
+            let m = transpose8x8(m);
+            push_children(n, key, any, |i| ((m >> (8 * i)) & 0xff) as u32, stack, &mut sp);
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                let e = stack[sp];
+                // Lanes whose tmax fell below the smallest entry distance cannot enter any more.
+                let live = f32x8::splat(e.tn).simd_le(f32x8::from(tm)).to_bitmask() & e.lanes;
+                if live == 0 {
+                    continue;
+                }
+                if e.count == 0 {
+                    (node, lanes) = (e.child as usize, live);
+                    break;
+                }
+                for &p in &self.indices[e.child as usize..(e.child + e.count) as usize] {
+                    leaf(p, ray);
+                }
+                tm = ray.tmax.to_array();
+            }
+        }
+    }
+}
