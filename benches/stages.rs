@@ -16,7 +16,7 @@ use strata::wavefront::generate::generate;
 use strata::wavefront::intersect::{intersect, intersect_with, prim_t_f64, Traversal, INCOHERENT};
 use strata::wavefront::queues::NONE;
 use strata::wavefront::shade::{shade, ShadeOut};
-use strata::wavefront::shadow::{occluded_x8, occlusion_group};
+use strata::wavefront::shadow::{occluded_x8, occlusion_group, shadow};
 use strata::wavefront::{CsgCandidates, HitQueue, NeeQueue, PathTable, RayQueue};
 
 /// Nearest hit of one ray by the scalar f64 path (BVH f64 traversal + f64 kernels + planes).
@@ -181,26 +181,9 @@ fn bench_intersect_secondary(c: &mut Criterion) {
 /// counts on a second run), then timed. Throughput: rays shaded.
 fn bench_shade(c: &mut Criterion) {
     let pool = support::pool();
-    let scene = support::scene("showcase.toml");
-    let spp = 4;
-    let mut profile = Profile::builtin("bench");
-    profile.spp = spp;
-    let mut inputs = Vec::new();
-    for t in support::tiles(&scene, 16) {
-        let (mut paths, mut q) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
-        generate(&scene, &profile, 1, t, 0..spp, &mut paths, &mut q);
-        q.pad();
-        let (mut hits, mut cands) = (HitQueue::default(), CsgCandidates::default());
-        intersect(&scene, &q, &mut hits, &mut cands);
-        let mut arena = CsgArena::new();
-        csg_merge(&scene, &q, &mut cands, &mut hits, &mut arena);
-        inputs.push((q, hits, paths));
-    }
+    let (scene, profile, inputs) = showcase_hits();
     let run = |(q, hits, paths): &(RayQueue, HitQueue, PathTable), w: &mut ShadeWork| {
-        w.paths.clone_from(paths);
-        w.next.clear();
-        w.nee.clear();
-        shade(&scene, &profile, 1, q, hits, &mut w.order, ShadeOut { paths: &mut w.paths, next: &mut w.next, nee: &mut w.nee });
+        shade_into(&scene, &profile, q, hits, paths, w);
         (w.next.len(), w.nee.len())
     };
     let mut w = ShadeWork::default();
@@ -220,6 +203,95 @@ fn bench_shade(c: &mut Criterion) {
                 inputs.par_iter().for_each_init(ShadeWork::default, |w, i| {
                     black_box(run(i, w));
                 })
+            })
+        })
+    });
+    g.finish();
+}
+
+/// The camera rays of the showcase (4 spp, 16x16 tiles) with their hits (CSG solved): the input of the
+/// shade stage, one entry per wavefront.
+#[allow(clippy::type_complexity)]
+fn showcase_hits() -> (Scene, Profile, Vec<(RayQueue, HitQueue, PathTable)>) {
+    let scene = support::scene("showcase.toml");
+    let spp = 4;
+    let mut profile = Profile::builtin("bench");
+    profile.spp = spp;
+    let mut inputs = Vec::new();
+    for t in support::tiles(&scene, 16) {
+        let (mut paths, mut q) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
+        generate(&scene, &profile, 1, t, 0..spp, &mut paths, &mut q);
+        q.pad();
+        let (mut hits, mut cands) = (HitQueue::default(), CsgCandidates::default());
+        intersect(&scene, &q, &mut hits, &mut cands);
+        let mut arena = CsgArena::new();
+        csg_merge(&scene, &q, &mut cands, &mut hits, &mut arena);
+        inputs.push((q, hits, paths));
+    }
+    (scene, profile, inputs)
+}
+
+/// Shade one wavefront's hits into `w` (its paths reset to `paths`).
+fn shade_into(scene: &Scene, profile: &Profile, q: &RayQueue, hits: &HitQueue, paths: &PathTable, w: &mut ShadeWork) {
+    w.paths.clone_from(paths);
+    w.next.clear();
+    w.nee.clear();
+    shade(scene, profile, 1, q, hits, &mut w.order, ShadeOut { paths: &mut w.paths, next: &mut w.next, nee: &mut w.nee });
+}
+
+/// The whole shadow stage (light sampling, 64-ray any-hit groups, crediting the paths) on the requests
+/// that shading the showcase's camera hits emits (two lights: a quad and a point). Validated before it
+/// times: the same radiance on every path, bit for bit, on a second run; every credited value finite
+/// and non-negative; some light reaches the paths and some is blocked (at most requests x lights rays).
+/// Throughput: shadow rays traced.
+fn bench_shadow_stage(c: &mut Criterion) {
+    let pool = support::pool();
+    let (scene, profile, hits) = showcase_hits();
+    let inputs: Vec<(NeeQueue, PathTable)> = hits
+        .iter()
+        .map(|(q, h, p)| {
+            let mut w = ShadeWork::default();
+            shade_into(&scene, &profile, q, h, p, &mut w);
+            (w.nee, w.paths)
+        })
+        .collect();
+    let run = |(nee, paths): &(NeeQueue, PathTable), out: &mut PathTable, arena: &mut CsgArena| {
+        out.clone_from(paths);
+        shadow(&scene, &profile, 1, nee, out, arena)
+    };
+    let (mut out, mut arena) = (PathTable::default(), CsgArena::new());
+    let (mut traced, mut requests, mut lit, mut dark) = (0u64, 0u64, 0u64, 0u64);
+    for i in &inputs {
+        traced += run(i, &mut out, &mut arena);
+        let first = (out.lr.clone(), out.lg.clone(), out.lb.clone());
+        run(i, &mut out, &mut arena);
+        assert!(first == (out.lr.clone(), out.lg.clone(), out.lb.clone()), "shadow stage not repeatable");
+        for k in 0..i.0.len() {
+            let p = i.0.path[k] as usize;
+            let added = [out.lr[p] - i.1.lr[p], out.lg[p] - i.1.lg[p], out.lb[p] - i.1.lb[p]];
+            assert!(added.iter().all(|v| v.is_finite() && *v >= 0.0), "bad contribution {added:?}");
+            if added.iter().any(|&v| v > 0.0) {
+                lit += 1;
+            } else {
+                dark += 1;
+            }
+        }
+        requests += i.0.len() as u64;
+    }
+    assert!(lit > 0 && dark > 0 && traced > 0 && traced <= requests * scene.lights.len() as u64);
+    println!("shadow stage validation: {requests} requests, {traced} shadow rays, {lit} lit, {dark} dark");
+    let mut g = c.benchmark_group("shadow");
+    g.throughput(Throughput::Elements(traced));
+    g.sample_size(20);
+    g.bench_function("stage/showcase.toml", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                inputs.par_iter().for_each_init(
+                    || (PathTable::default(), CsgArena::new()),
+                    |(out, arena), i| {
+                        black_box(run(i, out, arena));
+                    },
+                )
             })
         })
     });
@@ -474,5 +546,14 @@ fn bench_csg_merge(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_generate, bench_intersect, bench_intersect_secondary, bench_shade, bench_shadow, bench_csg_merge);
+criterion_group!(
+    benches,
+    bench_generate,
+    bench_intersect,
+    bench_intersect_secondary,
+    bench_shade,
+    bench_shadow,
+    bench_shadow_stage,
+    bench_csg_merge
+);
 criterion_main!(benches);
