@@ -11,9 +11,9 @@ use crate::geometry::{
 };
 use crate::optics::{
     beer_lambert, fresnel_dielectric, fresnel_schlick, reflect, refract, sample_ggx_reflect, sample_ggx_reflect_weight,
-    sample_hemisphere_cos,
+    sample_hemisphere_cos_x8,
 };
-use crate::sample::{hash_combine, random_f32, sample_2d};
+use crate::sample::{hash_combine, random_f32, sample_2d, stream_key, Sampler2d};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape};
 use crate::simd::{f32x8, Vec3x8, LANES};
 use glam::Vec3;
@@ -155,7 +155,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
     }
     let order = &*sorted;
 
-    let ctx = Ctx { scene, profile, seed };
+    let ctx = Ctx { scene, profile, seed, diffuse: Sampler2d::new(profile.diffuse_strategy, profile.spp) };
     let ShadeOut { paths, next, nee } = out;
     // The point key of the last Lambert hit: a pixel's samples are usually consecutive and share it.
     let mut last_point: Option<((u32, u32, u16), u64)> = None;
@@ -253,6 +253,8 @@ struct Ctx<'a> {
     scene: &'a Scene,
     profile: &'a Profile,
     seed: u64,
+    /// The diffuse-bounce sampler (the profile's diffuse strategy over the pixel's samples).
+    diffuse: Sampler2d,
 }
 
 impl Ctx<'_> {
@@ -418,32 +420,47 @@ impl Ctx<'_> {
         if profile.diffuse_depth == 0 {
             return;
         }
-        for (l, &i) in idx.iter().enumerate() {
-            let r = &rays.get(i as usize);
-            if (r.diffuse as u32) < profile.diffuse_depth && (r.depth as u32) < profile.max_depth {
-                // Its own strategy: borrowing the pixel strategy made `center` pixels bounce
-                // every path in the one direction (0.5, 0.5) maps to, a biased estimate.
-                let u = sample_2d(
-                    profile.diffuse_strategy,
-                    self.seed,
-                    branch_stream(pixels[l], r.branch),
-                    dims::DIFFUSE + r.depth as u32,
-                    samples[l],
-                    profile.spp,
-                );
-                let n = Vec3::new(nf[0][l], nf[1][l], nf[2][l]);
-                let wi = sample_hemisphere_cos(n, u);
-                let o = Vec3::new(ox[l], oy[l], oz[l]);
-                let child = RayItem {
-                    o,
-                    d: wi,
-                    throughput: Vec3::new(w[0][l], w[1][l], w[2][l]),
-                    diffuse: r.diffuse + 1,
-                    flags: FLAG_DIFFUSE,
-                    ..next_of(r)
-                };
-                self.spawn(next, child, pixels[l], samples[l], 0);
+        // Diffuse bounces: the lanes below both depth limits.
+        let diffuse = gather(&rays.diffuse, run, i0, at);
+        let mut go = 0u32;
+        for l in 0..m {
+            if (diffuse[l] as u32) < profile.diffuse_depth && (depth[l] as u32) < profile.max_depth {
+                go |= 1 << l;
             }
+        }
+        if go == 0 {
+            return;
+        }
+        // Its own strategy: borrowing the pixel strategy made `center` pixels bounce every path in the
+        // one direction (0.5, 0.5) maps to, a biased estimate. The stream of (pixel, branch, depth) is
+        // shared by a pixel's consecutive samples: its key is computed once per run.
+        let mut dkeys = [0u64; LANES];
+        let mut last: Option<((u32, u32, u16), u64)> = None;
+        for l in 0..m {
+            let id = (pixels[l], branch[l], depth[l]);
+            let key = match last {
+                Some((prev, key)) if prev == id => key,
+                _ => stream_key(self.seed, branch_stream(pixels[l], branch[l]), dims::DIFFUSE + depth[l] as u32),
+            };
+            (dkeys[l], last) = (key, Some((id, key)));
+        }
+        let u = self.diffuse.sample_x8(&dkeys, &samples, true);
+        let wi = sample_hemisphere_cos_x8(nv, u);
+        let (wx, wy, wz) = (wi.x.to_array(), wi.y.to_array(), wi.z.to_array());
+        let mut bits = go;
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let r = &rays.get(idx[l] as usize);
+            let child = RayItem {
+                o: Vec3::new(ox[l], oy[l], oz[l]),
+                d: Vec3::new(wx[l], wy[l], wz[l]),
+                throughput: Vec3::new(w[0][l], w[1][l], w[2][l]),
+                diffuse: r.diffuse + 1,
+                flags: FLAG_DIFFUSE,
+                ..next_of(r)
+            };
+            self.spawn(next, child, pixels[l], samples[l], 0);
         }
     }
 
