@@ -7,7 +7,7 @@
 use super::dims;
 use super::queues::{MediumStack, PathTable, RayItem, RayQueue};
 use crate::optics::{sample_wavelength, sample_wavelength_pdf, wavelength_to_rgb};
-use crate::sample::{sample_1d, sample_disk_concentric, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
+use crate::sample::{sample_1d_keyed, sample_disk_concentric, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
 use crate::scene::{Profile, Scene};
 use crate::simd::{f32x8, LANES};
 use glam::Vec3;
@@ -69,14 +69,17 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         let pixel = y * scene.width + x;
         let stream = pixel as u64;
         let (area_key, lens_key) = (stream_key(seed, stream, dims::PIXEL), stream_key(seed, stream, dims::LENS));
+        // Keys of the pixel's 1D streams, once per pixel (`sample_1d` would hash them per sample).
+        let time_key = if f.motion { stream_key(seed, stream, dims::TIME) } else { 0 };
+        let wavelength_key = if f.dispersion { stream_key(seed, stream, dims::WAVELENGTH) } else { 0 };
         for s in samples.clone() {
             let off = sample_filter(profile.filter, area.sample(area_key, s));
             let lens = if f.lens { sample_disk_concentric(lens_set.sample(lens_key, s)) } else { [0.0, 0.0] };
             let (o, d) = cam.ray(x as f32 + 0.5 + off[0], y as f32 + 0.5 + off[1], lens);
-            let time = if f.motion { cam.time(sample_1d(profile.time_strategy, seed, stream, dims::TIME, s, spp)) } else { 0.0 };
+            let time = if f.motion { cam.time(sample_1d_keyed(profile.time_strategy, time_key, s, spp)) } else { 0.0 };
             let (lambda, throughput) = if f.dispersion {
                 // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.
-                let l = sample_wavelength(sample_1d(profile.wavelength_strategy, seed, stream, dims::WAVELENGTH, s, spp));
+                let l = sample_wavelength(sample_1d_keyed(profile.wavelength_strategy, wavelength_key, s, spp));
                 (l, wavelength_to_rgb(l) / sample_wavelength_pdf(l))
             } else {
                 (0.0, Vec3::ONE)
