@@ -2,8 +2,6 @@
 //! bound on pathological inputs, slab kernel against its f64 twin. All seeds fixed.
 
 use glam::{DVec3, Vec3};
-use rand_core::{Rng, SeedableRng};
-use rand_xoshiro::Xoshiro256PlusPlus;
 use strata::accel::{
     build_bvh, intersect_aabb_f64, intersect_aabb_x8, slab_interval_f64, Aabb, BuildOptions, Bvh, BvhNode, PacketRay, GROUP, MAX_DEPTH,
 };
@@ -11,48 +9,9 @@ use strata::simd::{f32x8, Ray8, Vec3x8, LANES};
 
 // ---------------------------------------------------------------- random inputs
 
-struct Rand(Xoshiro256PlusPlus);
-
-impl Rand {
-    fn new(seed: u64) -> Self {
-        Self(Xoshiro256PlusPlus::seed_from_u64(seed))
-    }
-    /// Uniform in [0, 1).
-    fn f(&mut self) -> f32 {
-        (self.0.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.f()
-    }
-    fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
-        Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
-    }
-    fn chance(&mut self, p: f32) -> bool {
-        self.f() < p
-    }
-    fn below(&mut self, n: u32) -> u32 {
-        self.0.next_u32() % n
-    }
-    /// A direction with components in [-1, 1], length at least 0.2.
-    fn dir(&mut self) -> Vec3 {
-        loop {
-            let d = self.vec(-1.0, 1.0);
-            if d.length() > 0.2 {
-                return d;
-            }
-        }
-    }
-}
-
-fn random_boxes(rng: &mut Rand, n: usize, half_extent: f32, max_size: f32) -> Vec<Aabb> {
-    (0..n)
-        .map(|_| {
-            let c = rng.vec(-half_extent, half_extent);
-            let h = rng.vec(0.0, max_size * 0.5);
-            Aabb::new(c - h, c + h)
-        })
-        .collect()
-}
+#[path = "common/rand.rs"]
+mod common_rand;
+use common_rand::{random_boxes, Rand};
 
 fn build_ok(bounds: &[Aabb], opts: &BuildOptions) -> Bvh {
     let bvh = build_bvh(bounds, opts);

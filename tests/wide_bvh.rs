@@ -6,8 +6,7 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
-use rand_core::{Rng, SeedableRng};
-use rand_xoshiro::Xoshiro256PlusPlus;
+use rand_core::Rng;
 use strata::accel::{
     build_bvh, intersect_aabb_f64, intersect_aabb_x8, intersect_children_single, transpose8x8, Aabb, BuildOptions, Bvh, Bvh8, Bvh8Node,
     Bvh8Stack, Collapse, PacketRay, MAX_DEPTH, WIDTH,
@@ -21,31 +20,14 @@ use strata::wavefront::{CsgCandidates, HitQueue, RayItem, RayQueue};
 
 // ---------------------------------------------------------------- random inputs
 
-struct Rand(Xoshiro256PlusPlus);
+#[path = "common/rand.rs"]
+mod common_rand;
+use common_rand::{random_boxes, Rand};
 
 impl Rand {
-    fn new(seed: u64) -> Self {
-        Self(Xoshiro256PlusPlus::seed_from_u64(seed))
-    }
-    /// Uniform in [0, 1).
-    fn f(&mut self) -> f32 {
-        (self.0.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.f()
-    }
-    fn vec(&mut self, lo: f32, hi: f32) -> Vec3 {
-        Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
-    }
-    fn chance(&mut self, p: f32) -> bool {
-        self.f() < p
-    }
-    fn below(&mut self, n: u32) -> u32 {
-        self.0.next_u32() % n
-    }
     /// A direction with components in [-1, 1], length at least 0.2; sometimes one or two components
     /// are zero (+0 or -0).
-    fn dir(&mut self) -> Vec3 {
+    fn dir_with_zeros(&mut self) -> Vec3 {
         let mut d = loop {
             let d = self.vec(-1.0, 1.0);
             if d.length() > 0.2 {
@@ -61,16 +43,6 @@ impl Rand {
         }
         d
     }
-}
-
-fn random_boxes(rng: &mut Rand, n: usize, half_extent: f32, max_size: f32) -> Vec<Aabb> {
-    (0..n)
-        .map(|_| {
-            let c = rng.vec(-half_extent, half_extent);
-            let h = rng.vec(0.0, max_size * 0.5);
-            Aabb::new(c - h, c + h)
-        })
-        .collect()
 }
 
 fn collapse_ok(bounds: &[Aabb], opts: &BuildOptions) -> (Bvh, Bvh8) {
@@ -290,7 +262,7 @@ fn single_ray_slab_matches_packet_slab() {
         });
         // Half the rays aim at a point of a random child box (with zero components kept from `dir`).
         let d: [Vec3; LANES] = std::array::from_fn(|l| {
-            let d = rng.dir();
+            let d = rng.dir_with_zeros();
             if rng.chance(0.5) {
                 let b = node.child_aabb(rng.below(node.child_count() as u32) as usize);
                 let t = Vec3::new(rng.f(), rng.f(), rng.f());
@@ -396,7 +368,7 @@ fn random_prims(rng: &mut Rand, n: usize, s: f32) -> Vec<Prim> {
 fn random_rays(rng: &mut Rand, prims: &[Prim], n: usize, s: f32) -> Vec<(Vec3, Vec3, f32)> {
     (0..n)
         .map(|_| {
-            let mut d = rng.dir();
+            let mut d = rng.dir_with_zeros();
             let p = prims[rng.below(prims.len() as u32) as usize];
             let o = match (rng.below(4), p) {
                 (0, Prim::Sphere(c, r)) => {
@@ -415,7 +387,7 @@ fn random_rays(rng: &mut Rand, prims: &[Prim], n: usize, s: f32) -> Vec<(Vec3, V
                     }
                     o
                 }
-                (1, Prim::Sphere(c, r)) => c + rng.dir().normalize_or(Vec3::X) * r,
+                (1, Prim::Sphere(c, r)) => c + rng.dir_with_zeros().normalize_or(Vec3::X) * r,
                 (1, Prim::Box(b)) => b.centroid(),
                 _ => rng.vec(-12.0, 12.0) * s,
             };
@@ -574,7 +546,7 @@ fn stage_scene(rng: &mut Rand, n: usize, s: f32, motion: bool, csg: bool) -> Sce
             4 => format!(
                 "type = \"disk\"\ncenter = {}\nnormal = {}\nradius = {:e}\n",
                 v(c),
-                v(rng.dir().normalize()),
+                v(rng.dir_with_zeros().normalize()),
                 rng.range(0.2, 1.5) * s
             ),
             _ if csg => {
@@ -614,12 +586,12 @@ fn stage_queue(rng: &mut Rand, scene: &Scene, n: usize, s: f32, coherent: bool) 
             // From the surface of a random sphere (a secondary ray), sometimes into it.
             let p = &scene.prims[rng.below(scene.prims.len() as u32) as usize];
             let o = match p.shape {
-                strata::scene::Shape::Sphere { center, radius } => center + rng.dir().normalize_or(Vec3::Y) * radius,
+                strata::scene::Shape::Sphere { center, radius } => center + rng.dir_with_zeros().normalize_or(Vec3::Y) * radius,
                 _ => rng.vec(-12.0, 12.0) * s,
             };
-            (o, rng.dir())
+            (o, rng.dir_with_zeros())
         } else {
-            (rng.vec(-12.0, 12.0) * s, rng.dir())
+            (rng.vec(-12.0, 12.0) * s, rng.dir_with_zeros())
         };
         let tmax = match rng.below(8) {
             0 => 0.0,
