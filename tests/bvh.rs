@@ -11,7 +11,7 @@ use strata::simd::{f32x8, Ray8, Vec3x8, LANES};
 
 #[path = "common/rand.rs"]
 mod common_rand;
-use common_rand::{random_boxes, Rand};
+use common_rand::{exponential_line, random_boxes, Rand};
 
 fn build_ok(bounds: &[Aabb], opts: &BuildOptions) -> Bvh {
     let bvh = build_bvh(bounds, opts);
@@ -453,14 +453,7 @@ fn depth_is_bounded_on_pathological_inputs() {
     // finite in f32 over 100,000 steps). Binning puts all but the last ln(bins)/ln(1.0007) boxes in
     // the first bin, so each SAH split peels ~990 boxes off the far end with 2 bins: ~100 levels
     // without the median fallback (measured 113), and 41 with 16 bins.
-    let r = 1.0007f64;
-    let line: Vec<Aabb> = (0..100_000)
-        .map(|i| {
-            let x = (r.powi(i) - 1.0) / (r - 1.0);
-            let h = 0.25 * r.powi(i);
-            Aabb::new(Vec3::new((x - h) as f32, 0.0, 0.0), Vec3::new((x + h) as f32, 1.0, 1.0))
-        })
-        .collect();
+    let line = exponential_line(100_000);
     // 277 self-similar boxes at x = 2^i over the whole f32 range (i = -149..=127, subnormals
     // included): each 16-bin SAH split peels about 4 boxes: 72 levels without the fallback.
     let doubling: Vec<Aabb> = (-149..=127)

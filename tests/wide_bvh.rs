@@ -22,7 +22,7 @@ use strata::wavefront::{CsgCandidates, HitQueue, RayItem, RayQueue};
 
 #[path = "common/rand.rs"]
 mod common_rand;
-use common_rand::{random_boxes, Rand};
+use common_rand::{exponential_line, random_boxes, Rand};
 
 impl Rand {
     /// A direction with components in [-1, 1], length at least 0.2; sometimes one or two components
@@ -107,14 +107,7 @@ fn bvh8_invariants_on_random_and_degenerate_sets() {
     let same = vec![Aabb::new(Vec3::ZERO, Vec3::ONE); 1000];
     let (_, w) = collapse_ok(&same, &BuildOptions::default());
     assert_eq!((w.nodes.len(), w.nodes[0].child_count()), (1, 1));
-    let r = 1.0007f64;
-    let line: Vec<Aabb> = (0..20_000)
-        .map(|i| {
-            let x = (r.powi(i) - 1.0) / (r - 1.0);
-            let h = 0.25 * r.powi(i);
-            Aabb::new(Vec3::new((x - h) as f32, 0.0, 0.0), Vec3::new((x + h) as f32, 1.0, 1.0))
-        })
-        .collect();
+    let line = exponential_line(20_000);
     let (bvh, _) = collapse_ok(&line, &BuildOptions { max_leaf: 1, bins: 2 });
     assert!(bvh.depth() > 20 && bvh.depth() <= MAX_DEPTH);
 }

@@ -49,3 +49,16 @@ pub fn random_boxes(rng: &mut Rand, n: usize, half_extent: f32, max_size: f32) -
         })
         .collect()
 }
+
+/// `n` boxes on a line with exponentially growing spacing (ratio 1.0007, the fastest that stays finite
+/// in f32 over 100,000 steps): the pathological input that drives binned SAH builds deep.
+pub fn exponential_line(n: i32) -> Vec<Aabb> {
+    let r = 1.0007f64;
+    (0..n)
+        .map(|i| {
+            let x = (r.powi(i) - 1.0) / (r - 1.0);
+            let h = 0.25 * r.powi(i);
+            Aabb::new(Vec3::new((x - h) as f32, 0.0, 0.0), Vec3::new((x + h) as f32, 1.0, 1.0))
+        })
+        .collect()
+}
