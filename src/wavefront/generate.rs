@@ -5,12 +5,11 @@
 //! strategy. Lens, time and wavelength are drawn only when the scene needs them.
 
 use super::dims;
-use super::queues::{MediumStack, PathTable, RayItem, RayQueue};
+use super::queues::{PathTable, RayQueue};
 use crate::optics::{sample_wavelength, sample_wavelength_pdf, wavelength_to_rgb};
-use crate::sample::{sample_1d_keyed, sample_disk_concentric, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
+use crate::sample::{sample_1d_keyed, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
 use crate::scene::{Profile, Scene};
 use crate::simd::{f32x8, LANES};
-use glam::Vec3;
 use std::ops::Range;
 
 /// A rectangle of pixels, [x0, x1) x [y0, y1).
@@ -65,42 +64,81 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     let spp = profile.spp;
     let area = Sampler2d::new(profile.pixel_strategy, spp);
     let lens_set = Sampler2d::new(profile.lens_strategy, spp);
+    // Per lane: pixel centre, the pixel's stream keys and the sample index; rays are made 8 at a time.
+    let mut cx = [0.0f32; LANES];
+    let mut cy = [0.0f32; LANES];
+    let mut keys = [[0u64; LANES]; 4]; // area, lens, time, wavelength
+    let mut index = [0u32; LANES];
+    let mut k = 0;
+    let mut next_path = paths.len() as u32;
+    let emit = |k: usize,
+                cx: &[f32; LANES],
+                cy: &[f32; LANES],
+                keys: &[[u64; LANES]; 4],
+                index: &[u32; LANES],
+                first: u32,
+                rays: &mut RayQueue| {
+        let off = filter_offsets(profile.filter, area.sample_x8(&keys[0], index, true));
+        let lens = if f.lens { sample_disk_concentric_x8(lens_set.sample_x8(&keys[1], index, true)) } else { [f32x8::ZERO; 2] };
+        let (o, d) = cam.rays_x8(f32x8::from(*cx) + off[0], f32x8::from(*cy) + off[1], lens);
+        let mut time = [0.0f32; LANES];
+        let mut lambda = [0.0f32; LANES];
+        let mut thr = [[1.0f32; LANES]; 3];
+        for l in 0..k {
+            if f.motion {
+                time[l] = cam.time(sample_1d_keyed(profile.time_strategy, keys[2][l], index[l], spp));
+            }
+            if f.dispersion {
+                // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.
+                let w = sample_wavelength(sample_1d_keyed(profile.wavelength_strategy, keys[3][l], index[l], spp));
+                let t = wavelength_to_rgb(w) / sample_wavelength_pdf(w);
+                (lambda[l], thr[0][l], thr[1][l], thr[2][l]) = (w, t.x, t.y, t.z);
+            }
+        }
+        rays.push_camera_rows(&o, &d, k, first, &time, &lambda, &thr);
+    };
     for (x, y) in tile.pixels_z_order() {
         let pixel = y * scene.width + x;
         let stream = pixel as u64;
-        let (area_key, lens_key) = (stream_key(seed, stream, dims::PIXEL), stream_key(seed, stream, dims::LENS));
-        // Keys of the pixel's 1D streams, once per pixel (`sample_1d` would hash them per sample).
-        let time_key = if f.motion { stream_key(seed, stream, dims::TIME) } else { 0 };
-        let wavelength_key = if f.dispersion { stream_key(seed, stream, dims::WAVELENGTH) } else { 0 };
+        // The pixel's stream keys, once per pixel (the 1D ones only where the scene uses them).
+        let pk = [
+            stream_key(seed, stream, dims::PIXEL),
+            stream_key(seed, stream, dims::LENS),
+            if f.motion { stream_key(seed, stream, dims::TIME) } else { 0 },
+            if f.dispersion { stream_key(seed, stream, dims::WAVELENGTH) } else { 0 },
+        ];
+        paths.push_pixel(pixel, samples.clone());
         for s in samples.clone() {
-            let off = sample_filter(profile.filter, area.sample(area_key, s));
-            let lens = if f.lens { sample_disk_concentric(lens_set.sample(lens_key, s)) } else { [0.0, 0.0] };
-            let (o, d) = cam.ray(x as f32 + 0.5 + off[0], y as f32 + 0.5 + off[1], lens);
-            let time = if f.motion { cam.time(sample_1d_keyed(profile.time_strategy, time_key, s, spp)) } else { 0.0 };
-            let (lambda, throughput) = if f.dispersion {
-                // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.
-                let l = sample_wavelength(sample_1d_keyed(profile.wavelength_strategy, wavelength_key, s, spp));
-                (l, wavelength_to_rgb(l) / sample_wavelength_pdf(l))
-            } else {
-                (0.0, Vec3::ONE)
-            };
-            let path = paths.push(pixel, s);
-            rays.push(&RayItem {
-                o,
-                d,
-                tmax: f32::INFINITY,
-                time,
-                lambda,
-                throughput,
-                path,
-                branch: 0,
-                depth: 0,
-                diffuse: 0,
-                flags: 0,
-                media: MediumStack::default(),
-            });
+            (cx[k], cy[k], index[k]) = (x as f32 + 0.5, y as f32 + 0.5, s);
+            for (lane_keys, key) in keys.iter_mut().zip(pk) {
+                lane_keys[k] = key;
+            }
+            k += 1;
+            if k == LANES {
+                emit(LANES, &cx, &cy, &keys, &index, next_path, rays);
+                next_path += LANES as u32;
+                k = 0;
+            }
         }
     }
+    if k > 0 {
+        emit(k, &cx, &cy, &keys, &index, next_path, rays);
+    }
+}
+
+/// Image-plane offsets of 8 pixel samples for `filter`: the box filter in 8 lanes, tent and Gaussian
+/// per lane (their 8-lane twins round differently from the scalar map).
+#[inline(always)]
+fn filter_offsets(filter: Filter, u: [f32x8; 2]) -> [f32x8; 2] {
+    if filter == Filter::Box {
+        return sample_filter_x8(Filter::Box, u);
+    }
+    let (u0, u1) = (u[0].to_array(), u[1].to_array());
+    let mut o = [[0.0f32; LANES]; 2];
+    for l in 0..LANES {
+        [o[0][l], o[1][l]] = sample_filter(filter, [u0[l], u1[l]]);
+    }
+    [f32x8::from(o[0]), f32x8::from(o[1])]
 }
 
 /// [`generate`] for a pinhole camera without motion or dispersion (rays differ only in direction): the
@@ -127,18 +165,7 @@ fn generate_pinhole(
     let mut next_path = paths.len() as u32;
     let emit =
         |k: usize, cx: &[f32; LANES], cy: &[f32; LANES], keys: &[u64; LANES], index: &[u32; LANES], first: u32, rays: &mut RayQueue| {
-            let u = area.sample_x8(keys, index, true);
-            let off = if profile.filter == Filter::Box {
-                sample_filter_x8(Filter::Box, u)
-            } else {
-                // Tent and Gaussian stay scalar: their 8-lane twins round differently.
-                let (u0, u1) = (u[0].to_array(), u[1].to_array());
-                let mut o = [[0.0f32; LANES]; 2];
-                for l in 0..LANES {
-                    [o[0][l], o[1][l]] = sample_filter(profile.filter, [u0[l], u1[l]]);
-                }
-                [f32x8::from(o[0]), f32x8::from(o[1])]
-            };
+            let off = filter_offsets(profile.filter, area.sample_x8(keys, index, true));
             let d = cam.pinhole_dirs_x8(f32x8::from(*cx) + off[0], f32x8::from(*cy) + off[1]);
             rays.push_camera(cam.position, &d, k, first);
         };

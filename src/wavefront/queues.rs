@@ -3,7 +3,7 @@
 //! `tmax = -1`, which no kernel hits). Queues are cleared, never freed: a wavefront reuses them for the
 //! next tile, so after warm-up nothing allocates.
 
-use crate::simd::{pad_to_lanes, LANES};
+use crate::simd::{pad_to_lanes, Vec3x8, LANES};
 use glam::Vec3;
 
 /// Ray flag: the ray left a specular or glossy surface (emission it finds counts).
@@ -185,6 +185,50 @@ impl RayQueue {
         self.tmax.extend(std::iter::repeat_n(f32::INFINITY, n));
         for t in [&mut self.tr, &mut self.tg, &mut self.tb] {
             t.extend(std::iter::repeat_n(1.0, n));
+        }
+        self.path.extend(first_path..first_path + n as u32);
+        self.branch.extend(std::iter::repeat_n(0, n));
+        self.depth.extend(std::iter::repeat_n(0, n));
+        self.diffuse.extend(std::iter::repeat_n(0, n));
+        self.flags.extend(std::iter::repeat_n(0, n));
+        self.media.extend(std::iter::repeat_n(MediumStack::default(), n));
+        self.len += n;
+    }
+
+    /// Append the first `n` (<= 8) of 8 camera rays (origins `o`, unit directions `d`) for paths
+    /// `first_path..`, with their shutter times and wavelengths (kept only when the queue carries them)
+    /// and initial throughputs `thr` (the spectral weight, or 1).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub fn push_camera_rows(
+        &mut self,
+        o: &Vec3x8,
+        d: &Vec3x8,
+        n: usize,
+        first_path: u32,
+        time: &[f32; LANES],
+        lambda: &[f32; LANES],
+        thr: &[[f32; LANES]; 3],
+    ) {
+        debug_assert!(n <= LANES);
+        if self.ox.len() != self.len {
+            self.truncate_to_len();
+        }
+        for (v, x) in [&mut self.ox, &mut self.oy, &mut self.oz, &mut self.dx, &mut self.dy, &mut self.dz]
+            .into_iter()
+            .zip([o.x, o.y, o.z, d.x, d.y, d.z])
+        {
+            v.extend_from_slice(&x.to_array()[..n]);
+        }
+        self.tmax.extend(std::iter::repeat_n(f32::INFINITY, n));
+        if self.with_time {
+            self.time.extend_from_slice(&time[..n]);
+        }
+        if self.with_lambda {
+            self.lambda.extend_from_slice(&lambda[..n]);
+        }
+        for (t, x) in [&mut self.tr, &mut self.tg, &mut self.tb].into_iter().zip(thr) {
+            t.extend_from_slice(&x[..n]);
         }
         self.path.extend(first_path..first_path + n as u32);
         self.branch.extend(std::iter::repeat_n(0, n));
