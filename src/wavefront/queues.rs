@@ -64,6 +64,28 @@ impl MediumStack {
     }
 }
 
+/// Append `n` copies of `x`: a fixed-size copy for a whole packet (`n == LANES`, inlined stores), else
+/// an extend (which becomes a call to memset: too slow for the 8 elements of every packet).
+#[inline(always)]
+fn fill<T: Copy>(v: &mut Vec<T>, x: T, n: usize) {
+    if n == LANES {
+        v.extend_from_slice(&[x; LANES]);
+    } else {
+        v.extend(std::iter::repeat_n(x, n));
+    }
+}
+
+/// Append the first `n` of the 8 values `s`: a fixed-size copy for a whole packet (inlined), else a
+/// call to memcpy.
+#[inline(always)]
+fn put<T: Copy>(v: &mut Vec<T>, s: &[T; LANES], n: usize) {
+    if n == LANES {
+        v.extend_from_slice(s);
+    } else {
+        v.extend_from_slice(&s[..n]);
+    }
+}
+
 /// One ray, array-of-structs form: for building queues and for tests.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RayItem {
@@ -176,22 +198,22 @@ impl RayQueue {
             self.truncate_to_len();
         }
         let (dx, dy, dz) = (d.x.to_array(), d.y.to_array(), d.z.to_array());
-        self.ox.extend(std::iter::repeat_n(o.x, n));
-        self.oy.extend(std::iter::repeat_n(o.y, n));
-        self.oz.extend(std::iter::repeat_n(o.z, n));
-        self.dx.extend_from_slice(&dx[..n]);
-        self.dy.extend_from_slice(&dy[..n]);
-        self.dz.extend_from_slice(&dz[..n]);
-        self.tmax.extend(std::iter::repeat_n(f32::INFINITY, n));
+        fill(&mut self.ox, o.x, n);
+        fill(&mut self.oy, o.y, n);
+        fill(&mut self.oz, o.z, n);
+        put(&mut self.dx, &dx, n);
+        put(&mut self.dy, &dy, n);
+        put(&mut self.dz, &dz, n);
+        fill(&mut self.tmax, f32::INFINITY, n);
         for t in [&mut self.tr, &mut self.tg, &mut self.tb] {
-            t.extend(std::iter::repeat_n(1.0, n));
+            fill(t, 1.0, n);
         }
         self.path.extend(first_path..first_path + n as u32);
-        self.branch.extend(std::iter::repeat_n(0, n));
-        self.depth.extend(std::iter::repeat_n(0, n));
-        self.diffuse.extend(std::iter::repeat_n(0, n));
-        self.flags.extend(std::iter::repeat_n(0, n));
-        self.media.extend(std::iter::repeat_n(MediumStack::default(), n));
+        fill(&mut self.branch, 0, n);
+        fill(&mut self.depth, 0, n);
+        fill(&mut self.diffuse, 0, n);
+        fill(&mut self.flags, 0, n);
+        fill(&mut self.media, MediumStack::default(), n);
         self.len += n;
     }
 
@@ -218,24 +240,24 @@ impl RayQueue {
             .into_iter()
             .zip([o.x, o.y, o.z, d.x, d.y, d.z])
         {
-            v.extend_from_slice(&x.to_array()[..n]);
+            put(v, &x.to_array(), n);
         }
-        self.tmax.extend(std::iter::repeat_n(f32::INFINITY, n));
+        fill(&mut self.tmax, f32::INFINITY, n);
         if self.with_time {
-            self.time.extend_from_slice(&time[..n]);
+            put(&mut self.time, time, n);
         }
         if self.with_lambda {
-            self.lambda.extend_from_slice(&lambda[..n]);
+            put(&mut self.lambda, lambda, n);
         }
         for (t, x) in [&mut self.tr, &mut self.tg, &mut self.tb].into_iter().zip(thr) {
-            t.extend_from_slice(&x[..n]);
+            put(t, x, n);
         }
         self.path.extend(first_path..first_path + n as u32);
-        self.branch.extend(std::iter::repeat_n(0, n));
-        self.depth.extend(std::iter::repeat_n(0, n));
-        self.diffuse.extend(std::iter::repeat_n(0, n));
-        self.flags.extend(std::iter::repeat_n(0, n));
-        self.media.extend(std::iter::repeat_n(MediumStack::default(), n));
+        fill(&mut self.branch, 0, n);
+        fill(&mut self.depth, 0, n);
+        fill(&mut self.diffuse, 0, n);
+        fill(&mut self.flags, 0, n);
+        fill(&mut self.media, MediumStack::default(), n);
         self.len += n;
     }
 
@@ -414,15 +436,6 @@ impl NeeQueue {
     /// Append the first `m` lanes of `r` (as `m` calls of [`NeeQueue::push`] would, one copy per field).
     #[inline]
     pub fn push_rows(&mut self, m: usize, r: NeeRows) {
-        // Whole rows are fixed-size copies (inlined); a partial row is a call to memcpy.
-        #[inline(always)]
-        fn put<T: Copy>(v: &mut Vec<T>, s: &[T; LANES], m: usize) {
-            if m == LANES {
-                v.extend_from_slice(s);
-            } else {
-                v.extend_from_slice(&s[..m]);
-            }
-        }
         for c in 0..3 {
             put([&mut self.px, &mut self.py, &mut self.pz][c], &r.p[c], m);
             put([&mut self.ox, &mut self.oy, &mut self.oz][c], r.o[c], m);
