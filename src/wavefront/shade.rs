@@ -166,15 +166,25 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
             }
             continue;
         }
+        if b == MISS_BUCKET {
+            // Escaped rays: only their path, throughput and (rarely) medium are needed.
+            for &i in &order[counts[b]..counts[b + 1]] {
+                let i = i as usize;
+                let mut thr = Vec3::new(rays.tr[i], rays.tg[i], rays.tb[i]);
+                if rays.media[i] != MediumStack::default() {
+                    let mut r = rays.get(i);
+                    absorb(scene, &mut r, hits.t[i]);
+                    thr = r.throughput;
+                }
+                paths.add(rays.path[i], thr * scene.background);
+            }
+            continue;
+        }
         for &i in &order[counts[b]..counts[b + 1]] {
             let i = i as usize;
             let mut r = rays.get(i);
             let t = hits.t[i];
             absorb(scene, &mut r, t);
-            if b == MISS_BUCKET {
-                paths.add(r.path, r.throughput * scene.background);
-                continue;
-            }
             let hit = surface_hit(scene, &r, t, hits.prim[i], hits.leaf[i], hits.flip[i]);
             let (pixel, sample) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
             match &scene.materials[hit.material as usize] {
