@@ -105,6 +105,22 @@ pub struct RayItem {
     pub media: MediumStack,
 }
 
+/// Up to 8 new rays (all with `tmax = inf`) as lane arrays, for [`RayQueue::push_rows`].
+#[derive(Clone, Copy, Default)]
+pub struct RayRows {
+    pub o: [[f32; LANES]; 3],
+    pub d: [[f32; LANES]; 3],
+    pub time: [f32; LANES],
+    pub lambda: [f32; LANES],
+    pub throughput: [[f32; LANES]; 3],
+    pub path: [u32; LANES],
+    pub branch: [u32; LANES],
+    pub depth: [u16; LANES],
+    pub diffuse: [u16; LANES],
+    pub flags: [u8; LANES],
+    pub media: [MediumStack; LANES],
+}
+
 /// Rays in flight (camera rays, or the secondary rays of one bounce).
 #[derive(Default)]
 pub struct RayQueue {
@@ -187,6 +203,39 @@ impl RayQueue {
         self.flags.push(r.flags);
         self.media.push(r.media);
         self.len += 1;
+    }
+
+    /// Append the first `n` (<= 8) rays of `rows` (as `n` calls of [`RayQueue::push`] would, one copy
+    /// per field; `time` and `lambda` kept only when the queue carries them).
+    #[inline(always)]
+    pub fn push_rows(&mut self, n: usize, rows: &RayRows) {
+        debug_assert!(n <= LANES);
+        if self.ox.len() != self.len {
+            self.truncate_to_len();
+        }
+        for (v, x) in [&mut self.ox, &mut self.oy, &mut self.oz].into_iter().zip(&rows.o) {
+            put(v, x, n);
+        }
+        for (v, x) in [&mut self.dx, &mut self.dy, &mut self.dz].into_iter().zip(&rows.d) {
+            put(v, x, n);
+        }
+        fill(&mut self.tmax, f32::INFINITY, n);
+        if self.with_time {
+            put(&mut self.time, &rows.time, n);
+        }
+        if self.with_lambda {
+            put(&mut self.lambda, &rows.lambda, n);
+        }
+        for (t, x) in [&mut self.tr, &mut self.tg, &mut self.tb].into_iter().zip(&rows.throughput) {
+            put(t, x, n);
+        }
+        put(&mut self.path, &rows.path, n);
+        put(&mut self.branch, &rows.branch, n);
+        put(&mut self.depth, &rows.depth, n);
+        put(&mut self.diffuse, &rows.diffuse, n);
+        put(&mut self.flags, &rows.flags, n);
+        put(&mut self.media, &rows.media, n);
+        self.len += n;
     }
 
     /// Append the first `n` (<= 8) of 8 camera rays from `o` along `d` (unit), for paths `first_path..`,

@@ -5,7 +5,7 @@
 
 use super::dims;
 use super::medium;
-use super::queues::{HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
+use super::queues::{HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, RayRows, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
 use crate::geometry::{
     normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_sphere_point,
 };
@@ -457,21 +457,55 @@ impl Ctx<'_> {
         let u = self.diffuse.sample_x8(&dkeys, &samples, true);
         let wi = sample_hemisphere_cos_x8(nv, u);
         let (wx, wy, wz) = (wi.x.to_array(), wi.y.to_array(), wi.z.to_array());
-        let mut bits = go;
+        // Russian roulette, as `spawn` plays it: continuation probabilities per lane, then (only when
+        // some lane needs one) the roulette numbers of all 8 lanes in one branch-free loop of 64-bit
+        // hashes, which the compiler vectorises.
+        let cutoff = profile.throughput_cutoff;
+        let mut q = [1.0f32; LANES];
+        let (mut alive, mut play) = (0u32, 0u32);
+        for l in 0..m {
+            let mx = w[0][l].max(w[1][l]).max(w[2][l]);
+            if go & (1 << l) == 0 || mx.is_nan() || mx <= 0.0 {
+                continue;
+            }
+            alive |= 1 << l;
+            // The child's diffuse count is diffuse + 1: bounces after the first play with min(m, 0.95).
+            q[l] = if diffuse[l] >= 1 { mx.min(0.95) } else { (mx / cutoff).min(1.0) };
+            play |= ((q[l] < 1.0) as u32) << l;
+        }
+        let mut roll = [0.0f32; LANES];
+        if play != 0 {
+            let seed = self.seed;
+            for l in 0..LANES {
+                let key = hash_combine(branch_stream(pixels[l], branch[l]), samples[l] as u64);
+                roll[l] = random_f32(seed, key, dims::ROULETTE + (depth[l] as u32 + 1) * 4, 0);
+            }
+        }
+        // The surviving children, compacted into rows: what `next_of` and the bounce give each.
+        let lambda = if rays.with_lambda { gather(&rays.lambda, run, i0, at) } else { [0.0; LANES] };
+        let mut rows = RayRows::default();
+        let mut k = 0;
+        let mut bits = alive;
         while bits != 0 {
             let l = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let r = &rays.get(idx[l] as usize);
-            let child = RayItem {
-                o: Vec3::new(ox[l], oy[l], oz[l]),
-                d: Vec3::new(wx[l], wy[l], wz[l]),
-                throughput: Vec3::new(w[0][l], w[1][l], w[2][l]),
-                diffuse: r.diffuse + 1,
-                flags: FLAG_DIFFUSE,
-                ..next_of(r)
-            };
-            self.spawn(next, child, pixels[l], samples[l], 0);
+            let mut throughput = Vec3::new(w[0][l], w[1][l], w[2][l]);
+            if play & (1 << l) != 0 {
+                if roll[l] >= q[l] {
+                    continue;
+                }
+                throughput /= q[l];
+            }
+            for c in 0..3 {
+                rows.throughput[c][k] = throughput[c];
+            }
+            (rows.o[0][k], rows.o[1][k], rows.o[2][k]) = (ox[l], oy[l], oz[l]);
+            (rows.d[0][k], rows.d[1][k], rows.d[2][k]) = (wx[l], wy[l], wz[l]);
+            (rows.time[k], rows.lambda[k], rows.path[k], rows.branch[k]) = (times[l], lambda[l], path[l], branch[l]);
+            (rows.depth[k], rows.diffuse[k], rows.flags[k], rows.media[k]) = (depth[l] + 1, diffuse[l] + 1, FLAG_DIFFUSE, media[l]);
+            k += 1;
         }
+        next.push_rows(k, &rows);
     }
 
     /// Queue a child ray, after an unbiased Russian roulette on low throughput.
