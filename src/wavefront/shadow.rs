@@ -150,10 +150,18 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     };
     let mut keys = [0u64; KEY_CACHE];
     let mut cached = None;
-    // Requests are taken 8 at a time: one lane each, every light sample of the chunk computed as one
-    // 8-lane light sample. Per path, contributions still arrive in light order, then sample order.
-    for base in (0..nee.len()).step_by(LANES) {
-        let m = (nee.len() - base).min(LANES);
+    // Requests are taken up to 8 at a time: one lane each, every light sample of the chunk computed as
+    // one 8-lane light sample. A chunk holds at most one request per path (under split branching a
+    // path has several per bounce): a path's contributions then arrive request by request, and within
+    // a request by light, then sample, as one request at a time would add them. (With two requests of
+    // a path in one chunk their contributions would interleave, and since which requests share a chunk
+    // depends on the tile, so would the rounding of the path's sum.)
+    let mut base = 0;
+    while base < nee.len() {
+        let mut m = (nee.len() - base).min(LANES);
+        if let Some(l) = (1..m).find(|&l| nee.path[base..base + l].contains(&nee.path[base + l])) {
+            m = l;
+        }
         let live = (1u32 << m) - 1;
         let f = |v: &Vec<f32>| lanes8(v, base, m);
         let p = Vec3x8::new(f(&nee.px), f(&nee.py), f(&nee.pz));
@@ -185,7 +193,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             let keys_li: [u64; LANES] =
                 if li < KEY_CACHE { lane_keys[li] } else { std::array::from_fn(|l| if l < m { light_key(base + l, li) } else { 0 }) };
             let (end, sampler) = if point { (1.0, &delta) } else { (SHADOW_END, &area) };
-            let inv_ns = f32x8::splat(ns as f32);
+            let ns_lanes = f32x8::splat(ns as f32);
             let samples: [u32; LANES] = std::array::from_fn(|l| if l < m { nee.sample[base + l] } else { 0 });
             for j in 0..ns {
                 // Across: sample index = camera sample x ns + j of the pixel's set. Else all ns samples
@@ -195,7 +203,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let u = sampler.sample_x8(&keys_li, &index, permuted);
                 let ls = sample_light_x8(light, p, u);
                 let cos = n.dot_unfused(ls.wi);
-                let c = (w * ls.weight).scale(cos / inv_ns);
+                let c = (w * ls.weight).scale(cos / ns_lanes);
                 let lit = ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO);
                 let lanes = lit.to_bitmask() & live;
                 if lanes == 0 {
@@ -210,6 +218,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 }
             }
         }
+        base += m;
     }
     if pk.len > 0 {
         traced += flush(scene, profile, &mut pk, paths, arena, walk);
