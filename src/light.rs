@@ -219,7 +219,7 @@ mod tests {
                     u[0][l] = f(1.0);
                     u[1][l] = f(1.0);
                 }
-                // Some lanes on the light itself (d2 = 0 or grazing).
+                // One receiver exactly at the point light (d2 = 0: no sample).
                 if round == 7 {
                     if let Light::Point { position, .. } = light {
                         (p[0][0], p[1][0], p[2][0]) = (position.x, position.y, position.z);

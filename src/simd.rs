@@ -34,6 +34,17 @@ pub fn store8(s: &mut [f32], i: usize, v: f32x8) {
     s[i..i + 8].copy_from_slice(&v.to_array());
 }
 
+/// Eight lanes of a queue field: `v[first..first + 8]` as one load when `run` (the lanes are 8
+/// consecutive elements), else `v[at(l)]` lane by lane.
+#[inline(always)]
+pub fn gather8<T: Copy>(v: &[T], run: bool, first: usize, at: impl Fn(usize) -> usize) -> [T; LANES] {
+    if run {
+        v[first..first + LANES].try_into().unwrap()
+    } else {
+        std::array::from_fn(|l| v[at(l)])
+    }
+}
+
 /// Three `f32x8`: 8 vectors in structure-of-arrays form (96 bytes, 32-byte aligned).
 #[derive(Clone, Copy, Debug)]
 pub struct Vec3x8 {
@@ -68,11 +79,6 @@ impl Vec3x8 {
     #[inline(always)]
     pub fn dot_unfused(self, o: Self) -> f32x8 {
         self.x * o.x + self.y * o.y + self.z * o.z
-    }
-    /// Lane-wise product by one vector.
-    #[inline(always)]
-    pub fn mul3(self, o: Vec3) -> Self {
-        Self { x: self.x * f32x8::splat(o.x), y: self.y * f32x8::splat(o.y), z: self.z * f32x8::splat(o.z) }
     }
     /// `mask ? a : b`, lane-wise.
     #[inline(always)]

@@ -5,7 +5,7 @@
 //! strategy. Lens, time and wavelength are drawn only when the scene needs them.
 
 use super::dims;
-use super::queues::{PathTable, RayQueue};
+use super::queues::{PathTable, RayQueue, RayRows};
 use crate::optics::{sample_wavelength, sample_wavelength_pdf, wavelength_to_rgb};
 use crate::sample::{sample_1d_keyed, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
 use crate::scene::{Profile, Scene};
@@ -55,11 +55,12 @@ fn compact_bits(v: u64) -> u32 {
     x as u32
 }
 
+/// Camera rays (and their paths) for samples `samples` of every pixel of `tile`, pixels in Z order, a
+/// pixel's samples consecutive. Positions, lens points and directions are made 8 rays at a time (the
+/// sampler, the box filter, the lens disk and `Camera::rays_x8` in 8 lanes); shutter times and
+/// wavelengths, only for scenes that have them, lane by lane.
 pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples: Range<u32>, paths: &mut PathTable, rays: &mut RayQueue) {
     let f = &scene.features;
-    if !f.lens && !f.motion && !f.dispersion && scene.camera.lens_radius <= 0.0 {
-        return generate_pinhole(scene, profile, seed, tile, samples, paths, rays);
-    }
     let cam = &scene.camera;
     let spp = profile.spp;
     let area = Sampler2d::new(profile.pixel_strategy, spp);
@@ -81,21 +82,28 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         let off = filter_offsets(profile.filter, area.sample_x8(&keys[0], index, true));
         let lens = if f.lens { sample_disk_concentric_x8(lens_set.sample_x8(&keys[1], index, true)) } else { [f32x8::ZERO; 2] };
         let (o, d) = cam.rays_x8(f32x8::from(*cx) + off[0], f32x8::from(*cy) + off[1], lens);
-        let mut time = [0.0f32; LANES];
-        let mut lambda = [0.0f32; LANES];
-        let mut thr = [[1.0f32; LANES]; 3];
-        for l in 0..k {
-            if f.motion {
-                time[l] = cam.time(sample_1d_keyed(profile.time_strategy, keys[2][l], index[l], spp));
-            }
-            if f.dispersion {
-                // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.
-                let w = sample_wavelength(sample_1d_keyed(profile.wavelength_strategy, keys[3][l], index[l], spp));
-                let t = wavelength_to_rgb(w) / sample_wavelength_pdf(w);
-                (lambda[l], thr[0][l], thr[1][l], thr[2][l]) = (w, t.x, t.y, t.z);
+        // New paths: branch, depth, bounce counts, flags and media all start empty (zero).
+        let mut rows = RayRows {
+            o: [o.x.to_array(), o.y.to_array(), o.z.to_array()],
+            d: [d.x.to_array(), d.y.to_array(), d.z.to_array()],
+            throughput: [[1.0; LANES]; 3],
+            path: std::array::from_fn(|l| first + l as u32),
+            ..RayRows::default()
+        };
+        if f.motion || f.dispersion {
+            for l in 0..k {
+                if f.motion {
+                    rows.time[l] = cam.time(sample_1d_keyed(profile.time_strategy, keys[2][l], index[l], spp));
+                }
+                if f.dispersion {
+                    // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.
+                    let w = sample_wavelength(sample_1d_keyed(profile.wavelength_strategy, keys[3][l], index[l], spp));
+                    let t = wavelength_to_rgb(w) / sample_wavelength_pdf(w);
+                    (rows.lambda[l], rows.throughput[0][l], rows.throughput[1][l], rows.throughput[2][l]) = (w, t.x, t.y, t.z);
+                }
             }
         }
-        rays.push_camera_rows(&o, &d, k, first, &time, &lambda, &thr);
+        rays.push_rows(k, &rows);
     };
     for (x, y) in tile.pixels_z_order() {
         let pixel = y * scene.width + x;
@@ -103,7 +111,7 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         // The pixel's stream keys, once per pixel (the 1D ones only where the scene uses them).
         let pk = [
             stream_key(seed, stream, dims::PIXEL),
-            stream_key(seed, stream, dims::LENS),
+            if f.lens { stream_key(seed, stream, dims::LENS) } else { 0 },
             if f.motion { stream_key(seed, stream, dims::TIME) } else { 0 },
             if f.dispersion { stream_key(seed, stream, dims::WAVELENGTH) } else { 0 },
         ];
@@ -139,53 +147,6 @@ fn filter_offsets(filter: Filter, u: [f32x8; 2]) -> [f32x8; 2] {
         [o[0][l], o[1][l]] = sample_filter(filter, [u0[l], u1[l]]);
     }
     [f32x8::from(o[0]), f32x8::from(o[1])]
-}
-
-/// [`generate`] for a pinhole camera without motion or dispersion (rays differ only in direction): the
-/// image positions are sampled one by one, and the directions are made and stored 8 at a time, with the
-/// same operations in the same order as `Camera::ray` (so the same bits).
-fn generate_pinhole(
-    scene: &Scene,
-    profile: &Profile,
-    seed: u64,
-    tile: Tile,
-    samples: Range<u32>,
-    paths: &mut PathTable,
-    rays: &mut RayQueue,
-) {
-    let cam = &scene.camera;
-    let area = Sampler2d::new(profile.pixel_strategy, profile.spp);
-    // Per lane: pixel centre, sample stream key and index; image positions are made 8 at a time.
-    let mut cx = [0.0f32; LANES];
-    let mut cy = [0.0f32; LANES];
-    let mut keys = [0u64; LANES];
-    let mut index = [0u32; LANES];
-    let mut k = 0;
-    // Path of the next ray to emit (paths are made a pixel at a time, ahead of the rays).
-    let mut next_path = paths.len() as u32;
-    let emit =
-        |k: usize, cx: &[f32; LANES], cy: &[f32; LANES], keys: &[u64; LANES], index: &[u32; LANES], first: u32, rays: &mut RayQueue| {
-            let off = filter_offsets(profile.filter, area.sample_x8(keys, index, true));
-            let d = cam.pinhole_dirs_x8(f32x8::from(*cx) + off[0], f32x8::from(*cy) + off[1]);
-            rays.push_camera(cam.position, &d, k, first);
-        };
-    for (x, y) in tile.pixels_z_order() {
-        let pixel = y * scene.width + x;
-        let area_key = stream_key(seed, pixel as u64, dims::PIXEL);
-        paths.push_pixel(pixel, samples.clone());
-        for s in samples.clone() {
-            (cx[k], cy[k], keys[k], index[k]) = (x as f32 + 0.5, y as f32 + 0.5, area_key, s);
-            k += 1;
-            if k == LANES {
-                emit(LANES, &cx, &cy, &keys, &index, next_path, rays);
-                next_path += LANES as u32;
-                k = 0;
-            }
-        }
-    }
-    if k > 0 {
-        emit(k, &cx, &cy, &keys, &index, next_path, rays);
-    }
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 //! `tmax = -1`, which no kernel hits). Queues are cleared, never freed: a wavefront reuses them for the
 //! next tile, so after warm-up nothing allocates.
 
-use crate::simd::{pad_to_lanes, Vec3x8, LANES};
+use crate::simd::{pad_to_lanes, LANES};
 use glam::Vec3;
 
 /// Ray flag: the ray left a specular or glossy surface (emission it finds counts).
@@ -235,78 +235,6 @@ impl RayQueue {
         put(&mut self.diffuse, &rows.diffuse, n);
         put(&mut self.flags, &rows.flags, n);
         put(&mut self.media, &rows.media, n);
-        self.len += n;
-    }
-
-    /// Append the first `n` (<= 8) of 8 camera rays from `o` along `d` (unit), for paths `first_path..`,
-    /// with the fields a new camera path starts with. For scenes without time or wavelength.
-    #[inline(always)]
-    pub fn push_camera(&mut self, o: Vec3, d: &crate::simd::Vec3x8, n: usize, first_path: u32) {
-        debug_assert!(!self.with_time && !self.with_lambda && n <= 8);
-        if self.ox.len() != self.len {
-            self.truncate_to_len();
-        }
-        let (dx, dy, dz) = (d.x.to_array(), d.y.to_array(), d.z.to_array());
-        fill(&mut self.ox, o.x, n);
-        fill(&mut self.oy, o.y, n);
-        fill(&mut self.oz, o.z, n);
-        put(&mut self.dx, &dx, n);
-        put(&mut self.dy, &dy, n);
-        put(&mut self.dz, &dz, n);
-        fill(&mut self.tmax, f32::INFINITY, n);
-        for t in [&mut self.tr, &mut self.tg, &mut self.tb] {
-            fill(t, 1.0, n);
-        }
-        self.path.extend(first_path..first_path + n as u32);
-        fill(&mut self.branch, 0, n);
-        fill(&mut self.depth, 0, n);
-        fill(&mut self.diffuse, 0, n);
-        fill(&mut self.flags, 0, n);
-        fill(&mut self.media, MediumStack::default(), n);
-        self.len += n;
-    }
-
-    /// Append the first `n` (<= 8) of 8 camera rays (origins `o`, unit directions `d`) for paths
-    /// `first_path..`, with their shutter times and wavelengths (kept only when the queue carries them)
-    /// and initial throughputs `thr` (the spectral weight, or 1).
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    pub fn push_camera_rows(
-        &mut self,
-        o: &Vec3x8,
-        d: &Vec3x8,
-        n: usize,
-        first_path: u32,
-        time: &[f32; LANES],
-        lambda: &[f32; LANES],
-        thr: &[[f32; LANES]; 3],
-    ) {
-        debug_assert!(n <= LANES);
-        if self.ox.len() != self.len {
-            self.truncate_to_len();
-        }
-        for (v, x) in [&mut self.ox, &mut self.oy, &mut self.oz, &mut self.dx, &mut self.dy, &mut self.dz]
-            .into_iter()
-            .zip([o.x, o.y, o.z, d.x, d.y, d.z])
-        {
-            put(v, &x.to_array(), n);
-        }
-        fill(&mut self.tmax, f32::INFINITY, n);
-        if self.with_time {
-            put(&mut self.time, time, n);
-        }
-        if self.with_lambda {
-            put(&mut self.lambda, lambda, n);
-        }
-        for (t, x) in [&mut self.tr, &mut self.tg, &mut self.tb].into_iter().zip(thr) {
-            put(t, x, n);
-        }
-        self.path.extend(first_path..first_path + n as u32);
-        fill(&mut self.branch, 0, n);
-        fill(&mut self.depth, 0, n);
-        fill(&mut self.diffuse, 0, n);
-        fill(&mut self.flags, 0, n);
-        fill(&mut self.media, MediumStack::default(), n);
         self.len += n;
     }
 

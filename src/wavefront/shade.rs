@@ -15,7 +15,7 @@ use crate::optics::{
 };
 use crate::sample::{hash_combine, random_f32, sample_2d, stream_key, Sampler2d};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape};
-use crate::simd::{f32x8, Vec3x8, LANES};
+use crate::simd::{f32x8, gather8, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
@@ -158,7 +158,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
     let ctx = Ctx { scene, profile, seed, diffuse: Sampler2d::new(profile.diffuse_strategy, profile.spp) };
     let ShadeOut { paths, next, nee } = out;
     // The point key of the last Lambert hit: a pixel's samples are usually consecutive and share it.
-    let mut last_point: Option<((u32, u32, u16), u64)> = None;
+    let mut last_point = KeyMemo::default();
     for b in 0..=MaterialKind::COUNT {
         if b == MaterialKind::Lambert as usize {
             for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
@@ -253,6 +253,25 @@ fn absorb(scene: &Scene, r: &mut RayItem, t: f32) {
     }
 }
 
+/// The last key computed for a (pixel, branch, depth): a pixel's samples are consecutive in the queues,
+/// so their hits usually ask for the same stream key one after another.
+#[derive(Default)]
+struct KeyMemo(Option<((u32, u32, u16), u64)>);
+
+impl KeyMemo {
+    #[inline(always)]
+    fn get(&mut self, id: (u32, u32, u16), make: impl FnOnce() -> u64) -> u64 {
+        match self.0 {
+            Some((last, key)) if last == id => key,
+            _ => {
+                let key = make();
+                self.0 = Some((id, key));
+                key
+            }
+        }
+    }
+}
+
 /// A child ray inheriting the parent's bookkeeping, one bounce deeper.
 #[inline]
 fn next_of(r: &RayItem) -> RayItem {
@@ -283,34 +302,26 @@ impl Ctx<'_> {
         paths: &mut PathTable,
         nee: &mut NeeQueue,
         next: &mut RayQueue,
-        last_point: &mut Option<((u32, u32, u16), u64)>,
+        last_point: &mut KeyMemo,
     ) {
         let (scene, profile) = (self.scene, self.profile);
         let m = idx.len();
         // Ray fields as lane arrays, straight from the queue: one vector load per field when the chunk
         // is a run of consecutive rays (the usual case: a queue whose hits are mostly Lambert), else one
-        // load per lane. Lanes past `m` repeat the chunk's first ray.
+        // load per lane. Lanes past `m` repeat the chunk's last ray.
         let i0 = idx[0] as usize;
         let run = m == LANES && idx[LANES - 1] as usize == i0 + LANES - 1;
         let at = |l: usize| idx[l.min(m - 1)] as usize;
-        #[inline(always)]
-        fn gather<T: Copy + Default>(v: &[T], run: bool, i0: usize, at: impl Fn(usize) -> usize) -> [T; LANES] {
-            if run {
-                v[i0..i0 + LANES].try_into().unwrap()
-            } else {
-                std::array::from_fn(|l| v[at(l)])
-            }
-        }
-        let ro = [gather(&rays.ox, run, i0, at), gather(&rays.oy, run, i0, at), gather(&rays.oz, run, i0, at)];
-        let rd = [gather(&rays.dx, run, i0, at), gather(&rays.dy, run, i0, at), gather(&rays.dz, run, i0, at)];
-        let mut thr = [gather(&rays.tr, run, i0, at), gather(&rays.tg, run, i0, at), gather(&rays.tb, run, i0, at)];
-        let rt = gather(&hits.t, run, i0, at);
-        let times = if rays.with_time { gather(&rays.time, run, i0, at) } else { [0.0; LANES] };
-        let path = gather(&rays.path, run, i0, at);
-        let branch = gather(&rays.branch, run, i0, at);
-        let depth = gather(&rays.depth, run, i0, at);
-        let media = gather(&rays.media, run, i0, at);
-        let prims = gather(&hits.prim, run, i0, at);
+        let ro = [gather8(&rays.ox, run, i0, at), gather8(&rays.oy, run, i0, at), gather8(&rays.oz, run, i0, at)];
+        let rd = [gather8(&rays.dx, run, i0, at), gather8(&rays.dy, run, i0, at), gather8(&rays.dz, run, i0, at)];
+        let mut thr = [gather8(&rays.tr, run, i0, at), gather8(&rays.tg, run, i0, at), gather8(&rays.tb, run, i0, at)];
+        let rt = gather8(&hits.t, run, i0, at);
+        let times = if rays.with_time { gather8(&rays.time, run, i0, at) } else { [0.0; LANES] };
+        let path = gather8(&rays.path, run, i0, at);
+        let branch = gather8(&rays.branch, run, i0, at);
+        let depth = gather8(&rays.depth, run, i0, at);
+        let media = gather8(&rays.media, run, i0, at);
+        let prims = gather8(&hits.prim, run, i0, at);
 
         let mut p = [[0.0f32; LANES]; 3];
         let mut nf = [[0.0f32; LANES]; 3];
@@ -362,12 +373,7 @@ impl Ctx<'_> {
                 unreachable!("lambert_x8 is given Lambert hits only")
             };
             let (ta, tb, ts) = albedo.checker_params();
-            let id = (pixel, branch[l], depth[l]);
-            let key = match *last_point {
-                Some((last, key)) if last == id => key,
-                _ => point_key(pixel, branch[l], depth[l]),
-            };
-            *last_point = Some((id, key));
+            let key = last_point.get((pixel, branch[l], depth[l]), || point_key(pixel, branch[l], depth[l]));
             for c in 0..3 {
                 shift[c][l] = sh[c];
                 tex_a[c][l] = ta[c];
@@ -385,7 +391,10 @@ impl Ctx<'_> {
             let naive = o + d.scale(v(&rt));
             let pn = [naive.x.to_array(), naive.y.to_array(), naive.z.to_array()];
             let mut refined = [[0.0f32; LANES]; 3];
-            for l in 0..LANES {
+            let mut bits = sph;
+            while bits != 0 {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
                 let pl = Vec3::new(pn[0][l], pn[1][l], pn[2][l]);
                 let q = refine_sphere_point(Vec3::new(sc[0][l], sc[1][l], sc[2][l]), sr[l], pl);
                 for k in 0..3 {
@@ -431,7 +440,7 @@ impl Ctx<'_> {
             return;
         }
         // Diffuse bounces: the lanes below both depth limits.
-        let diffuse = gather(&rays.diffuse, run, i0, at);
+        let diffuse = gather8(&rays.diffuse, run, i0, at);
         let mut go = 0u32;
         for l in 0..m {
             if (diffuse[l] as u32) < profile.diffuse_depth && (depth[l] as u32) < profile.max_depth {
@@ -445,14 +454,10 @@ impl Ctx<'_> {
         // one direction (0.5, 0.5) maps to, a biased estimate. The stream of (pixel, branch, depth) is
         // shared by a pixel's consecutive samples: its key is computed once per run.
         let mut dkeys = [0u64; LANES];
-        let mut last: Option<((u32, u32, u16), u64)> = None;
+        let mut memo = KeyMemo::default();
         for l in 0..m {
-            let id = (pixels[l], branch[l], depth[l]);
-            let key = match last {
-                Some((prev, key)) if prev == id => key,
-                _ => stream_key(self.seed, branch_stream(pixels[l], branch[l]), dims::DIFFUSE + depth[l] as u32),
-            };
-            (dkeys[l], last) = (key, Some((id, key)));
+            let stream = || stream_key(self.seed, branch_stream(pixels[l], branch[l]), dims::DIFFUSE + depth[l] as u32);
+            dkeys[l] = memo.get((pixels[l], branch[l], depth[l]), stream);
         }
         let u = self.diffuse.sample_x8(&dkeys, &samples, true);
         let wi = sample_hemisphere_cos_x8(nv, u);
@@ -482,7 +487,7 @@ impl Ctx<'_> {
             }
         }
         // The surviving children, compacted into rows: what `next_of` and the bounce give each.
-        let lambda = if rays.with_lambda { gather(&rays.lambda, run, i0, at) } else { [0.0; LANES] };
+        let lambda = if rays.with_lambda { gather8(&rays.lambda, run, i0, at) } else { [0.0; LANES] };
         let mut rows = RayRows::default();
         let mut k = 0;
         let mut bits = alive;

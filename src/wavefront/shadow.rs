@@ -17,7 +17,7 @@ use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
-use crate::simd::{f32x8, load8, store8, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x8, gather8, store8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
 
 /// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
@@ -114,18 +114,6 @@ impl Batch {
     }
 }
 
-/// Lanes `base..base + m` of a request field, as 8 lanes (past `m`: 0).
-#[inline(always)]
-fn lanes8(v: &[f32], base: usize, m: usize) -> f32x8 {
-    if m == LANES {
-        // A fixed-size load (a variable-length copy is a call to memmove).
-        return load8(v, base);
-    }
-    let mut a = [0.0f32; LANES];
-    a[..m].copy_from_slice(&v[base..base + m]);
-    f32x8::from(a)
-}
-
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
     let mut pk = Batch::new();
     let mut traced = 0u64;
@@ -163,14 +151,15 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             m = l;
         }
         let live = (1u32 << m) - 1;
-        let f = |v: &Vec<f32>| lanes8(v, base, m);
+        // Lanes past `m` repeat the last request (masked off by `live`).
+        let f = |v: &Vec<f32>| f32x8::from(gather8(v, m == LANES, base, |l| base + l.min(m - 1)));
         let p = Vec3x8::new(f(&nee.px), f(&nee.py), f(&nee.pz));
         let n = Vec3x8::new(f(&nee.nx), f(&nee.ny), f(&nee.nz));
         let w = Vec3x8::new(f(&nee.wr), f(&nee.wg), f(&nee.wb));
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
         let time = f(&nee.time);
-        let path: [u32; LANES] = std::array::from_fn(|l| if l < m { nee.path[base + l] } else { 0 });
+        let path = gather8(&nee.path, m == LANES, base, |l| base + l.min(m - 1));
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
@@ -194,7 +183,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 if li < KEY_CACHE { lane_keys[li] } else { std::array::from_fn(|l| if l < m { light_key(base + l, li) } else { 0 }) };
             let (end, sampler) = if point { (1.0, &delta) } else { (SHADOW_END, &area) };
             let ns_lanes = f32x8::splat(ns as f32);
-            let samples: [u32; LANES] = std::array::from_fn(|l| if l < m { nee.sample[base + l] } else { 0 });
+            let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
             for j in 0..ns {
                 // Across: sample index = camera sample x ns + j of the pixel's set. Else all ns samples
                 // serve this one shading point: strata need no permutation.
