@@ -6,7 +6,7 @@
 //! that reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
 use super::queues::{CsgCandidates, HitQueue, RayQueue, NONE};
-use crate::accel::{intersect_aabb_x8, Bvh8Stack, PacketRay, GROUP};
+use crate::accel::{intersect_aabb_x8, PacketRay, GROUP};
 use crate::geometry::{
     intersect_disk_f64, intersect_disk_x8, intersect_ellipsoid_f64, intersect_ellipsoid_x8, intersect_obox_f64, intersect_obox_x8,
     intersect_plane_f64, intersect_plane_x8, intersect_quad_f64, intersect_quad_x8, intersect_sphere_f64, intersect_sphere_x8, MISS,
@@ -302,7 +302,8 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
 fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQueue, cands: &mut CsgCandidates) {
     let len = rays.len();
     let none = i32x8::splat(NONE as i32);
-    let mut stack = Bvh8Stack::default();
+    // The traversal stack is the queue's reusable scratch (7 KiB: not allocated per call).
+    let HitQueue { t: hit_t, prim: hit_prim, wide_stack: stack, .. } = hits;
     for base in (0..len).step_by(LANES) {
         let (mut ray, time) = gather_packet(rays, order, base, len);
         let mut ids = none;
@@ -310,7 +311,7 @@ fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQ
             let t = prim_t_ties(&scene.prims[pid as usize], &mut ray, &ids, None);
             record(&mut ray, &mut ids, t, pid);
         }
-        scene.bvh8.traverse_closest_x8(&mut ray, &mut stack, |bi, r| {
+        scene.bvh8.traverse_closest_x8(&mut ray, stack, |bi, r| {
             hit_bounded(scene, bi, r, &mut ids, time, cands, |l| order[base + l]);
         });
         let found = ids.simd_eq(none);
@@ -318,7 +319,7 @@ fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQ
         let (ta, ia) = (t.to_array(), ids.to_array());
         for l in 0..LANES.min(len - base) {
             let i = order[base + l] as usize;
-            (hits.t[i], hits.prim[i]) = (ta[l], ia[l] as u32);
+            (hit_t[i], hit_prim[i]) = (ta[l], ia[l] as u32);
         }
     }
 }

@@ -3,6 +3,7 @@
 //! `tmax = -1`, which no kernel hits). Queues are cleared, never freed: a wavefront reuses them for the
 //! next tile, so after warm-up nothing allocates.
 
+use crate::accel::Bvh8Stack;
 use crate::simd::{pad_to_lanes, LANES};
 use glam::Vec3;
 
@@ -298,6 +299,8 @@ pub struct HitQueue {
     pub flip: Vec<bool>,
     /// Scratch of the intersect stage: ray indices partitioned by direction octant.
     pub order: Vec<u32>,
+    /// Scratch of the intersect stage: the wide BVH's traversal stack.
+    pub wide_stack: Bvh8Stack,
 }
 
 impl HitQueue {
