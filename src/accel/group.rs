@@ -167,8 +167,7 @@ impl Bvh {
                     (node, first) = (descend(n, near_right, f, &mut stack, &mut sp), f);
                     continue;
                 }
-                let prims = &self.indices[n.left_first as usize..n.left_first as usize + count];
-                let (bmin, bmax) = (Vec3::from_array(n.min), Vec3::from_array(n.max));
+                let (prims, bmin, bmax) = self.leaf(n, count);
                 for j in f..k {
                     if j != f && !intersect_aabb_x8(bmin, bmax, &pr[j], rays[j].tmax).1.any() {
                         continue;
@@ -244,8 +243,7 @@ impl Bvh {
                         (node, first) = (descend(n, near_right, f, &mut stack, &mut sp), f);
                         continue;
                     }
-                    let prims = &self.indices[n.left_first as usize..n.left_first as usize + count];
-                    let (bmin, bmax) = (Vec3::from_array(n.min), Vec3::from_array(n.max));
+                    let (prims, bmin, bmax) = self.leaf(n, count);
                     for j in f..k {
                         if pending & (1 << j) == 0 || (j != f && !intersect_aabb_x8(bmin, bmax, &pr[j], rs[j].tmax).1.any()) {
                             continue;
@@ -273,6 +271,15 @@ impl Bvh {
             sp -= 1;
             (node, first) = (stack[sp].0 as usize, stack[sp].1 as usize);
         }
+    }
+}
+
+impl Bvh {
+    /// A leaf's primitive slots and box (`count` = `n.count()`, non-zero).
+    #[inline(always)]
+    fn leaf(&self, n: &BvhNode, count: usize) -> (&[u32], Vec3, Vec3) {
+        let first = n.left_first as usize;
+        (&self.indices[first..first + count], Vec3::from_array(n.min), Vec3::from_array(n.max))
     }
 }
 
