@@ -620,15 +620,20 @@ fn intersect_stage_is_identical_with_the_wide_bvh() {
         let mut scene = stage_scene(&mut rng, 240, s, motion, csg);
         // Built whatever the tree's size (the scene builds it only from `WIDE_MIN_NODES` nodes).
         scene.bvh8 = Bvh8::from_bvh(&scene.bvh, Collapse::Sah);
-        // A coherent queue never takes the incoherent traversal (both runs would be groups): it is
-        // only checked to be judged coherent.
-        let coherent = stage_queue(&mut rng, &scene, 3000, s, true);
-        stage_hits(&scene, &coherent, Traversal::Wide, false);
-        {
-            let coherent = false;
+        // Incoherent queues: groups or wide packets by `Traversal`. Coherent queues (judged so: no
+        // octant order) take groups through the wide tree when the scene has one, else through the
+        // binary tree.
+        for coherent in [false, true] {
             let q = stage_queue(&mut rng, &scene, 3000, s, coherent);
-            let groups = stage_hits(&scene, &q, Traversal::Groups, !coherent);
-            let wide = stage_hits(&scene, &q, Traversal::Wide, !coherent);
+            let (groups, wide) = if coherent {
+                let wide = stage_hits(&scene, &q, Traversal::Wide, false);
+                let bvh8 = std::mem::take(&mut scene.bvh8);
+                let binary = stage_hits(&scene, &q, Traversal::Wide, false);
+                scene.bvh8 = bvh8;
+                (binary, wide)
+            } else {
+                (stage_hits(&scene, &q, Traversal::Groups, true), stage_hits(&scene, &q, Traversal::Wide, true))
+            };
             for (stage, g, w) in [("intersect", &groups.0, &wide.0), ("csg_merge", &groups.1, &wide.1)] {
                 for (i, (g, w)) in g.iter().zip(w).enumerate() {
                     let r = q.get(i);
@@ -642,7 +647,7 @@ fn intersect_stage_is_identical_with_the_wide_bvh() {
             hit += groups.1.iter().filter(|h| h.1 != u32::MAX).count();
         }
     }
-    assert!(hit > 5_000, "{hit} hits");
+    assert!(hit > 10_000, "{hit} hits");
 }
 
 #[test]

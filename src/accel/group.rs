@@ -36,22 +36,22 @@ pub const GROUP: usize = 8;
 /// whose directions are negative, origins and boxes are negated (then `t = (b - o) * inv` with `inv > 0`).
 /// Kept in SSE vectors (`Vec3A`): the test costs about 15 vector instructions per node.
 #[derive(Clone, Copy, Debug)]
-struct GroupBounds {
+pub(super) struct GroupBounds {
     /// Set on axes whose directions are negative.
-    neg: BVec3A,
+    pub(super) neg: BVec3A,
     /// Widening of node boxes in space: `PAD * max |o|` per axis, at least the per-lane test's absolute
     /// padding (`ABS_PAD * |o|`, see `aabb.rs`), so the group never culls what one packet would enter.
-    pad: Vec3A,
-    o_lo: Vec3A,
-    o_hi: Vec3A,
-    inv_lo: Vec3A,
-    inv_hi: Vec3A,
+    pub(super) pad: Vec3A,
+    pub(super) o_lo: Vec3A,
+    pub(super) o_hi: Vec3A,
+    pub(super) inv_lo: Vec3A,
+    pub(super) inv_hi: Vec3A,
 }
 
 impl GroupBounds {
     /// Bounds of the active lanes (`tmax >= 0`) of `rays`; `None` when they do not all point into one
     /// octant (a zero or non-finite direction component also gives `None`) or no lane is active.
-    fn new(rays: &[Ray8]) -> Option<Self> {
+    pub(super) fn new(rays: &[Ray8]) -> Option<Self> {
         let inf = f32x8::splat(f32::INFINITY);
         let mut lo = [inf; 6];
         let mut hi = [-inf; 6];
@@ -106,14 +106,19 @@ impl GroupBounds {
         let (d0, d1) = (b0 - self.o_hi, b1 - self.o_lo);
         let near = (d0 * self.inv_lo).min(d0 * self.inv_hi);
         let far = (d1 * self.inv_lo).max(d1 * self.inv_hi);
-        let tn = near.max_element().max(0.0);
-        let tf = far.min_element().min(tmax);
-        tn - tf > SLACK * (tn.abs() + tf.abs()) + f32::MIN_POSITIVE
+        culled(near.max_element().max(0.0), far.min_element().min(tmax))
     }
 }
 
+/// The interval test's verdict from the group's entry bound `tn` and exit bound `tf` (already limited
+/// by `tmax`): true when `tn` exceeds `tf` by more than the slack (see [`GroupBounds::misses`]).
+#[inline(always)]
+pub(super) fn culled(tn: f32, tf: f32) -> bool {
+    tn - tf > SLACK * (tn.abs() + tf.abs()) + f32::MIN_POSITIVE
+}
+
 /// Relative slack of the interval test (see [`GroupBounds::misses`]).
-const SLACK: f32 = 1.0 / (1u32 << 19) as f32;
+pub(super) const SLACK: f32 = 1.0 / (1u32 << 19) as f32;
 /// Spatial widening of node boxes relative to the largest origin coordinate (see [`GroupBounds::misses`]).
 const PAD: f32 = 1.0 / (1u32 << 20) as f32;
 
@@ -129,7 +134,7 @@ fn near_bits(rays: &[Ray8]) -> u32 {
 }
 
 /// Largest `tmax` of the group's packets (negative when none is active).
-fn group_tmax(rays: &[Ray8]) -> f32 {
+pub(super) fn group_tmax(rays: &[Ray8]) -> f32 {
     let m = rays.iter().fold(f32x8::splat(f32::NEG_INFINITY), |m, r| m.fast_max(r.tmax));
     m.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max)
 }

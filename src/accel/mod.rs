@@ -35,6 +35,7 @@ mod node;
 mod traverse;
 mod validate;
 mod wide;
+mod wide_group;
 mod wide_traverse;
 
 pub use aabb::{intersect_aabb_f64, intersect_aabb_x8, slab_interval_f64, Aabb, PacketRay, INV_D_CLAMP};

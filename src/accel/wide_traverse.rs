@@ -57,16 +57,16 @@ const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 /// A pending child: its slot fields (`count` 0: an inner node), the smallest entry distance over the
 /// lanes that entered it, and those lanes (bit `l` = lane `l`; bit 0 for a single ray).
 #[derive(Clone, Copy, Debug, Default)]
-struct Entry {
-    child: u32,
-    count: u32,
-    tn: f32,
-    lanes: u32,
+pub(super) struct Entry {
+    pub(super) child: u32,
+    pub(super) count: u32,
+    pub(super) tn: f32,
+    pub(super) lanes: u32,
 }
 
 /// Caller-owned traversal stack of [`Bvh8`], reused across traversals (see the module doc).
 #[derive(Clone, Debug)]
-pub struct Bvh8Stack(Vec<Entry>);
+pub struct Bvh8Stack(pub(super) Vec<Entry>);
 
 impl Default for Bvh8Stack {
     fn default() -> Self {
@@ -175,7 +175,7 @@ pub fn transpose8x8(mut x: u64) -> u64 {
 /// deepest, so that the nearest is on top; `lanes(i)` gives child `i`'s lane mask. (An entry distance
 /// can be +inf, for a box beyond the f32 range that a ray with `tmax = inf` enters: it is pushed last.)
 #[inline(always)]
-fn push_children(n: &Bvh8Node, key: f32x8, hit: u32, lanes: impl Fn(usize) -> u32, stack: &mut [Entry], sp: &mut usize) {
+pub(super) fn push_children(n: &Bvh8Node, key: f32x8, hit: u32, lanes: impl Fn(usize) -> u32, stack: &mut [Entry], sp: &mut usize) {
     let ka = key.to_array();
     let mut bits = hit;
     while bits != 0 {

@@ -66,8 +66,7 @@ pub fn prim_t_at_x8(prim: &Prim, ray: &Ray8, time: Option<f32x8>) -> f32x8 {
 pub fn load_packet(rays: &RayQueue, i: usize) -> (Ray8, Option<f32x8>) {
     let o = Vec3x8::load(&rays.ox, &rays.oy, &rays.oz, i);
     let d = Vec3x8::load(&rays.dx, &rays.dy, &rays.dz, i);
-    let time = rays.with_time.then(|| load8(&rays.time, i));
-    (Ray8::new(o, d, load8(&rays.tmax, i)), time)
+    (Ray8::new(o, d, load8(&rays.tmax, i)), rays.with_time.then(|| load8(&rays.time, i)))
 }
 
 /// Distance to `prim` for the packet, reporting hits at *exactly* the current best distance too (on
@@ -263,7 +262,22 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
         let mut rs = [empty_packet(); GROUP];
         for j in 0..k {
             let q = gbase + j * LANES;
-            (rs[j], times[j]) = if sorted { gather_packet(rays, &order, q, len) } else { load_packet(rays, q) };
+            if sorted {
+                (rs[j], times[j]) = gather_packet(rays, &order, q, len);
+            } else {
+                // Field by field: a whole-`Ray8` temporary was copied with 64-byte moves that
+                // reloaded two 32-byte stores at once (a store-forwarding stall per packet).
+                // (one f32x8 at a time: whole `Vec3x8` temporaries had the same problem).
+                let r = &mut rs[j];
+                let (dx, dy, dz) = (load8(&rays.dx, q), load8(&rays.dy, q), load8(&rays.dz, q));
+                (r.o.x, r.o.y, r.o.z) = (load8(&rays.ox, q), load8(&rays.oy, q), load8(&rays.oz, q));
+                (r.d.x, r.d.y, r.d.z) = (dx, dy, dz);
+                (r.inv_d.x, r.inv_d.y, r.inv_d.z) = (f32x8::ONE / dx, f32x8::ONE / dy, f32x8::ONE / dz);
+                r.tmax = load8(&rays.tmax, q);
+                if rays.with_time {
+                    times[j] = Some(load8(&rays.time, q));
+                }
+            }
         }
         let none = i32x8::splat(NONE as i32);
         let mut ids = [none; GROUP];
@@ -274,9 +288,14 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
                 record(&mut rs[j], &mut ids[j], t, pid);
             }
         }
-        scene.bvh.traverse_closest_group(&mut rs[..k], |bi, j, ray| {
+        let hit = |bi: u32, j: usize, ray: &mut Ray8| {
             hit_bounded(scene, bi, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
-        });
+        };
+        if scene.bvh8.is_empty() {
+            scene.bvh.traverse_closest_group(&mut rs[..k], hit);
+        } else {
+            scene.bvh8.traverse_closest_group(&mut rs[..k], &mut hits.wide_stack, hit);
+        }
         for j in 0..k {
             let base = gbase + j * LANES;
             let found = ids[j].simd_eq(none);

@@ -1,0 +1,131 @@
+//! Group traversal of the 8-wide BVH: up to [`GROUP`] 8-ray packets (64 coherent rays: camera rays of
+//! an 8x8 pixel block) descend [`Bvh8`] together, deciding each node's 8 children by the group's
+//! interval test alone.
+//!
+//! The binary group traversal (`group.rs`) enters a node by one packet's slab test and falls back to
+//! the interval test when that packet misses: about 60 instructions per binary node, and a coherent
+//! group visits ~32 binary nodes. Here the interval test of `GroupBounds` runs on a wide node's 8
+//! children at once, one `f32x8` per quantity (the child boxes are rows of 8 floats): the same
+//! operations on the same operands as the scalar test, lane by lane, so its verdicts are the scalar
+//! test's, which is conservative against the padded per-lane slab test (see `GroupBounds::misses`).
+//! Packets are tested only at leaves: when a wide node enters a leaf child, each packet runs the
+//! padded slab test on the leaf's box, and the leaf keeps the mask of packets that passed. Children
+//! are pushed far-to-near by their entry bound and skipped when popped after closer hits lowered the
+//! group's largest `tmax` below it (by the same verdict: it only culls more as `tmax` falls).
+//!
+//! Results equal the other traversals' (same `t` bits and primitive ids): a primitive a lane hits at
+//! `t` lies in its leaf's box, so the lane passes the padded slab test of that leaf and of every
+//! ancestor with any `tmax >= t`, the interval test never culls what a lane passes, and the intersect
+//! stage's recording is order-independent.
+
+use super::aabb::{intersect_aabb_x8, PacketRay};
+use super::group::{culled, group_tmax, GroupBounds, SLACK};
+use super::wide::{Bvh8, Bvh8Node, WIDTH};
+use super::wide_traverse::{push_children, Bvh8Stack};
+use super::GROUP;
+use crate::simd::{f32x8, Ray8};
+use glam::Vec3;
+
+impl GroupBounds {
+    /// [`GroupBounds::misses`] for the 8 children of `n` at once: `(tn, enter)`, the entry bound of each
+    /// child and the mask (bit `i` = child `i`) of occupied children the test does not cull.
+    #[inline(always)]
+    fn children(&self, n: &Bvh8Node, tmax: f32) -> (f32x8, u32) {
+        let row = |i: usize| f32x8::from(n.bounds[i]);
+        let axis = |a: usize| {
+            let (pad, o_lo, o_hi) = (f32x8::splat(self.pad[a]), f32x8::splat(self.o_lo[a]), f32x8::splat(self.o_hi[a]));
+            let (inv_lo, inv_hi) = (f32x8::splat(self.inv_lo[a]), f32x8::splat(self.inv_hi[a]));
+            let (b0, b1) = if self.neg.test(a) { (-row(a + 3), -row(a)) } else { (row(a), row(a + 3)) };
+            let (d0, d1) = (b0 - pad - o_hi, b1 + pad - o_lo);
+            ((d0 * inv_lo).fast_min(d0 * inv_hi), (d1 * inv_lo).fast_max(d1 * inv_hi))
+        };
+        let ((nx, fx), (ny, fy), (nz, fz)) = (axis(0), axis(1), axis(2));
+        let tn = nx.fast_max(ny).fast_max(nz).fast_max(f32x8::ZERO);
+        let tf = fx.fast_min(fy).fast_min(fz).fast_min(f32x8::splat(tmax));
+        let cull = (tn - tf).simd_gt(f32x8::splat(SLACK) * (tn.abs() + tf.abs()) + f32x8::splat(f32::MIN_POSITIVE));
+        // Empty slots (min = +inf, max = -inf) give tn = +inf, tf = -inf, which the verdict's
+        // arithmetic does not cull (inf > inf is false): they are excluded by their box.
+        let occupied = row(0).simd_le(row(3));
+        (tn, (!cull & occupied).to_bitmask())
+    }
+}
+
+impl Bvh8 {
+    /// Closest-hit traversal of up to [`GROUP`] packets together (see the module doc). `leaf(prim, j,
+    /// &mut rays[j])` has the contract of [`super::Bvh::traverse_closest_x8`]'s callback, for packet
+    /// `j`. A group whose active rays do not share one direction octant is traversed packet by packet
+    /// ([`Bvh8::traverse_closest_x8`]).
+    pub fn traverse_closest_group(&self, rays: &mut [Ray8], stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
+        assert!(rays.len() <= GROUP, "at most {GROUP} packets per group");
+        if self.nodes.is_empty() || rays.is_empty() {
+            return;
+        }
+        let Some(gb) = GroupBounds::new(rays) else {
+            for (j, r) in rays.iter_mut().enumerate() {
+                self.traverse_closest_x8(r, stack, |p, r| leaf(p, j, r));
+            }
+            return;
+        };
+        let k = rays.len();
+        let mut pr = [PacketRay::new(&rays[0]); GROUP];
+        for j in 1..k {
+            pr[j] = PacketRay::new(&rays[j]);
+        }
+        let mut tmax = group_tmax(rays);
+        let stack = &mut stack.0[..];
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            let (tn, mut enter) = gb.children(n, tmax);
+            // Leaf children: the packets that pass the slab test of the leaf's box.
+            let mut packets = [0u32; WIDTH];
+            let mut leaves = enter & leaf_slots(n);
+            while leaves != 0 {
+                let i = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let b = &n.bounds;
+                let (bmin, bmax) = (Vec3::new(b[0][i], b[1][i], b[2][i]), Vec3::new(b[3][i], b[4][i], b[5][i]));
+                for j in 0..k {
+                    packets[i] |= (intersect_aabb_x8(bmin, bmax, &pr[j], rays[j].tmax).1.any() as u32) << j;
+                }
+                if packets[i] == 0 {
+                    enter &= !(1 << i);
+                }
+            }
+            push_children(n, tn, enter, |i| packets[i], stack, &mut sp);
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                let e = stack[sp];
+                // Culled with tmax then, or now that closer hits lowered it.
+                if culled(e.tn, tmax) {
+                    continue;
+                }
+                if e.count == 0 {
+                    node = e.child as usize;
+                    break;
+                }
+                let prims = &self.indices[e.child as usize..(e.child + e.count) as usize];
+                let mut bits = e.lanes;
+                while bits != 0 {
+                    let j = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    for &p in prims {
+                        leaf(p, j, &mut rays[j]);
+                    }
+                }
+                tmax = group_tmax(&rays[..k]);
+            }
+        }
+    }
+}
+
+/// Slots of `n` that hold a leaf (bit `i` = slot `i`).
+#[inline(always)]
+fn leaf_slots(n: &Bvh8Node) -> u32 {
+    let c = crate::simd::i32x8::from(bytemuck::cast::<[u32; WIDTH], [i32; WIDTH]>(n.count));
+    (!c.simd_eq(crate::simd::i32x8::ZERO)).to_bitmask() as u32
+}
