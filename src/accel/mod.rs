@@ -43,6 +43,7 @@ pub use build::build_bvh;
 pub use group::GROUP;
 pub use node::{BvhNode, MAX_LEAF_COUNT};
 pub use wide::{Bvh8, Bvh8Node, Collapse, WIDE_MIN_NODES, WIDTH};
+pub use wide_group::WIDE_GROUP;
 pub use wide_traverse::{intersect_children_single, transpose8x8, Bvh8Stack};
 
 /// Maximum number of levels of a built tree (a root-only tree has depth 1). The build guarantees it

@@ -1,6 +1,6 @@
-//! Group traversal of the 8-wide BVH: up to [`GROUP`] 8-ray packets (64 coherent rays: camera rays of
-//! an 8x8 pixel block) descend [`Bvh8`] together, deciding each node's 8 children by the group's
-//! interval test alone.
+//! Group traversal of the 8-wide BVH: up to [`WIDE_GROUP`] 8-ray packets (256 coherent rays: camera
+//! rays of four 8x8 pixel blocks) descend [`Bvh8`] together, deciding each node's 8 children by the
+//! group's interval test alone.
 //!
 //! The binary group traversal (`group.rs`) enters a node by one packet's slab test and falls back to
 //! the interval test when that packet misses: about 60 instructions per binary node, and a coherent
@@ -22,9 +22,14 @@ use super::aabb::{intersect_aabb_x8, PacketRay};
 use super::group::{culled, group_tmax, GroupBounds, SLACK};
 use super::wide::{Bvh8, Bvh8Node, WIDTH};
 use super::wide_traverse::{push_children, Bvh8Stack};
-use super::GROUP;
 use crate::simd::{f32x8, Ray8};
 use glam::Vec3;
+
+/// Packets per group of the wide group traversal. Camera rays of `bench_spheres` (one thread, best of
+/// 40, M rays/s): 8 packets 93, 16 packets 97-102, 32 packets 102-103. Larger groups share each node
+/// test among more rays; their interval bounds are looser, and each leaf a group enters tests every
+/// packet's slab.
+pub const WIDE_GROUP: usize = 32;
 
 impl GroupBounds {
     /// [`GroupBounds::misses`] for the 8 children of `n` at once: `(tn, enter)`, the entry bound of each
@@ -51,12 +56,12 @@ impl GroupBounds {
 }
 
 impl Bvh8 {
-    /// Closest-hit traversal of up to [`GROUP`] packets together (see the module doc). `leaf(prim, j,
+    /// Closest-hit traversal of up to [`WIDE_GROUP`] packets together (see the module doc). `leaf(prim, j,
     /// &mut rays[j])` has the contract of [`super::Bvh::traverse_closest_x8`]'s callback, for packet
     /// `j`. A group whose active rays do not share one direction octant is traversed packet by packet
     /// ([`Bvh8::traverse_closest_x8`]).
     pub fn traverse_closest_group(&self, rays: &mut [Ray8], stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
-        assert!(rays.len() <= GROUP, "at most {GROUP} packets per group");
+        assert!(rays.len() <= WIDE_GROUP, "at most {WIDE_GROUP} packets per group");
         if self.nodes.is_empty() || rays.is_empty() {
             return;
         }
@@ -67,7 +72,7 @@ impl Bvh8 {
             return;
         };
         let k = rays.len();
-        let mut pr = [PacketRay::new(&rays[0]); GROUP];
+        let mut pr = [PacketRay::new(&rays[0]); WIDE_GROUP];
         for j in 1..k {
             pr[j] = PacketRay::new(&rays[j]);
         }

@@ -1,12 +1,13 @@
 //! Stage 2: nearest hits of a ray queue: the unbounded planes first, then the BVH with the SIMD
-//! primitive kernels at the leaves. Coherent queues (camera rays) traverse the binary BVH in groups of 8
-//! packets of 8 rays (`accel/group.rs`). Queues of incoherent rays are first partitioned by direction
+//! primitive kernels at the leaves. Coherent queues (camera rays) traverse in groups of 8-ray packets:
+//! up to 32 packets through the 8-wide BVH when the scene has one (`accel/wide_group.rs`), else up to
+//! 8 through the binary BVH (`accel/group.rs`). Queues of incoherent rays are first partitioned by direction
 //! octant and gathered into packets, which traverse the 8-wide BVH (`accel/wide_traverse.rs`) when the
 //! scene has one, else go through the same group traversal. CSG solids are not solved here: a packet
 //! that reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
 use super::queues::{CsgCandidates, HitQueue, RayQueue, NONE};
-use crate::accel::{intersect_aabb_x8, PacketRay, GROUP};
+use crate::accel::{intersect_aabb_x8, PacketRay, GROUP, WIDE_GROUP};
 use crate::geometry::{
     intersect_disk_f64, intersect_disk_x8, intersect_ellipsoid_f64, intersect_ellipsoid_x8, intersect_obox_f64, intersect_obox_x8,
     intersect_plane_f64, intersect_plane_x8, intersect_quad_f64, intersect_quad_x8, intersect_sphere_f64, intersect_sphere_x8, MISS,
@@ -255,11 +256,17 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     }
     // Queue position -> ray index.
     let ray_at = |q: usize| if sorted { order[q] as usize } else { q };
-    // Up to GROUP packets (64 rays) traverse the BVH together (`accel/group.rs`).
-    for gbase in (0..n).step_by(LANES * GROUP) {
-        let k = ((n - gbase) / LANES).min(GROUP);
-        let mut times = [None; GROUP];
-        let mut rs = [empty_packet(); GROUP];
+    // Packets traverse together: coherent queues up to WIDE_GROUP packets (256 rays) through the wide
+    // tree when the scene has one (`accel/wide_group.rs`), else up to GROUP (64 rays) through the
+    // binary tree (`accel/group.rs`).
+    let wide = !sorted && !scene.bvh8.is_empty();
+    let group = if wide { WIDE_GROUP } else { GROUP };
+    let none = i32x8::splat(NONE as i32);
+    let mut times = [None; WIDE_GROUP];
+    let mut rs = [empty_packet(); WIDE_GROUP];
+    let mut ids = [none; WIDE_GROUP];
+    for gbase in (0..n).step_by(LANES * group) {
+        let k = ((n - gbase) / LANES).min(group);
         for j in 0..k {
             let q = gbase + j * LANES;
             if sorted {
@@ -279,8 +286,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
                 }
             }
         }
-        let none = i32x8::splat(NONE as i32);
-        let mut ids = [none; GROUP];
+        ids[..k].fill(none);
         // Unbounded planes first: their hits lower tmax, which culls the BVH beyond them.
         for j in 0..k {
             for &pid in &scene.unbounded {
@@ -291,10 +297,10 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
         let hit = |bi: u32, j: usize, ray: &mut Ray8| {
             hit_bounded(scene, bi, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
         };
-        if scene.bvh8.is_empty() {
-            scene.bvh.traverse_closest_group(&mut rs[..k], hit);
-        } else {
+        if wide {
             scene.bvh8.traverse_closest_group(&mut rs[..k], &mut hits.wide_stack, hit);
+        } else {
+            scene.bvh.traverse_closest_group(&mut rs[..k], hit);
         }
         for j in 0..k {
             let base = gbase + j * LANES;
