@@ -77,6 +77,7 @@ impl Bvh8 {
             pr[j] = PacketRay::new(&rays[j]);
         }
         let mut tmax = group_tmax(rays);
+        let all = u32::MAX >> (WIDE_GROUP - k);
         let stack = &mut stack.0[..];
         let mut sp = 0usize;
         let mut node = 0usize;
@@ -89,11 +90,7 @@ impl Bvh8 {
             while leaves != 0 {
                 let i = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
-                let b = &n.bounds;
-                let (bmin, bmax) = (Vec3::new(b[0][i], b[1][i], b[2][i]), Vec3::new(b[3][i], b[4][i], b[5][i]));
-                for j in 0..k {
-                    packets[i] |= (intersect_aabb_x8(bmin, bmax, &pr[j], rays[j].tmax).1.any() as u32) << j;
-                }
+                packets[i] = packets_entering(n, i, &pr[..k], rays, all);
                 if packets[i] == 0 {
                     enter &= !(1 << i);
                 }
@@ -133,4 +130,19 @@ impl Bvh8 {
 fn leaf_slots(n: &Bvh8Node) -> u32 {
     let c = crate::simd::i32x8::from(bytemuck::cast::<[u32; WIDTH], [i32; WIDTH]>(n.count));
     (!c.simd_eq(crate::simd::i32x8::ZERO)).to_bitmask() as u32
+}
+
+/// The packets among `among` (bit `j` = packet `j`) that pass the padded slab test of child `i`'s box.
+#[inline(always)]
+fn packets_entering(n: &Bvh8Node, i: usize, pr: &[PacketRay], rays: &[Ray8], among: u32) -> u32 {
+    let b = &n.bounds;
+    let (bmin, bmax) = (Vec3::new(b[0][i], b[1][i], b[2][i]), Vec3::new(b[3][i], b[4][i], b[5][i]));
+    let mut out = 0;
+    let mut bits = among;
+    while bits != 0 {
+        let j = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        out |= (intersect_aabb_x8(bmin, bmax, &pr[j], rays[j].tmax).1.any() as u32) << j;
+    }
+    out
 }
