@@ -618,8 +618,8 @@ fn intersect_stage_is_identical_with_the_wide_bvh() {
     let mut hit = 0usize;
     for (s, motion, csg) in [(1.0f32, false, false), (1.0, true, false), (1.0, false, true), (1e4, false, false), (1e-4, true, true)] {
         let mut scene = stage_scene(&mut rng, 240, s, motion, csg);
-        // Built whatever the tree's size (the scene builds it only from `WIDE_MIN_NODES` nodes).
-        scene.bvh8 = Bvh8::from_bvh(&scene.bvh, Collapse::Sah);
+        // Incoherent rays take the wide tree whatever its size (the scene decides by `WIDE_MIN_NODES`).
+        scene.wide_incoherent = true;
         // Incoherent queues: groups or wide packets by `Traversal`. Coherent queues (judged so: no
         // octant order) take groups through the wide tree when the scene has one, else through the
         // binary tree.

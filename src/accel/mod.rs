@@ -6,11 +6,14 @@
 //! - `build.rs`: binned SAH build (Wald 2007, "On fast Construction of SAH-based Bounding Volume
 //!   Hierarchies"), single-threaded, with a median-split fallback that bounds the depth.
 //! - `traverse.rs`: closest-hit and any-hit traversal of 8-ray packets, and a scalar f64 reference.
-//! - `group.rs`: traversal of up to 8 packets together (coherent rays: camera and shadow rays).
+//! - `group.rs`: traversal of up to 8 packets together (coherent rays: shadow rays, and camera rays
+//!   of a scene without a wide tree).
+//! - `wide_group.rs`: closest-hit traversal of up to 32 packets together through the wide tree, by an
+//!   interval test of 8 children at once (camera rays).
 //! - `validate.rs`: `validate()` (tree invariants), `depth()`, `sah_cost()`.
 //! - `wide.rs`: [`Bvh8`], 8 children per node (a 256-byte `Pod` node: child boxes as 6 rows of 8
 //!   floats), collapsed from a built [`Bvh`] (greedy, or SAH-optimal as scenes do), its `validate()`
-//!   and `sah_cost()`, and [`WIDE_MIN_NODES`], the tree size from which scenes build one.
+//!   and `sah_cost()`, and [`WIDE_MIN_NODES`], the tree size from which incoherent rays take it.
 //! - `wide_traverse.rs`: the wide tree's node kernel (one ray against 8 boxes, one `f32x8` per
 //!   plane, the same padded distances as `intersect_aabb_x8`), closest-hit traversal of 8-ray packets
 //!   whose lanes enter children separately (the intersect stage's path for incoherent rays), and

@@ -166,9 +166,10 @@ impl Compiler<'_> {
         }
         let bvh_bounds: Vec<Aabb> = bounded.iter().map(|&i| bounds[i as usize]).collect();
         let bvh = build_bvh(&bvh_bounds, &BuildOptions::default());
-        // Only trees large enough for the wide traversal to pay (see `WIDE_MIN_NODES`); the collapse is
-        // linear in the node count, a few percent of the binary build.
-        let bvh8 = if bvh.nodes.len() >= WIDE_MIN_NODES { Bvh8::from_bvh(&bvh, Collapse::Sah) } else { Bvh8::default() };
+        // Camera rays take the wide tree at every size; incoherent rays only from `WIDE_MIN_NODES`. The
+        // collapse is linear in the node count, a few percent of the binary build.
+        let bvh8 = Bvh8::from_bvh(&bvh, Collapse::Sah);
+        let wide_incoherent = bvh.nodes.len() >= WIDE_MIN_NODES;
 
         let mut features = Features {
             csg: self.prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })),
@@ -209,6 +210,7 @@ impl Compiler<'_> {
             bounds,
             bvh,
             bvh8,
+            wide_incoherent,
             bounded,
             unbounded,
             csg: std::mem::replace(&mut self.csg, Csg::new()),

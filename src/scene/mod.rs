@@ -222,9 +222,12 @@ pub struct Scene {
     pub bounds: Vec<Aabb>,
     /// The BVH indexes `bounded` (prim ids); unbounded prims (planes) are tested against every packet.
     pub bvh: Bvh,
-    /// The same tree collapsed to 8 children per node, for incoherent rays (`wavefront::intersect`);
-    /// empty when `bvh` has fewer than `accel::WIDE_MIN_NODES` nodes (groups are faster there).
+    /// The same tree collapsed to 8 children per node (`wavefront::intersect`): camera rays traverse it
+    /// in groups of packets, incoherent rays as single packets when `wide_incoherent`.
     pub bvh8: Bvh8,
+    /// Whether incoherent queues take `bvh8`: `bvh` has at least `accel::WIDE_MIN_NODES` nodes (below,
+    /// groups through the binary tree are faster for them).
+    pub wide_incoherent: bool,
     pub bounded: Vec<u32>,
     pub unbounded: Vec<u32>,
     pub csg: Csg,

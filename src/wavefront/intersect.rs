@@ -188,7 +188,7 @@ pub enum Traversal {
     /// Groups of 8 octant-sorted packets through the binary BVH (`accel/group.rs`).
     Groups,
     /// Octant-sorted 8-ray packets through the 8-wide BVH (`accel/wide_traverse.rs`), when the scene
-    /// has one (`scene.bvh8`, built for scenes of at least `WIDE_MIN_NODES` binary nodes); else
+    /// says so (`scene.wide_incoherent`: trees of at least `WIDE_MIN_NODES` binary nodes); else
     /// `Groups`.
     Wide,
 }
@@ -249,7 +249,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     cands.clear();
     let mut order = std::mem::take(&mut hits.order);
     let sorted = octant_order(rays, &mut order);
-    if sorted && incoherent == Traversal::Wide && !scene.bvh8.is_empty() {
+    if sorted && incoherent == Traversal::Wide && scene.wide_incoherent && !scene.bvh8.is_empty() {
         intersect_wide(scene, rays, &order, hits, cands);
         hits.order = order;
         return;
