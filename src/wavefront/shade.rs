@@ -335,6 +335,7 @@ impl Ctx<'_> {
         // Spheres (the common case) take their geometry in 8 lanes below: lanes in `sph`, with their
         // centre moved to the ray's time, and radius.
         let mut sph = 0u32;
+        let mut pla = 0u32;
         let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
         let mut shift = [[0.0f32; LANES]; 3];
         for (l, &i) in idx.iter().enumerate() {
@@ -357,6 +358,14 @@ impl Ctx<'_> {
                         sc[k][l] = c[k];
                     }
                     sr[l] = radius;
+                    prim.material
+                }
+                Shape::Plane(pl) => {
+                    // Planes (the other common case) in 8 lanes below too; the outward normal here.
+                    pla |= 1 << l;
+                    for k in 0..3 {
+                        nf[k][l] = pl.normal[k];
+                    }
                     prim.material
                 }
                 _ => {
@@ -384,11 +393,27 @@ impl Ctx<'_> {
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
         let v3 = |a: &[[f32; LANES]; 3]| Vec3x8::new(v(&a[0]), v(&a[1]), v(&a[2]));
+        let lanes_mask =
+            |bits: u32| f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| f32::from_bits(0u32.wrapping_sub((bits >> l) & 1))));
+        let (o, d) = (v3(&ro), v3(&rd));
+        // o + t d, as `surface_hit` computes it (unfused).
+        let naive = o + d.scale(v(&rt));
+        if pla != 0 {
+            // `surface_hit` of planes, 8 lanes, the same operations: the point o + t d, whose error
+            // scales with the origin's largest coordinate, and the plane's normal turned to face the ray.
+            let n = v3(&nf);
+            let front = d.dot_unfused(n).simd_lt(f32x8::ZERO);
+            let n_facing = Vec3x8::select(front, n, Vec3x8::new(-n.x, -n.y, -n.z));
+            let mask = lanes_mask(pla);
+            let (pv, nv) = (Vec3x8::select(mask, naive, v3(&p)), Vec3x8::select(mask, n_facing, n));
+            p = [pv.x.to_array(), pv.y.to_array(), pv.z.to_array()];
+            nf = [nv.x.to_array(), nv.y.to_array(), nv.z.to_array()];
+            scale = mask.select(o.x.abs().max(o.y.abs().max(o.z.abs())), v(&scale)).to_array();
+        }
         if sph != 0 {
             // `surface_hit` of spheres, 8 lanes, the same operations: o + t d, re-projected onto the
             // sphere in f64, the normalised radial normal, turned to face the ray.
-            let (o, d, c) = (v3(&ro), v3(&rd), v3(&sc));
-            let naive = o + d.scale(v(&rt));
+            let c = v3(&sc);
             let pn = [naive.x.to_array(), naive.y.to_array(), naive.z.to_array()];
             let mut refined = [[0.0f32; LANES]; 3];
             let mut bits = sph;
@@ -409,8 +434,7 @@ impl Ctx<'_> {
             let front = d.dot_unfused(n).simd_lt(f32x8::ZERO);
             let neg = Vec3x8::new(-n.x, -n.y, -n.z);
             let n_facing = Vec3x8::select(front, n, neg);
-            let mask =
-                f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if sph & (1 << l) != 0 { f32::from_bits(u32::MAX) } else { 0.0 }));
+            let mask = lanes_mask(sph);
             let (pv, nv) = (Vec3x8::select(mask, ps, v3(&p)), Vec3x8::select(mask, n_facing, v3(&nf)));
             p = [pv.x.to_array(), pv.y.to_array(), pv.z.to_array()];
             nf = [nv.x.to_array(), nv.y.to_array(), nv.z.to_array()];
