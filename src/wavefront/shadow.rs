@@ -138,6 +138,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     };
     let mut keys = [0u64; KEY_CACHE];
     let mut cached = None;
+    // Whether any light draws samples (needs stream keys).
+    let keyed = scene.lights.iter().any(|l| !matches!(l, Light::Point { .. }));
     // Requests are taken up to 8 at a time: one lane each, every light sample of the chunk computed as
     // one 8-lane light sample. A chunk holds at most one request per path (under split branching a
     // path has several per bounce): a path's contributions then arrive request by request, and within
@@ -164,12 +166,15 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
         let mut lane_keys = [[0u64; LANES]; KEY_CACHE];
-        for l in 0..m {
+        for l in 0..if keyed { m } else { 0 } {
             let i = base + l;
             if !across || cached != Some(nee.key[i]) {
                 cached = Some(nee.key[i]);
                 for (li, k) in keys.iter_mut().enumerate().take(scene.lights.len()) {
-                    *k = light_key(i, li);
+                    // Point lights draw no sample: no key.
+                    if !matches!(scene.lights[li], Light::Point { .. }) {
+                        *k = light_key(i, li);
+                    }
                 }
             }
             for (lane_key, &k) in lane_keys.iter_mut().zip(&keys).take(scene.lights.len()) {
@@ -179,8 +184,13 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
             let point = matches!(light, Light::Point { .. });
-            let keys_li: [u64; LANES] =
-                if li < KEY_CACHE { lane_keys[li] } else { std::array::from_fn(|l| if l < m { light_key(base + l, li) } else { 0 }) };
+            let keys_li: [u64; LANES] = if point {
+                [0; LANES]
+            } else if li < KEY_CACHE {
+                lane_keys[li]
+            } else {
+                std::array::from_fn(|l| if l < m { light_key(base + l, li) } else { 0 })
+            };
             let (end, sampler) = if point { (1.0, &delta) } else { (SHADOW_END, &area) };
             let ns_lanes = f32x8::splat(ns as f32);
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
@@ -189,7 +199,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 // serve this one shading point: strata need no permutation.
                 let permuted = across && !point;
                 let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
-                let u = sampler.sample_x8(&keys_li, &index, permuted);
+                // A point light's one sample is the centre of its (unused) sample square.
+                let u = if point { [f32x8::splat(0.5); 2] } else { sampler.sample_x8(&keys_li, &index, permuted) };
                 let ls = sample_light_x8(light, p, u);
                 let cos = n.dot_unfused(ls.wi);
                 let c = (w * ls.weight).scale(cos / ns_lanes);
