@@ -4,7 +4,7 @@
 //! Notation: ray `o + t d`, centre `c`, radius `r`, `f = o - c`. With the half-b form
 //! `a t^2 + 2 b t + c0 = 0`: `a = d.d`, `b = f.d`, `c0 = f.f - r^2`.
 
-use super::{finish_x8, nearest_f64, two_diff_x8, two_sum_x8, valid_f64};
+use super::{finish_x8, nearest_f64, two_diff_x8, two_sum_x8, valid_f64, MISS};
 use crate::simd::{f32x8, Ray8, Vec3x8};
 use glam::{DVec3, Vec3};
 
@@ -73,6 +73,11 @@ fn sphere_x8(c: Vec3x8, radius: f32, ray: &Ray8) -> f32x8 {
     // disc = r^2 - |l|^2 = (b^2 - a c0) / a.
     let disc = l.x.mul_neg_add(l.x, l.y.mul_neg_add(l.y, l.z.mul_neg_add(l.z, r2v)));
     let hit = disc.simd_ge(f32x8::splat(-GRAZE * r2));
+    if !hit.any() {
+        // Every lane passes outside the sphere (the usual case for a packet at a sphere's silhouette
+        // or a box corner): the accurate constant term and the roots are not needed.
+        return f32x8::splat(MISS);
+    }
     let c0 = dist2_minus_r2_x8(s, e, r2v, f32x8::splat(r2_lo));
     finish_x8(nearest_root_x8(a, inv_a, b, disc, c0), hit, ray)
 }
