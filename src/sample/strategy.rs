@@ -188,6 +188,11 @@ impl Sampler2d {
                 u[0][l] = jitter_in_cell_pow2(s & (self.nx - 1), lx, (h >> 32) as u32);
                 u[1][l] = jitter_in_cell_pow2(s >> lx, ly, h as u32);
             }
+        } else if self.strategy == Strategy::Grid && !permuted && index.iter().all(|&i| i == index[0]) {
+            // An unpermuted grid sample depends on its index alone (no key): one for all lanes (the
+            // light samples of a grid, sample j at every shading point of a chunk).
+            let [x, y] = self.sample_impl(keys[0], index[0], false);
+            return [f32x8::splat(x), f32x8::splat(y)];
         } else {
             for l in 0..LANES {
                 [u[0][l], u[1][l]] = self.sample_impl(keys[l], index[l], permuted);
@@ -272,7 +277,7 @@ mod tests {
     }
 
     /// The 8-lane sampler against the scalar one, bit for bit, for every strategy, power-of-two and
-    /// other sizes, permuted or not, indices inside and past the set.
+    /// other sizes, permuted or not, indices inside and past the set, distinct or shared by the lanes.
     #[test]
     fn sample_x8_matches_scalar() {
         for strategy in Strategy::ALL {
@@ -280,8 +285,11 @@ mod tests {
                 let s = Sampler2d::new(strategy, n);
                 for round in 0..40u64 {
                     let keys = std::array::from_fn(|l| crate::sample::hash::mix64(round * 8 + l as u64 + n as u64));
-                    let index =
-                        std::array::from_fn(|l| (round as u32 * 8 + l as u32).wrapping_mul(if round % 5 == 4 { 0x9e37_79b9 } else { 1 }));
+                    // Every fifth round all lanes share one index (as a chunk's light samples do).
+                    let lane = |l: u32| if round % 5 == 3 { 0 } else { l };
+                    let index = std::array::from_fn(|l| {
+                        (round as u32 * 8 + lane(l as u32)).wrapping_mul(if round % 5 == 4 { 0x9e37_79b9 } else { 1 })
+                    });
                     for permuted in [true, false] {
                         let got = s.sample_x8(&keys, &index, permuted);
                         for l in 0..LANES {
