@@ -57,9 +57,17 @@ impl GroupBounds {
         let mut hi = [-inf; 6];
         for r in rays {
             let act = r.tmax.simd_ge(f32x8::ZERO);
-            for (k, v) in [r.o.x, r.o.y, r.o.z, r.inv_d.x, r.inv_d.y, r.inv_d.z].into_iter().enumerate() {
-                lo[k] = lo[k].fast_min(act.select(v, inf));
-                hi[k] = hi[k].fast_max(act.select(v, -inf));
+            let fields = [r.o.x, r.o.y, r.o.z, r.inv_d.x, r.inv_d.y, r.inv_d.z];
+            if act.all() {
+                // Every lane active (camera packets): no masking.
+                for (k, v) in fields.into_iter().enumerate() {
+                    (lo[k], hi[k]) = (lo[k].fast_min(v), hi[k].fast_max(v));
+                }
+            } else {
+                for (k, v) in fields.into_iter().enumerate() {
+                    lo[k] = lo[k].fast_min(act.select(v, inf));
+                    hi[k] = hi[k].fast_max(act.select(v, -inf));
+                }
             }
         }
         let lo = lo.map(|v| v.to_array().into_iter().fold(f32::INFINITY, f32::min));
