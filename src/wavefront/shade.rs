@@ -363,8 +363,8 @@ impl Ctx<'_> {
                 Shape::Plane(pl) => {
                     // Planes (the other common case) in 8 lanes below too; the outward normal here.
                     pla |= 1 << l;
-                    for k in 0..3 {
-                        nf[k][l] = pl.normal[k];
+                    for (row, c) in nf.iter_mut().zip(pl.normal.to_array()) {
+                        row[l] = c;
                     }
                     prim.material
                 }
