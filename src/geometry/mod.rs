@@ -38,7 +38,10 @@ pub use obox::{intersect_obox_f64, intersect_obox_x8, normal_obox, OBox};
 pub use offset::{offset_ray_origin, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, OFFSET_ULPS};
 pub use plane::{intersect_plane_f64, intersect_plane_x8, Plane};
 pub use quad::{intersect_quad_f64, intersect_quad_x8, Quad};
-pub use sphere::{intersect_sphere_f64, intersect_sphere_moving_x8, intersect_sphere_x8, normal_sphere, refine_sphere_point, GRAZE};
+pub use sphere::{
+    intersect_sphere_f64, intersect_sphere_moving_x8, intersect_sphere_x8, normal_sphere, refine_sphere_point, refine_sphere_point_x8,
+    GRAZE,
+};
 
 use crate::simd::{f32x8, Ray8};
 use glam::DVec3;

@@ -8,6 +8,7 @@ use super::medium;
 use super::queues::{HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, RayRows, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
 use crate::geometry::{
     normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_sphere_point,
+    refine_sphere_point_x8,
 };
 use crate::optics::{
     beer_lambert, fresnel_dielectric, fresnel_schlick, reflect, refract, sample_ggx_reflect, sample_ggx_reflect_weight,
@@ -415,18 +416,8 @@ impl Ctx<'_> {
             // sphere in f64, the normalised radial normal, turned to face the ray.
             let c = v3(&sc);
             let pn = [naive.x.to_array(), naive.y.to_array(), naive.z.to_array()];
-            let mut refined = [[0.0f32; LANES]; 3];
-            let mut bits = sph;
-            while bits != 0 {
-                let l = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let pl = Vec3::new(pn[0][l], pn[1][l], pn[2][l]);
-                let q = refine_sphere_point(Vec3::new(sc[0][l], sc[1][l], sc[2][l]), sr[l], pl);
-                for k in 0..3 {
-                    refined[k][l] = q[k];
-                }
-            }
-            let ps = v3(&refined);
+            // (Other lanes' results are discarded by the select below.)
+            let ps = v3(&refine_sphere_point_x8(&sc, &sr, &pn));
             let rel = ps - c;
             let rcp = f32x8::ONE / rel.dot_unfused(rel).sqrt();
             let ok = rcp.is_finite() & rcp.simd_gt(f32x8::ZERO);
