@@ -62,6 +62,16 @@ impl Vec3x8 {
     pub fn splat(v: Vec3) -> Self {
         Self { x: f32x8::splat(v.x), y: f32x8::splat(v.y), z: f32x8::splat(v.z) }
     }
+    /// From lane rows (`rows[k][l]` = component `k` of lane `l`).
+    #[inline(always)]
+    pub fn from_rows(rows: &[[f32; LANES]; 3]) -> Self {
+        Self { x: f32x8::from(rows[0]), y: f32x8::from(rows[1]), z: f32x8::from(rows[2]) }
+    }
+    /// As lane rows (the inverse of [`Vec3x8::from_rows`]).
+    #[inline(always)]
+    pub fn rows(self) -> [[f32; LANES]; 3] {
+        [self.x.to_array(), self.y.to_array(), self.z.to_array()]
+    }
     #[inline(always)]
     pub fn load(xs: &[f32], ys: &[f32], zs: &[f32], i: usize) -> Self {
         Self { x: load8(xs, i), y: load8(ys, i), z: load8(zs, i) }

@@ -84,6 +84,63 @@ pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, 
     SurfaceHit { p, n, n_facing: if front { n } else { -n }, front, material, error_scale }
 }
 
+/// [`surface_hit`]'s geometry of 8 sphere hits, the same operations lane by lane: the point `naive` =
+/// o + t d re-projected onto the sphere (centres `sc`, radii `sr`) in f64, the normalised radial normal
+/// (zero where it cannot be normalised), and whether the ray (direction `d`) arrives on the outside.
+#[inline(always)]
+fn sphere_hits_x8(naive: Vec3x8, d: Vec3x8, sc: &[[f32; LANES]; 3], sr: &[f32; LANES]) -> (Vec3x8, Vec3x8, f32x8) {
+    let pn = [naive.x.to_array(), naive.y.to_array(), naive.z.to_array()];
+    let ps = Vec3x8::from_rows(&refine_sphere_point_x8(sc, sr, &pn));
+    let rel = ps - Vec3x8::from_rows(sc);
+    let rcp = f32x8::ONE / rel.dot_unfused(rel).sqrt();
+    let ok = rcp.is_finite() & rcp.simd_gt(f32x8::ZERO);
+    let n = Vec3x8::select(ok, rel.scale(rcp), Vec3x8::splat(Vec3::ZERO));
+    (ps, n, d.dot_unfused(n).simd_lt(f32x8::ZERO))
+}
+
+/// [`surface_hit`] of up to 8 hits (`idx`, ray indices): sphere hits (not CSG leaves) in 8 lanes by
+/// [`sphere_hits_x8`], the others one at a time. Lanes past `idx.len()` are unspecified.
+fn surface_hits_x8(scene: &Scene, rays: &RayQueue, hits: &HitQueue, idx: &[u32]) -> [SurfaceHit; LANES] {
+    let none = SurfaceHit { p: Vec3::ZERO, n: Vec3::ZERO, n_facing: Vec3::ZERO, front: false, material: 0, error_scale: 0.0 };
+    let mut out = [none; LANES];
+    let (mut sph, mut naive, mut dir) = (0u32, [[0.0f32; LANES]; 3], [[0.0f32; LANES]; 3]);
+    let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
+    for (l, &i) in idx.iter().enumerate() {
+        let i = i as usize;
+        let prim = &scene.prims[hits.prim[i] as usize];
+        match prim.shape {
+            Shape::Sphere { center, radius } => {
+                sph |= 1 << l;
+                let time = if rays.with_time { rays.time[i] } else { 0.0 };
+                let (o, d) = (Vec3::new(rays.ox[i], rays.oy[i], rays.oz[i]), Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]));
+                // o + t d and the centre at the ray's time, as `surface_hit` computes them.
+                let (p, c) = (o + d * hits.t[i], center + prim.motion * time);
+                for k in 0..3 {
+                    (naive[k][l], dir[k][l], sc[k][l]) = (p[k], d[k], c[k]);
+                }
+                sr[l] = radius;
+                out[l].material = prim.material;
+            }
+            _ => out[l] = surface_hit(scene, &rays.get(i), hits.t[i], hits.prim[i], hits.leaf[i], hits.flip[i]),
+        }
+    }
+    if sph != 0 {
+        let (p, n, front) = sphere_hits_x8(Vec3x8::from_rows(&naive), Vec3x8::from_rows(&dir), &sc, &sr);
+        let (p, n, front) = (p.rows(), n.rows(), front.to_bitmask());
+        let mut bits = sph;
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let nl = Vec3::new(n[0][l], n[1][l], n[2][l]);
+            let f = front & (1 << l) != 0;
+            let h = &mut out[l];
+            (h.p, h.n, h.front, h.error_scale) = (Vec3::new(p[0][l], p[1][l], p[2][l]), nl, f, 0.0);
+            h.n_facing = if f { nl } else { -nl };
+        }
+    }
+    out
+}
+
 /// Random-number stream of one path branch: stratified dimensions index it by sample.
 #[inline]
 pub fn branch_stream(pixel: u32, branch: u32) -> u64 {
@@ -181,62 +238,64 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
             }
             continue;
         }
-        for &i in &order[counts[b]..counts[b + 1]] {
-            let i = i as usize;
-            let mut r = rays.get(i);
-            let t = hits.t[i];
-            absorb(scene, &mut r, t);
-            let hit = surface_hit(scene, &r, t, hits.prim[i], hits.leaf[i], hits.flip[i]);
-            let (pixel, sample) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
-            match &scene.materials[hit.material as usize] {
-                Material::Emissive { radiance } => {
-                    let is_light = scene.prims[hits.prim[i] as usize].is_light;
-                    // Sampled lights were already counted by next-event estimation at a diffuse vertex.
-                    if hit.front && !(is_light && r.flags & FLAG_DIFFUSE != 0) {
-                        paths.add(r.path, r.throughput * *radiance);
+        // Hit geometry 8 hits at a time (spheres in 8 lanes), then each hit's material.
+        for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
+            let geometry = surface_hits_x8(scene, rays, hits, chunk);
+            for (&i, &hit) in chunk.iter().zip(&geometry) {
+                let i = i as usize;
+                let mut r = rays.get(i);
+                absorb(scene, &mut r, hits.t[i]);
+                let (pixel, sample) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
+                match &scene.materials[hit.material as usize] {
+                    Material::Emissive { radiance } => {
+                        let is_light = scene.prims[hits.prim[i] as usize].is_light;
+                        // Sampled lights were already counted by next-event estimation at a diffuse vertex.
+                        if hit.front && !(is_light && r.flags & FLAG_DIFFUSE != 0) {
+                            paths.add(r.path, r.throughput * *radiance);
+                        }
                     }
-                }
-                // Shaded 8 at a time by `Ctx::lambert_x8`.
-                Material::Lambert { .. } => unreachable!("Lambert hits are shaded by lambert_x8"),
-                Material::Mirror { tint } => {
-                    if (r.depth as u32) < profile.max_depth {
-                        let d = reflect(-r.d.normalize(), hit.n_facing);
-                        let child = RayItem {
-                            o: hit.spawn(hit.n_facing),
-                            d,
-                            throughput: r.throughput * *tint,
-                            flags: FLAG_SPECULAR,
-                            ..next_of(&r)
-                        };
-                        ctx.spawn(next, child, pixel, sample, 0);
-                    }
-                }
-                Material::Glossy { tint, alpha } => {
-                    if (r.depth as u32) < profile.max_depth {
-                        let wo = -r.d.normalize();
-                        let u = sample_2d(
-                            profile.glossy_strategy,
-                            seed,
-                            branch_stream(pixel, r.branch),
-                            dims::GLOSSY + r.depth as u32,
-                            sample,
-                            profile.spp,
-                        );
-                        if let Some(wi) = sample_ggx_reflect(wo, hit.n_facing, *alpha, u) {
-                            let wgt = sample_ggx_reflect_weight(wo, hit.n_facing, wi, *alpha);
+                    // Shaded 8 at a time by `Ctx::lambert_x8`.
+                    Material::Lambert { .. } => unreachable!("Lambert hits are shaded by lambert_x8"),
+                    Material::Mirror { tint } => {
+                        if (r.depth as u32) < profile.max_depth {
+                            let d = reflect(-r.d.normalize(), hit.n_facing);
                             let child = RayItem {
                                 o: hit.spawn(hit.n_facing),
-                                d: wi,
-                                throughput: r.throughput * *tint * wgt,
+                                d,
+                                throughput: r.throughput * *tint,
                                 flags: FLAG_SPECULAR,
                                 ..next_of(&r)
                             };
                             ctx.spawn(next, child, pixel, sample, 0);
                         }
                     }
+                    Material::Glossy { tint, alpha } => {
+                        if (r.depth as u32) < profile.max_depth {
+                            let wo = -r.d.normalize();
+                            let u = sample_2d(
+                                profile.glossy_strategy,
+                                seed,
+                                branch_stream(pixel, r.branch),
+                                dims::GLOSSY + r.depth as u32,
+                                sample,
+                                profile.spp,
+                            );
+                            if let Some(wi) = sample_ggx_reflect(wo, hit.n_facing, *alpha, u) {
+                                let wgt = sample_ggx_reflect_weight(wo, hit.n_facing, wi, *alpha);
+                                let child = RayItem {
+                                    o: hit.spawn(hit.n_facing),
+                                    d: wi,
+                                    throughput: r.throughput * *tint * wgt,
+                                    flags: FLAG_SPECULAR,
+                                    ..next_of(&r)
+                                };
+                                ctx.spawn(next, child, pixel, sample, 0);
+                            }
+                        }
+                    }
+                    // Checks max_depth itself: null crossings are not bounces.
+                    Material::Dielectric(d) => ctx.dielectric(d, &r, &hit, pixel, sample, next),
                 }
-                // Checks max_depth itself: null crossings are not bounces.
-                Material::Dielectric(d) => ctx.dielectric(d, &r, &hit, pixel, sample, next),
             }
         }
     }
@@ -412,17 +471,8 @@ impl Ctx<'_> {
             scale = mask.select(o.x.abs().max(o.y.abs().max(o.z.abs())), v(&scale)).to_array();
         }
         if sph != 0 {
-            // `surface_hit` of spheres, 8 lanes, the same operations: o + t d, re-projected onto the
-            // sphere in f64, the normalised radial normal, turned to face the ray.
-            let c = v3(&sc);
-            let pn = [naive.x.to_array(), naive.y.to_array(), naive.z.to_array()];
             // (Other lanes' results are discarded by the select below.)
-            let ps = v3(&refine_sphere_point_x8(&sc, &sr, &pn));
-            let rel = ps - c;
-            let rcp = f32x8::ONE / rel.dot_unfused(rel).sqrt();
-            let ok = rcp.is_finite() & rcp.simd_gt(f32x8::ZERO);
-            let n = Vec3x8::select(ok, rel.scale(rcp), Vec3x8::splat(Vec3::ZERO));
-            let front = d.dot_unfused(n).simd_lt(f32x8::ZERO);
+            let (ps, n, front) = sphere_hits_x8(naive, d, &sc, &sr);
             let neg = Vec3x8::new(-n.x, -n.y, -n.z);
             let n_facing = Vec3x8::select(front, n, neg);
             let mask = lanes_mask(sph);
