@@ -9,7 +9,7 @@ use glam::{DVec3, Vec3};
 use rand_core::Rng;
 use strata::accel::{
     build_bvh, intersect_aabb_f64, intersect_aabb_x8, intersect_children_single, transpose8x8, Aabb, BuildOptions, Bvh, Bvh8, Bvh8Node,
-    Bvh8Stack, Collapse, PacketRay, MAX_DEPTH, WIDTH,
+    Bvh8Stack, Collapse, PacketRay, MAX_DEPTH, WIDE_GROUP, WIDTH,
 };
 use strata::csg::CsgArena;
 use strata::scene::{parse_scene, Scene};
@@ -504,6 +504,71 @@ fn packet_closest_hit_matches_brute_force() {
     }
 }
 
+/// Groups of up to `WIDE_GROUP` packets of camera-like rays (one eye, or an eye spread like a lens,
+/// aimed around a random primitive), full and partial groups, inactive and zero-length lanes, groups
+/// whose lanes all have a finite `tmax`, and groups
+/// with an exactly zero direction component (no shared octant: the per-packet fallback), through
+/// `Bvh8::traverse_closest_group` against brute force (t and id, equal distances to the lower id).
+#[test]
+fn group_closest_hit_matches_brute_force() {
+    let mut rng = Rand::new(90);
+    let mut st = Bvh8Stack::default();
+    let (mut hits, mut full, mut fallback) = (0usize, 0usize, 0usize);
+    for (s, prims, w) in scenes() {
+        for g in 0..60 {
+            let k = [WIDE_GROUP, WIDE_GROUP, 1, 7, 19, 32][g % 6];
+            full += (k == WIDE_GROUP) as usize;
+            let eye = rng.vec(-15.0, 15.0) * s;
+            let spread = [0.0, 0.0, 0.05, 1.0][g % 4] * s;
+            let aim = prims[rng.below(prims.len() as u32) as usize].bounds().centroid();
+            let zero_axis = (g % 10 == 9).then(|| rng.below(3) as usize);
+            fallback += zero_axis.is_some() as usize;
+            let mut o = vec![[Vec3::ZERO; LANES]; k];
+            let mut d = vec![[Vec3::X; LANES]; k];
+            let mut tmax = vec![[-1.0f32; LANES]; k];
+            for j in 0..k {
+                for l in 0..LANES {
+                    o[j][l] = eye + rng.vec(-1.0, 1.0) * spread;
+                    let mut dir = (aim + rng.vec(-3.0, 3.0) * s - eye).normalize_or(Vec3::X);
+                    if let Some(a) = zero_axis.filter(|_| l % 2 == 0) {
+                        dir[a] = 0.0;
+                    }
+                    d[j][l] = dir;
+                    // Every third group all finite (its largest tmax then drives the pop-time cull).
+                    tmax[j][l] = match (g % 3, rng.below(10)) {
+                        (2, _) => rng.range(1.0, 30.0) * s,
+                        (_, 0) => -1.0,
+                        (_, 1) => 0.0,
+                        (_, 2) => rng.range(0.0, 20.0) * s,
+                        _ => f32::INFINITY,
+                    };
+                }
+            }
+            let mut rays: Vec<Ray8> = (0..k).map(|j| packet(o[j], d[j], tmax[j])).collect();
+            let mut best = vec![[None; LANES]; k];
+            w.traverse_closest_group(&mut rays, &mut st, |p, j, r| {
+                let mut tm = r.tmax.to_array();
+                for l in 0..LANES {
+                    if let Some(t) = prims[p as usize].hit(o[j][l].as_dvec3(), d[j][l].as_dvec3()).filter(|&t| t < tmax[j][l] as f64) {
+                        if let Some(nt) = record(&mut best[j][l], p, t) {
+                            tm[l] = nt;
+                        }
+                    }
+                }
+                r.tmax = f32x8::from(tm);
+            });
+            for j in 0..k {
+                for l in 0..LANES {
+                    let want = if tmax[j][l] < 0.0 { None } else { brute_closest(&prims, o[j][l], d[j][l], tmax[j][l]) };
+                    assert_eq!(best[j][l], want, "scale {s}, group {g} (k {k}), packet {j} lane {l}: o {:?} d {:?}", o[j][l], d[j][l]);
+                    hits += want.is_some() as usize;
+                }
+            }
+        }
+    }
+    assert!(full >= 80 && fallback >= 20 && hits > 8_000, "{full} full groups, {fallback} fallback groups, {hits} hits");
+}
+
 // ---------------------------------------------------------------- the intersect stage
 
 /// A scene of `n` random shapes at scale `s` (spheres, some duplicated; rotated boxes; quads; disks;
@@ -568,13 +633,21 @@ fn stage_scene(rng: &mut Rand, n: usize, s: f32, motion: bool, csg: bool) -> Sce
 }
 
 /// An incoherent queue (random origins and directions, grazing and axis-parallel rays, rays from
-/// sphere surfaces), or with `coherent` one origin and nearby directions (camera-like).
+/// sphere surfaces), or with `coherent` camera-like rays (one eye or a lens-spread one, nearby
+/// directions, inactive lanes).
 fn stage_queue(rng: &mut Rand, scene: &Scene, n: usize, s: f32, coherent: bool) -> RayQueue {
     let mut q = RayQueue::new(scene.features.motion, false);
     let eye = Vec3::new(0.0, 5.0, 30.0) * s;
     for i in 0..n {
         let (o, d) = if coherent {
-            (eye, (Vec3::new(i as f32 / n as f32 - 0.5, -0.3, -1.0) + rng.vec(-0.01, 0.01)).normalize())
+            // A pinhole's eye, or (every third ray) an eye spread like a lens; some 64-ray blocks with an
+            // exactly zero x direction (no shared octant: those groups fall back to single packets).
+            let o = if i % 3 == 1 { eye + rng.vec(-0.5, 0.5) * s } else { eye };
+            let mut d = (Vec3::new(i as f32 / n as f32 - 0.5, -0.3, -1.0) + rng.vec(-0.01, 0.01)).normalize();
+            if (i / 64) % 7 == 3 {
+                d.x = 0.0;
+            }
+            (o, d)
         } else if rng.chance(0.3) {
             // From the surface of a random sphere (a secondary ray), sometimes into it.
             let p = &scene.prims[rng.below(scene.prims.len() as u32) as usize];
@@ -589,6 +662,7 @@ fn stage_queue(rng: &mut Rand, scene: &Scene, n: usize, s: f32, coherent: bool) 
         let tmax = match rng.below(8) {
             0 => 0.0,
             1..=5 => f32::INFINITY,
+            6 if coherent && rng.chance(0.3) => -1.0,
             _ => rng.range(0.0, 25.0) * s,
         };
         q.push(&RayItem { o, d, tmax, time: rng.f(), path: i as u32, ..RayItem::default() });
@@ -624,7 +698,8 @@ fn intersect_stage_is_identical_with_the_wide_bvh() {
         // octant order) take groups through the wide tree when the scene has one, else through the
         // binary tree.
         for coherent in [false, true] {
-            let q = stage_queue(&mut rng, &scene, 3000, s, coherent);
+            // (3001: the coherent queue ends in a padded packet and a partial group.)
+            let q = stage_queue(&mut rng, &scene, if coherent { 3001 } else { 3000 }, s, coherent);
             let (groups, wide) = if coherent {
                 let wide = stage_hits(&scene, &q, Traversal::Wide, false);
                 let bvh8 = std::mem::take(&mut scene.bvh8);
@@ -689,4 +764,56 @@ fn entry_distances_beyond_the_f32_range_are_entered() {
         assert_eq!(best, want, "single ray {l}");
         assert_eq!(packet_best[l], want, "packet lane {l}");
     }
+}
+
+// ---------------------------------------------------------------- the shade stage's 8-lane geometry
+
+/// Lambert hits are shaded 8 at a time (`lambert_x8`: sphere and plane geometry in 8 lanes, other shapes
+/// one by one, in one chunk): every next-event request's shading point, facing normal and shadow-ray
+/// origin must equal, bit for bit, what the scalar `surface_hit` gives for that hit. Mixed shapes (planes,
+/// spheres, rotated boxes, quads, disks, CSG solids), back faces (rays from inside spheres), origins
+/// far from the hits (scales 1e-4 to 1e4), moving spheres.
+#[test]
+fn lambert_geometry_in_8_lanes_equals_surface_hit() {
+    use strata::scene::Profile;
+    use strata::wavefront::shade::{shade, surface_hit, ShadeOut};
+    use strata::wavefront::{NeeQueue, PathTable};
+    let mut rng = Rand::new(91);
+    let (mut checked, mut back, mut planes, mut spheres) = (0usize, 0usize, 0usize, 0usize);
+    for (s, motion, csg) in [(1.0f32, false, true), (1e4, false, false), (1e-4, true, true), (1.0, true, false)] {
+        let scene = stage_scene(&mut rng, 200, s, motion, csg);
+        let profile = Profile::builtin("bench");
+        for coherent in [false, true] {
+            let q = stage_queue(&mut rng, &scene, 2003, s, coherent);
+            let (mut hits, mut cands, mut arena) = (HitQueue::default(), CsgCandidates::default(), CsgArena::new());
+            intersect_with(&scene, &q, &mut hits, &mut cands, Traversal::Wide);
+            csg_merge(&scene, &q, &mut cands, &mut hits, &mut arena);
+            let (mut paths, mut next, mut nee, mut order) =
+                (PathTable::default(), RayQueue::new(q.with_time, false), NeeQueue::default(), Vec::new());
+            paths.push_pixel(0, 0..q.len() as u32);
+            shade(&scene, &profile, 1, &q, &hits, &mut order, ShadeOut { paths: &mut paths, next: &mut next, nee: &mut nee });
+            // Every material is Lambert: one request per hit, in queue order.
+            let hit_rays: Vec<usize> = (0..q.len()).filter(|&i| hits.prim[i] != u32::MAX).collect();
+            assert_eq!(nee.px.len(), hit_rays.len());
+            for (k, &i) in hit_rays.iter().enumerate() {
+                let r = q.get(i);
+                let h = surface_hit(&scene, &r, hits.t[i], hits.prim[i], hits.leaf[i], hits.flip[i]);
+                let o = h.spawn(h.n_facing);
+                let got = [nee.px[k], nee.py[k], nee.pz[k], nee.nx[k], nee.ny[k], nee.nz[k], nee.ox[k], nee.oy[k], nee.oz[k]];
+                let want = [h.p.x, h.p.y, h.p.z, h.n_facing.x, h.n_facing.y, h.n_facing.z, o.x, o.y, o.z];
+                assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits), "scale {s}, ray {i}: {r:?}");
+                checked += 1;
+                back += !h.front as usize;
+                match scene.prims[hits.prim[i] as usize].shape {
+                    strata::scene::Shape::Plane(_) => planes += 1,
+                    strata::scene::Shape::Sphere { .. } => spheres += 1,
+                    _ => {}
+                }
+            }
+        }
+    }
+    assert!(
+        checked > 5000 && back > 200 && planes > 500 && spheres > 1000,
+        "{checked} hits ({back} back faces, {planes} planes, {spheres} spheres)"
+    );
 }

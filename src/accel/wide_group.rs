@@ -4,7 +4,7 @@
 //!
 //! The binary group traversal (`group.rs`) enters a node by one packet's slab test and falls back to
 //! the interval test when that packet misses: about 60 instructions per binary node, and a coherent
-//! group visits ~32 binary nodes. Here the interval test of `GroupBounds` runs on a wide node's 8
+//! group of 64 camera rays visits ~32 binary nodes; a group of 256 visits ~6 wide nodes here. Here the interval test of `GroupBounds` runs on a wide node's 8
 //! children at once, one `f32x8` per quantity (the child boxes are rows of 8 floats): the same
 //! operations on the same operands as the scalar test, lane by lane, so its verdicts are the scalar
 //! test's, which is conservative against the padded per-lane slab test (see `GroupBounds::misses`).

@@ -176,8 +176,8 @@ impl Compiler<'_> {
             motion: self.prims.iter().any(|p| p.motion != Vec3::ZERO) && shutter[1] > shutter[0],
             lens: camera.lens_radius > 0.0,
             planes: !unbounded.is_empty(),
-            point_lights: self.lights.iter().any(|l| matches!(l, Light::Point { .. })),
-            area_lights: self.lights.iter().any(|l| !matches!(l, Light::Point { .. })),
+            point_lights: self.lights.iter().any(Light::is_point),
+            area_lights: self.lights.iter().any(|l| !l.is_point()),
             ..Features::default()
         };
         // Only materials that some surface uses count.

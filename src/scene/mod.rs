@@ -195,6 +195,15 @@ pub enum Light {
     Sphere { center: Vec3, radius: f32, radiance: Vec3 },
 }
 
+impl Light {
+    /// A point light: one position, so its one sample needs no random numbers (all others are area
+    /// lights, sampled over their surface).
+    #[inline]
+    pub fn is_point(&self) -> bool {
+        matches!(self, Light::Point { .. })
+    }
+}
+
 /// Which stages and kernels this scene needs. The pipeline skips what is absent.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Features {

@@ -1,10 +1,12 @@
 //! Stage 2: nearest hits of a ray queue: the unbounded planes first, then the BVH with the SIMD
-//! primitive kernels at the leaves. Coherent queues (camera rays) traverse in groups of 8-ray packets:
-//! up to 32 packets through the 8-wide BVH when the scene has one (`accel/wide_group.rs`), else up to
-//! 8 through the binary BVH (`accel/group.rs`). Queues of incoherent rays are first partitioned by direction
-//! octant and gathered into packets, which traverse the 8-wide BVH (`accel/wide_traverse.rs`) when the
-//! scene has one, else go through the same group traversal. CSG solids are not solved here: a packet
-//! that reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
+//! primitive kernels at the leaves. Coherent queues (camera rays, and any queue with at most one
+//! direction-octant change per 64 rays) traverse the 8-wide BVH in groups of up to 32 8-ray packets
+//! (`accel/wide_group.rs`; the binary tree's groups of 8, `accel/group.rs`, only for a scene without a
+//! wide tree, i.e. without bounded primitives). Queues of incoherent rays are first partitioned by
+//! direction octant and gathered into packets, which traverse the 8-wide BVH one packet at a time
+//! (`accel/wide_traverse.rs`) when `scene.wide_incoherent` (trees of at least `WIDE_MIN_NODES` binary
+//! nodes), else the binary tree in groups of 8 packets. CSG solids are not solved here: a packet that
+//! reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
 use super::queues::{CsgCandidates, HitQueue, RayQueue, NONE};
 use crate::accel::{intersect_aabb_x8, PacketRay, GROUP, WIDE_GROUP};
@@ -60,14 +62,6 @@ pub fn prim_t_at_x8(prim: &Prim, ray: &Ray8, time: Option<f32x8>) -> f32x8 {
         Some(_) if prim.motion != Vec3::ZERO => prim_t_x8(prim, &in_prim_frame(ray, prim.motion, time)),
         _ => prim_t_x8(prim, ray),
     }
-}
-
-/// Load packet `i` (rays i..i+8) of a padded queue.
-#[inline(always)]
-pub fn load_packet(rays: &RayQueue, i: usize) -> (Ray8, Option<f32x8>) {
-    let o = Vec3x8::load(&rays.ox, &rays.oy, &rays.oz, i);
-    let d = Vec3x8::load(&rays.dx, &rays.dy, &rays.dz, i);
-    (Ray8::new(o, d, load8(&rays.tmax, i)), rays.with_time.then(|| load8(&rays.time, i)))
 }
 
 /// Distance to `prim` for the packet, reporting hits at *exactly* the current best distance too (on
@@ -180,7 +174,8 @@ fn octant_order(rays: &RayQueue, order: &mut Vec<u32>) -> bool {
 }
 
 /// How [`intersect_with`] traverses a queue of incoherent rays (one that `octant_order` partitions).
-/// Coherent queues (camera rays) always take `Groups`. Results do not depend on the choice (same `t`
+/// Coherent queues (camera rays) never do: they take the wide group traversal. Results do not depend on
+/// the choice (same `t`
 /// bits, same primitive ids: the tie rule makes recording order-independent); `tests/wide_bvh.rs`
 /// holds them equal.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -272,15 +267,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
             if sorted {
                 (rs[j], times[j]) = gather_packet(rays, &order, q, len);
             } else {
-                // Field by field: a whole-`Ray8` temporary was copied with 64-byte moves that
-                // reloaded two 32-byte stores at once (a store-forwarding stall per packet).
-                // (one f32x8 at a time: whole `Vec3x8` temporaries had the same problem).
-                let r = &mut rs[j];
-                let (dx, dy, dz) = (load8(&rays.dx, q), load8(&rays.dy, q), load8(&rays.dz, q));
-                (r.o.x, r.o.y, r.o.z) = (load8(&rays.ox, q), load8(&rays.oy, q), load8(&rays.oz, q));
-                (r.d.x, r.d.y, r.d.z) = (dx, dy, dz);
-                (r.inv_d.x, r.inv_d.y, r.inv_d.z) = (f32x8::ONE / dx, f32x8::ONE / dy, f32x8::ONE / dz);
-                r.tmax = load8(&rays.tmax, q);
+                rs[j].load_into([&rays.ox, &rays.oy, &rays.oz], [&rays.dx, &rays.dy, &rays.dz], &rays.tmax, q);
                 if rays.with_time {
                     times[j] = Some(load8(&rays.time, q));
                 }

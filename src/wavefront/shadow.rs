@@ -16,7 +16,7 @@ use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
-use crate::scene::{Light, Profile, Scene, Shape};
+use crate::scene::{Profile, Scene, Shape};
 use crate::simd::{f32x8, gather8, load8, store8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
 
@@ -101,17 +101,10 @@ impl Batch {
         self.len = k;
     }
 
-    /// Packet `j` into `ray` (lanes past `len` carry `tmax = -1`), as `Ray8::new` makes it. Written field
-    /// by field: a whole `Ray8` temporary was copied with 64-byte moves that reloaded two 32-byte
-    /// stores at once (a store-forwarding stall per packet, a third of `flush` in `perf annotate`).
+    /// Packet `j` into `ray` (lanes past `len` carry `tmax = -1`).
     #[inline(always)]
     fn load_packet(&self, j: usize, ray: &mut Ray8) {
-        let i = j * LANES;
-        let (dx, dy, dz) = (load8(&self.d[0], i), load8(&self.d[1], i), load8(&self.d[2], i));
-        (ray.o.x, ray.o.y, ray.o.z) = (load8(&self.o[0], i), load8(&self.o[1], i), load8(&self.o[2], i));
-        (ray.d.x, ray.d.y, ray.d.z) = (dx, dy, dz);
-        (ray.inv_d.x, ray.inv_d.y, ray.inv_d.z) = (f32x8::ONE / dx, f32x8::ONE / dy, f32x8::ONE / dz);
-        ray.tmax = load8(&self.tmax, i);
+        ray.load_into([&self.o[0], &self.o[1], &self.o[2]], [&self.d[0], &self.d[1], &self.d[2]], &self.tmax, j * LANES);
     }
 }
 
@@ -125,7 +118,6 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     let (spp, nl) = (profile.spp as u64, profile.light_samples as u64);
     let across = matches!(profile.light_strategy, Strategy::Jittered | Strategy::Sobol) && spp * nl <= 1 << 24;
     let area = Sampler2d::new(profile.light_strategy, if across { (spp * nl) as u32 } else { profile.light_samples });
-    let delta = Sampler2d::new(Strategy::Center, 1);
     let walk = any_passable(scene, profile);
     // Key of light `li`'s sample stream for request `i`: shared by a pixel's samples (across), or the
     // sample's own.
@@ -140,7 +132,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     let mut keys = [0u64; KEY_CACHE];
     let mut cached = None;
     // Whether any light draws samples (needs stream keys).
-    let keyed = scene.lights.iter().any(|l| !matches!(l, Light::Point { .. }));
+    let keyed = scene.lights.iter().any(|l| !l.is_point());
     // Requests are taken up to 8 at a time: one lane each, every light sample of the chunk computed as
     // one 8-lane light sample. A chunk holds at most one request per path (under split branching a
     // path has several per bounce): a path's contributions then arrive request by request, and within
@@ -167,24 +159,26 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
         let mut lane_keys = [[0u64; LANES]; KEY_CACHE];
-        for l in 0..if keyed { m } else { 0 } {
-            let i = base + l;
-            if !across || cached != Some(nee.key[i]) {
-                cached = Some(nee.key[i]);
-                for (li, k) in keys.iter_mut().enumerate().take(scene.lights.len()) {
-                    // Point lights draw no sample: no key.
-                    if !matches!(scene.lights[li], Light::Point { .. }) {
-                        *k = light_key(i, li);
+        if keyed {
+            for l in 0..m {
+                let i = base + l;
+                if !across || cached != Some(nee.key[i]) {
+                    cached = Some(nee.key[i]);
+                    for (li, k) in keys.iter_mut().enumerate().take(scene.lights.len()) {
+                        // Point lights draw no sample: no key.
+                        if !scene.lights[li].is_point() {
+                            *k = light_key(i, li);
+                        }
                     }
                 }
-            }
-            for (lane_key, &k) in lane_keys.iter_mut().zip(&keys).take(scene.lights.len()) {
-                lane_key[l] = k;
+                for (lane_key, &k) in lane_keys.iter_mut().zip(&keys).take(scene.lights.len()) {
+                    lane_key[l] = k;
+                }
             }
         }
         for (li, light) in scene.lights.iter().enumerate() {
             let ns = samples_for(light, profile.light_samples);
-            let point = matches!(light, Light::Point { .. });
+            let point = light.is_point();
             let keys_li: [u64; LANES] = if point {
                 [0; LANES]
             } else if li < KEY_CACHE {
@@ -192,7 +186,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             } else {
                 std::array::from_fn(|l| if l < m { light_key(base + l, li) } else { 0 })
             };
-            let (end, sampler) = if point { (1.0, &delta) } else { (SHADOW_END, &area) };
+            let end = if point { 1.0 } else { SHADOW_END };
             let ns_lanes = f32x8::splat(ns as f32);
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
             for j in 0..ns {
@@ -201,7 +195,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let permuted = across && !point;
                 let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
                 // A point light's one sample is the centre of its (unused) sample square.
-                let u = if point { [f32x8::splat(0.5); 2] } else { sampler.sample_x8(&keys_li, &index, permuted) };
+                let u = if point { [f32x8::splat(0.5); 2] } else { area.sample_x8(&keys_li, &index, permuted) };
                 let ls = sample_light_x8(light, p, u);
                 let cos = n.dot_unfused(ls.wi);
                 let c = (w * ls.weight).scale(cos / ns_lanes);
