@@ -18,6 +18,13 @@ pub const FIXED_ONE: f64 = 4_294_967_296.0;
 /// Samples at or beyond this magnitude (2^31) are treated as non-finite (keeps q = v 2^32 within an i64).
 pub const MAX_SAMPLE_VALUE: f32 = 2_147_483_648.0;
 
+/// Whether a sample may be accumulated: every channel finite and below [`MAX_SAMPLE_VALUE`] in
+/// magnitude (`abs() < MAX` is false for NaN, so one comparison rejects NaN, infinities and huge values).
+#[inline(always)]
+pub fn valid_sample(a: [f32; 3]) -> bool {
+    a.iter().all(|x| x.abs() < MAX_SAMPLE_VALUE)
+}
+
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Pixel {
     pub sum: [i128; 3],
@@ -25,22 +32,52 @@ pub struct Pixel {
     pub count: u64,
 }
 
+/// The fixed-point value of one sample channel: `round(x 2^32)` (halves away from zero), exact for
+/// `|x| < MAX_SAMPLE_VALUE` (`x 2^32` is exact in f64 and below 2^63).
+#[inline(always)]
+pub fn quantize(x: f32) -> i64 {
+    (x as f64 * FIXED_ONE).round() as i64
+}
+
+/// [`quantize`] of 8 values at once, bit-identical for every `|x| < MAX_SAMPLE_VALUE` (other lanes are
+/// unspecified): `t = trunc(y)`, then one step away from zero when `|y - t| >= 1/2` (`y - t` is exact),
+/// which is `round`; two `f64x4` halves, converted to integers by `trunc_int` (exact: integral values).
+#[inline(always)]
+pub fn quantize_x8(x: &[f32; 8]) -> [i64; 8] {
+    use wide::f64x4;
+    let mut out = [0i64; 8];
+    for h in 0..2 {
+        let y = f64x4::from(std::array::from_fn::<f64, 4, _>(|i| x[4 * h + i] as f64)) * f64x4::splat(FIXED_ONE);
+        let t = y.trunc();
+        let away = (y - t).abs().simd_ge(f64x4::splat(0.5));
+        // +-1 with y's sign where the fraction reaches one half, else 0.
+        let step = away & (f64x4::ONE | (y & f64x4::splat(-0.0)));
+        out[4 * h..4 * h + 4].copy_from_slice(&(t + step).trunc_int().to_array());
+    }
+    out
+}
+
 impl Pixel {
     /// Add one sample; returns false (and adds nothing) if it is non-finite or out of range.
     #[inline]
     pub fn add(&mut self, v: Vec3) -> bool {
         let a = v.to_array();
-        // `abs() < MAX` is false for NaN, so one comparison rejects NaN, infinities and huge values.
-        if !a.iter().all(|x| x.abs() < MAX_SAMPLE_VALUE) {
+        if !valid_sample(a) {
             return false;
         }
-        for (c, &x) in a.iter().enumerate() {
-            let q = (x as f64 * FIXED_ONE).round() as i64 as i128;
+        self.add_quantized(a.map(quantize));
+        true
+    }
+
+    /// Add one valid sample already quantized per channel ([`quantize`]).
+    #[inline(always)]
+    pub fn add_quantized(&mut self, q: [i64; 3]) {
+        for (c, &q) in q.iter().enumerate() {
+            let q = q as i128;
             self.sum[c] += q;
             self.sum_sq[c] += (q * q) >> 32;
         }
         self.count += 1;
-        true
     }
 
     #[inline]
@@ -110,6 +147,43 @@ impl Film {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The 8-lane quantization equals the scalar one on every kind of valid value: exact halves of the
+    /// 2^-32 grid (the rounding ties, both signs), values just beside them, subnormals, zeros of both
+    /// signs, the largest valid magnitude, and random values at every exponent.
+    #[test]
+    fn quantize_x8_matches_scalar() {
+        let mut vals: Vec<f32> = vec![0.0, -0.0, f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 1e-45, -1e-45, 1.0, -1.0];
+        vals.push(MAX_SAMPLE_VALUE.next_down());
+        vals.push(-MAX_SAMPLE_VALUE.next_down());
+        for k in 0..40 {
+            // (2k + 1) / 2^33: exactly half-way between two 2^-32 steps.
+            let tie = (2 * k + 1) as f32 / (1u64 << 33) as f32;
+            for v in [tie, tie.next_up(), tie.next_down()] {
+                vals.extend([v, -v]);
+            }
+        }
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for _ in 0..20_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let v = f32::from_bits((state >> 32) as u32);
+            if v.abs() < MAX_SAMPLE_VALUE {
+                vals.push(v);
+            }
+        }
+        let mut ties = 0;
+        for chunk in vals.chunks_exact(8) {
+            let x: [f32; 8] = chunk.try_into().unwrap();
+            let got = quantize_x8(&x);
+            for l in 0..8 {
+                assert_eq!(got[l], quantize(x[l]), "x = {:e} ({:#x})", x[l], x[l].to_bits());
+                ties += ((x[l] as f64 * FIXED_ONE).fract().abs() == 0.5) as usize;
+            }
+        }
+        assert!(vals.len() > 10_000 && ties >= 70, "{} values, {ties} ties", vals.len());
+    }
 
     #[test]
     fn fixed_point_sums_are_order_independent_and_exact() {
