@@ -198,12 +198,11 @@ mod tests {
     /// scales 1e-4 to 1e5, points at the centre, far off the surface, and non-finite inputs.
     #[test]
     fn refine_x8_matches_scalar() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        // Uniform numbers from the renderer's own keyed hash (one stream, consecutive indices).
+        let mut index = 0u32;
         let mut f = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u32 << 24) as f32
+            index += 1;
+            crate::sample::random_f32_keyed(0x9e37_79b9_7f4a_7c15, index)
         };
         let mut checked = 0;
         for round in 0..2000 {
