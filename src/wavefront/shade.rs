@@ -98,30 +98,63 @@ fn sphere_hits_x8(naive: Vec3x8, d: Vec3x8, sc: &[[f32; LANES]; 3], sr: &[f32; L
     (ps, n, d.dot_unfused(n).simd_lt(f32x8::ZERO))
 }
 
-/// [`surface_hit`] of up to 8 hits (`idx`, ray indices): sphere hits (not CSG leaves) in 8 lanes by
-/// [`sphere_hits_x8`], the others one at a time. Lanes past `idx.len()` are unspecified.
-fn surface_hits_x8(scene: &Scene, rays: &RayQueue, hits: &HitQueue, idx: &[u32]) -> [SurfaceHit; LANES] {
+/// One hit for [`surface_hits_x8`]: the ray's origin, direction and time, the hit distance, primitive,
+/// CSG leaf and flip (as the intersect stage records them).
+#[derive(Clone, Copy, Debug)]
+pub struct HitRay {
+    pub o: Vec3,
+    pub d: Vec3,
+    pub time: f32,
+    pub t: f32,
+    pub prim: u32,
+    pub leaf: u32,
+    pub flip: bool,
+}
+
+impl HitRay {
+    /// Hit `i` of a queue and its hit record.
+    #[inline(always)]
+    pub fn of(rays: &RayQueue, hits: &HitQueue, i: usize) -> Self {
+        HitRay {
+            o: Vec3::new(rays.ox[i], rays.oy[i], rays.oz[i]),
+            d: Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]),
+            time: if rays.with_time { rays.time[i] } else { 0.0 },
+            t: hits.t[i],
+            prim: hits.prim[i],
+            leaf: hits.leaf[i],
+            flip: hits.flip[i],
+        }
+    }
+}
+
+/// [`surface_hit`] of the hits `hit(l)` of the lanes in `lanes` (bit `l` = lane `l`): sphere hits in 8
+/// lanes by [`sphere_hits_x8`], the others one at a time. Other lanes are unspecified.
+pub fn surface_hits_x8(scene: &Scene, lanes: u32, hit: impl Fn(usize) -> HitRay) -> [SurfaceHit; LANES] {
     let none = SurfaceHit { p: Vec3::ZERO, n: Vec3::ZERO, n_facing: Vec3::ZERO, front: false, material: 0, error_scale: 0.0 };
     let mut out = [none; LANES];
     let (mut sph, mut naive, mut dir) = (0u32, [[0.0f32; LANES]; 3], [[0.0f32; LANES]; 3]);
     let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
-    for (l, &i) in idx.iter().enumerate() {
-        let i = i as usize;
-        let prim = &scene.prims[hits.prim[i] as usize];
+    let mut bits = lanes;
+    while bits != 0 {
+        let l = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let h = hit(l);
+        let prim = &scene.prims[h.prim as usize];
         match prim.shape {
             Shape::Sphere { center, radius } => {
                 sph |= 1 << l;
-                let time = if rays.with_time { rays.time[i] } else { 0.0 };
-                let (o, d) = (Vec3::new(rays.ox[i], rays.oy[i], rays.oz[i]), Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]));
                 // o + t d and the centre at the ray's time, as `surface_hit` computes them.
-                let (p, c) = (o + d * hits.t[i], center + prim.motion * time);
+                let (p, c) = (h.o + h.d * h.t, center + prim.motion * h.time);
                 for k in 0..3 {
-                    (naive[k][l], dir[k][l], sc[k][l]) = (p[k], d[k], c[k]);
+                    (naive[k][l], dir[k][l], sc[k][l]) = (p[k], h.d[k], c[k]);
                 }
                 sr[l] = radius;
                 out[l].material = prim.material;
             }
-            _ => out[l] = surface_hit(scene, &rays.get(i), hits.t[i], hits.prim[i], hits.leaf[i], hits.flip[i]),
+            _ => {
+                let r = RayItem { o: h.o, d: h.d, time: h.time, ..RayItem::default() };
+                out[l] = surface_hit(scene, &r, h.t, h.prim, h.leaf, h.flip);
+            }
         }
     }
     if sph != 0 {
@@ -240,7 +273,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
         }
         // Hit geometry 8 hits at a time (spheres in 8 lanes), then each hit's material.
         for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
-            let geometry = surface_hits_x8(scene, rays, hits, chunk);
+            let geometry = surface_hits_x8(scene, (1 << chunk.len()) - 1, |l| HitRay::of(rays, hits, chunk[l] as usize));
             for (&i, &hit) in chunk.iter().zip(&geometry) {
                 let i = i as usize;
                 let mut r = rays.get(i);

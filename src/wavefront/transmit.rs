@@ -19,8 +19,8 @@
 
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::medium;
-use super::queues::{MediumStack, RayItem, NONE};
-use super::shade::surface_hit;
+use super::queues::{MediumStack, NONE};
+use super::shade::{surface_hits_x8, HitRay};
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, CsgArena};
 use crate::optics::{beer_lambert, fresnel_dielectric, fresnel_schlick};
@@ -92,17 +92,21 @@ pub fn transmittance_x8(
         );
         let hit = closest_x8(scene, &mut ray, time8, arena);
         let t = ray.tmax.to_array();
+        // The lanes that met a surface, and its geometry (spheres in 8 lanes).
+        for (l, h) in hit.iter().enumerate() {
+            if h.0 == NONE {
+                active &= !(1 << l);
+            }
+        }
+        let geometry = surface_hits_x8(scene, active, |l| {
+            let (prim, leaf, flip) = hit[l];
+            HitRay { o: cur[l], d: seg[l], time: time[l], t: t[l], prim, leaf, flip }
+        });
         let mut bits = active;
         while bits != 0 {
             let l = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let (prim, leaf, flip) = hit[l];
-            if prim == NONE {
-                active &= !(1 << l);
-                continue;
-            }
-            let r = RayItem { o: cur[l], d: seg[l], time: time[l], ..RayItem::default() };
-            let h = surface_hit(scene, &r, t[l], prim, leaf, flip);
+            let h = geometry[l];
             if !passes(scene, profile, h.material) || count[l] == MAX_CROSSINGS {
                 blocked |= 1 << l;
                 active &= !(1 << l);
