@@ -108,7 +108,7 @@ impl GroupBounds {
     /// `tf` by 2^-19 of their magnitudes plus the smallest normal float (for subnormal distances) is
     /// conservative.
     #[inline(always)]
-    fn misses(&self, bmin: Vec3A, bmax: Vec3A, tmax: f32) -> bool {
+    pub(super) fn misses(&self, bmin: Vec3A, bmax: Vec3A, tmax: f32) -> bool {
         let b0 = Vec3A::select(self.neg, -bmax, bmin) - self.pad;
         let b1 = Vec3A::select(self.neg, -bmin, bmax) + self.pad;
         let (d0, d1) = (b0 - self.o_hi, b1 - self.o_lo);

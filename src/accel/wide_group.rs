@@ -4,8 +4,8 @@
 //!
 //! The binary group traversal (`group.rs`) enters a node by one packet's slab test and falls back to
 //! the interval test when that packet misses: about 60 instructions per binary node, and a coherent
-//! group of 64 camera rays visits ~32 binary nodes; a group of 256 visits ~6 wide nodes here. Here the interval test of `GroupBounds` runs on a wide node's 8
-//! children at once, one `f32x8` per quantity (the child boxes are rows of 8 floats): the same
+//! group of 64 camera rays visits ~32 binary nodes; a group of 256 visits ~6 wide nodes here. Here the
+//! interval test of `GroupBounds` runs on a wide node's 8 children at once, one `f32x8` per quantity (the child boxes are rows of 8 floats): the same
 //! operations on the same operands as the scalar test, lane by lane, so its verdicts are the scalar
 //! test's, which is conservative against the padded per-lane slab test (see `GroupBounds::misses`).
 //! Packets are tested only at leaves: when a wide node enters a leaf child, each packet runs the
@@ -145,4 +145,62 @@ fn packets_entering(n: &Bvh8Node, i: usize, pr: &[PacketRay], rays: &[Ray8], amo
         out |= (intersect_aabb_x8(bmin, bmax, &pr[j], rays[j].tmax).1.any() as u32) << j;
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simd::Vec3x8;
+    use glam::Vec3A;
+
+    /// The 8-child interval test gives, child by child, the scalar test's verdict (`misses`): random
+    /// groups (clustered or spread origins, every octant) against random wide nodes (boxes near,
+    /// around and behind the group, thin and huge ones, empty slots), finite and infinite `tmax`.
+    #[test]
+    fn children_verdicts_equal_the_scalar_test() {
+        let mut index = 0u32;
+        let mut f = move || {
+            index += 1;
+            crate::sample::random_f32_keyed(0x5eed_0fc4_11d5, index)
+        };
+        let (mut compared, mut entered, mut culled_count) = (0usize, 0usize, 0usize);
+        for round in 0..3000 {
+            let scale = [1e-3f32, 1.0, 1e4][round % 3];
+            let signs = Vec3::new([1.0, -1.0][round & 1], [1.0, -1.0][(round >> 1) & 1], [1.0, -1.0][(round >> 2) & 1]);
+            let eye = Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5) * 20.0 * scale;
+            let spread = [0.0, 0.01, 1.0][(round / 3) % 3] * scale;
+            let rays: Vec<Ray8> = (0..4)
+                .map(|_| {
+                    let o = Vec3x8::new(
+                        f32x8::from(std::array::from_fn(|_| eye.x + (f() - 0.5) * spread)),
+                        f32x8::from(std::array::from_fn(|_| eye.y + (f() - 0.5) * spread)),
+                        f32x8::from(std::array::from_fn(|_| eye.z + (f() - 0.5) * spread)),
+                    );
+                    let mut dir = |s: f32| f32x8::from(std::array::from_fn(|_| s * (0.05 + f())));
+                    Ray8::new(o, Vec3x8::new(dir(signs.x), dir(signs.y), dir(signs.z)), f32x8::splat(1.0))
+                })
+                .collect();
+            let gb = GroupBounds::new(&rays).expect("one octant");
+            let mut n = Bvh8Node::EMPTY;
+            for i in 0..(1 + round % WIDTH) {
+                let c = Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5) * 40.0 * scale;
+                let h = Vec3::new(f(), f(), f()) * [0.0, 1.0, 10.0][i % 3] * scale;
+                for a in 0..3 {
+                    n.bounds[a][i] = c[a] - h[a];
+                    n.bounds[a + 3][i] = c[a] + h[a];
+                }
+            }
+            let tmax = [f32::INFINITY, 30.0 * scale, 3.0 * scale][round % 3];
+            let (_, enter) = gb.children(&n, tmax);
+            for i in 0..WIDTH {
+                let b = n.child_aabb(i);
+                let want = !b.is_empty() && !gb.misses(Vec3A::from(b.min), Vec3A::from(b.max), tmax);
+                assert_eq!(enter & (1 << i) != 0, want, "round {round} child {i}: {b:?}, tmax {tmax}");
+                compared += 1;
+                entered += want as usize;
+                culled_count += (!b.is_empty() && !want) as usize;
+            }
+        }
+        assert!(compared == 24_000 && entered > 1000 && culled_count > 1000, "{entered} entered, {culled_count} culled");
+    }
 }
