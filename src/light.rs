@@ -146,7 +146,7 @@ pub fn sample_light_x8(light: &Light, p: Vec3x8, u: [f32x8; 2]) -> LightSample8 
             area_sample_x8(p, y, disk.normal, std::f32::consts::PI * disk.radius * disk.radius, radiance)
         }
         Light::Sphere { .. } => {
-            let (pa, u0, u1) = ([p.x.to_array(), p.y.to_array(), p.z.to_array()], u[0].to_array(), u[1].to_array());
+            let (pa, u0, u1) = (p.rows(), u[0].to_array(), u[1].to_array());
             let mut out = [[0.0f32; LANES]; 10];
             for l in 0..LANES {
                 if let Some(s) = sample_light(light, Vec3::new(pa[0][l], pa[1][l], pa[2][l]), [u0[l], u1[l]]) {

@@ -158,11 +158,7 @@ mod tests {
     /// around and behind the group, thin and huge ones, empty slots), finite and infinite `tmax`.
     #[test]
     fn children_verdicts_equal_the_scalar_test() {
-        let mut index = 0u32;
-        let mut f = move || {
-            index += 1;
-            crate::sample::random_f32_keyed(0x5eed_0fc4_11d5, index)
-        };
+        let mut f = crate::sample::hash::test_uniforms(0x5eed_0fc4_11d5);
         let (mut compared, mut entered, mut culled_count) = (0usize, 0usize, 0usize);
         for round in 0..3000 {
             let scale = [1e-3f32, 1.0, 1e4][round % 3];

@@ -198,12 +198,7 @@ mod tests {
     /// scales 1e-4 to 1e5, points at the centre, far off the surface, and non-finite inputs.
     #[test]
     fn refine_x8_matches_scalar() {
-        // Uniform numbers from the renderer's own keyed hash (one stream, consecutive indices).
-        let mut index = 0u32;
-        let mut f = move || {
-            index += 1;
-            crate::sample::random_f32_keyed(0x9e37_79b9_7f4a_7c15, index)
-        };
+        let mut f = crate::sample::hash::test_uniforms(0x9e37_79b9_7f4a_7c15);
         let mut checked = 0;
         for round in 0..2000 {
             let scale = [1e-4f32, 1.0, 1e3, 1e5][round % 4];

@@ -79,13 +79,7 @@ mod x8_tests {
     /// of `n.z`, the poles, `-0.0`) and points over the whole square, edges included.
     #[test]
     fn hemisphere_x8_matches_scalar() {
-        let mut x = 0x1234_5678_9abc_def1u64;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = crate::sample::hash::test_uniforms(0x1234_5678_9abc_def1);
         for round in 0..4000 {
             let ns: [Vec3; LANES] = std::array::from_fn(|l| match (round + l) % 97 {
                 0 => Vec3::Z,

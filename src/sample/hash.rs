@@ -79,6 +79,16 @@ pub fn random_f32_keyed(key: u64, index: u32) -> f32 {
     unit_f32((random_bits(key, index) >> 32) as u32)
 }
 
+/// Seeded uniform floats in `[0, 1)` for unit tests: [`random_f32_keyed`] at indices 1, 2, 3, ...
+#[cfg(test)]
+pub(crate) fn test_uniforms(key: u64) -> impl FnMut() -> f32 {
+    let mut index = 0u32;
+    move || {
+        index += 1;
+        random_f32_keyed(key, index)
+    }
+}
+
 /// Two independent uniform floats in `[0, 1)` from one 64-bit hash (bits 40..64 and 8..32).
 #[inline(always)]
 pub fn random_2d_keyed(key: u64, index: u32) -> [f32; 2] {

@@ -84,8 +84,8 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         let (o, d) = cam.rays_x8(f32x8::from(*cx) + off[0], f32x8::from(*cy) + off[1], lens);
         // New paths: branch, depth, bounce counts, flags and media all start empty (zero).
         let mut rows = RayRows {
-            o: [o.x.to_array(), o.y.to_array(), o.z.to_array()],
-            d: [d.x.to_array(), d.y.to_array(), d.z.to_array()],
+            o: o.rows(),
+            d: d.rows(),
             throughput: [[1.0; LANES]; 3],
             path: std::array::from_fn(|l| first + l as u32),
             ..RayRows::default()

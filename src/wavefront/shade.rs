@@ -89,8 +89,7 @@ pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, 
 /// (zero where it cannot be normalised), and whether the ray (direction `d`) arrives on the outside.
 #[inline(always)]
 fn sphere_hits_x8(naive: Vec3x8, d: Vec3x8, sc: &[[f32; LANES]; 3], sr: &[f32; LANES]) -> (Vec3x8, Vec3x8, f32x8) {
-    let pn = [naive.x.to_array(), naive.y.to_array(), naive.z.to_array()];
-    let ps = Vec3x8::from_rows(&refine_sphere_point_x8(sc, sr, &pn));
+    let ps = Vec3x8::from_rows(&refine_sphere_point_x8(sc, sr, &naive.rows()));
     let rel = ps - Vec3x8::from_rows(sc);
     let rcp = f32x8::ONE / rel.dot_unfused(rel).sqrt();
     let ok = rcp.is_finite() & rcp.simd_gt(f32x8::ZERO);
@@ -485,7 +484,7 @@ impl Ctx<'_> {
             (keys[l], samples[l], pixels[l]) = (key, sample, pixel);
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
-        let v3 = |a: &[[f32; LANES]; 3]| Vec3x8::new(v(&a[0]), v(&a[1]), v(&a[2]));
+        let v3 = Vec3x8::from_rows;
         let lanes_mask =
             |bits: u32| f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| f32::from_bits(0u32.wrapping_sub((bits >> l) & 1))));
         let (o, d) = (v3(&ro), v3(&rd));
@@ -499,8 +498,7 @@ impl Ctx<'_> {
             let n_facing = Vec3x8::select(front, n, Vec3x8::new(-n.x, -n.y, -n.z));
             let mask = lanes_mask(pla);
             let (pv, nv) = (Vec3x8::select(mask, naive, v3(&p)), Vec3x8::select(mask, n_facing, n));
-            p = [pv.x.to_array(), pv.y.to_array(), pv.z.to_array()];
-            nf = [nv.x.to_array(), nv.y.to_array(), nv.z.to_array()];
+            (p, nf) = (pv.rows(), nv.rows());
             scale = mask.select(o.x.abs().max(o.y.abs().max(o.z.abs())), v(&scale)).to_array();
         }
         if sph != 0 {
@@ -510,8 +508,7 @@ impl Ctx<'_> {
             let n_facing = Vec3x8::select(front, n, neg);
             let mask = lanes_mask(sph);
             let (pv, nv) = (Vec3x8::select(mask, ps, v3(&p)), Vec3x8::select(mask, n_facing, v3(&nf)));
-            p = [pv.x.to_array(), pv.y.to_array(), pv.z.to_array()];
-            nf = [nv.x.to_array(), nv.y.to_array(), nv.z.to_array()];
+            (p, nf) = (pv.rows(), nv.rows());
             scale = mask.select(f32x8::ZERO, v(&scale)).to_array();
         }
         // Texture lookups happen in the primitive's frame at the ray's time.
@@ -519,9 +516,8 @@ impl Ctx<'_> {
         // Albedo (checker or constant) and the path weight, 8 lanes.
         let albedo = checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), ps);
         let wv = v3(&thr) * albedo;
-        let w = [wv.x.to_array(), wv.y.to_array(), wv.z.to_array()];
-        let pv = Vec3x8::new(v(&p[0]), v(&p[1]), v(&p[2]));
-        let nv = Vec3x8::new(v(&nf[0]), v(&nf[1]), v(&nf[2]));
+        let w = wv.rows();
+        let (pv, nv) = (v3(&p), v3(&nf));
         // The light is sampled from the hit point itself: the spawn offset is only there to keep the
         // shadow ray off this surface, it must not move the shading point.
         let off = offset_ray_origin_scaled_x8(pv, nv, v(&scale));
