@@ -624,13 +624,14 @@ fn slab_test_is_a_conservative_twin_of_f64() {
 // ---------------------------------------------------------------- group traversal (accel/group.rs)
 
 /// Groups of up to 8 packets: camera-like (one origin, a small frustum), shadow-like (origins over a
-/// patch, towards one point), grazing (aimed at sphere silhouettes), and mixed
-/// octants (the per-packet fallback); with inactive lanes, inactive packets and partial groups.
+/// patch, towards one point), grazing (aimed at sphere silhouettes), mixed octants (the per-packet
+/// fallback), and frusta with directions of both signs on one axis (that axis left out of the group
+/// bounds); with inactive lanes, inactive packets and partial groups.
 fn test_groups(rng: &mut Rand, spheres: &[Sphere], count: usize) -> Vec<Vec<Packet>> {
     (0..count)
         .map(|g| {
             let k = if g % 7 == 0 { 1 + rng.below(8) as usize } else { GROUP };
-            let kind = g % 4;
+            let kind = g % 5;
             let o0 = rng.vec(-20.0, 20.0);
             let target = rng.vec(-8.0, 8.0);
             let s = spheres[rng.below(spheres.len() as u32) as usize];
@@ -653,7 +654,14 @@ fn test_groups(rng: &mut Rand, spheres: &[Sphere], count: usize) -> Vec<Vec<Pack
                                 let edge = s.c + side * s.r * (1.0 + rng.range(-4e-7, 4e-7));
                                 p.d[i] = edge - o0;
                             }
-                            _ => p.d[i] = rng.dir(),
+                            3 => p.d[i] = rng.dir(),
+                            _ => {
+                                // Around the frustum's centre line on one axis (both signs there).
+                                let mut c = (target - o0).normalize();
+                                let a = g / 5 % 3;
+                                c[a] = rng.range(-0.05, 0.05);
+                                p.d[i] = c + rng.vec(-0.02, 0.02);
+                            }
                         }
                         if !matches!(kind, 1) {
                             p.tmax[i] = random_tmax(rng);

@@ -12,9 +12,10 @@
 //!   tested until one hits. Packets before `first` are never tested below the node that dropped them.
 //! - The interval test bounds the slab distances of all rays of the group at once from the boxes of
 //!   their origins and inverse directions (`GroupBounds`): a node it culls is missed by every ray.
-//!   It is exact-conservative (computed in f64 from widened f32 inputs), and it exists only when every
-//!   active ray of the group points into the same octant; otherwise the group is not coherent and
-//!   [`Bvh::traverse_closest_group`] falls back to one traversal per packet.
+//!   It is exact-conservative (computed in f64 from widened f32 inputs). An axis on which the group's
+//!   directions have both signs bounds nothing and is left out (shadow rays around the foot of their
+//!   light, camera rays at the image's centre lines); with two or three such axes the group is not
+//!   coherent and [`Bvh::traverse_closest_group`] falls back to one traversal per packet.
 //! - At a leaf, packets `first..` each test the leaf's box before their primitives (a box test is
 //!   cheaper than the primitives of a leaf).
 //!
@@ -49,8 +50,9 @@ pub(super) struct GroupBounds {
 }
 
 impl GroupBounds {
-    /// Bounds of the active lanes (`tmax >= 0`) of `rays`; `None` when they do not all point into one
-    /// octant (a zero or non-finite direction component also gives `None`) or no lane is active.
+    /// Bounds of the active lanes (`tmax >= 0`) of `rays`; `None` when their directions have both signs
+    /// on more than [`MAX_MIXED_AXES`] axes (a zero or non-finite direction component also gives
+    /// `None`) or no lane is active.
     pub(super) fn new(rays: &[Ray8]) -> Option<Self> {
         let inf = f32x8::splat(f32::INFINITY);
         let mut lo = [inf; 6];
@@ -80,16 +82,23 @@ impl GroupBounds {
         let (i_lo, i_hi) = (Vec3A::new(lo[3], lo[4], lo[5]), Vec3A::new(hi[3], hi[4], hi[5]));
         let pos = i_lo.cmpgt(Vec3A::ZERO);
         let neg = i_hi.cmplt(Vec3A::ZERO);
-        if (pos | neg).bitmask() != 0b111 {
+        // An axis whose directions have both signs bounds nothing: its slab interval over the group is
+        // widened to the whole line (origins at -inf..+inf, unit inverse: entry -inf, exit +inf, with no
+        // extra instruction in the tests). The other axes still cull; with two or three such axes too
+        // little is left to cull and the callers trace packet by packet.
+        let mixed = !(pos | neg);
+        if mixed.bitmask().count_ones() > MAX_MIXED_AXES {
             return None;
         }
+        let inf = Vec3A::splat(f32::INFINITY);
+        let (o_lo_m, o_hi_m) = (Vec3A::select(neg, -o_hi, o_lo), Vec3A::select(neg, -o_lo, o_hi));
         Some(Self {
             neg,
             pad: o_lo.abs().max(o_hi.abs()) * PAD + Vec3A::splat(f32::MIN_POSITIVE),
-            o_lo: Vec3A::select(neg, -o_hi, o_lo),
-            o_hi: Vec3A::select(neg, -o_lo, o_hi),
-            inv_lo: Vec3A::select(neg, -i_hi, i_lo),
-            inv_hi: Vec3A::select(neg, -i_lo, i_hi),
+            o_lo: Vec3A::select(mixed, -inf, o_lo_m),
+            o_hi: Vec3A::select(mixed, inf, o_hi_m),
+            inv_lo: Vec3A::select(mixed, Vec3A::ONE, Vec3A::select(neg, -i_hi, i_lo)),
+            inv_hi: Vec3A::select(mixed, Vec3A::ONE, Vec3A::select(neg, -i_lo, i_hi)),
         })
     }
 
@@ -125,6 +134,9 @@ pub(super) fn culled(tn: f32, tf: f32) -> bool {
     tn - tf > SLACK * (tn.abs() + tf.abs()) + f32::MIN_POSITIVE
 }
 
+/// Axes with directions of both signs a group may have (see [`GroupBounds::new`]).
+const MAX_MIXED_AXES: u32 = 1;
+
 /// Relative slack of the interval test (see [`GroupBounds::misses`]).
 pub(super) const SLACK: f32 = 1.0 / (1u32 << 19) as f32;
 /// Spatial widening of node boxes relative to the largest origin coordinate (see [`GroupBounds::misses`]).
@@ -150,7 +162,7 @@ pub(super) fn group_tmax(rays: &[Ray8]) -> f32 {
 impl Bvh {
     /// Closest-hit traversal of up to [`GROUP`] packets together (see the module doc). `leaf(prim, j,
     /// &mut rays[j])` has the contract of [`Bvh::traverse_closest_x8`]'s callback, for packet `j`.
-    /// A group whose active rays do not share one direction octant is traversed packet by packet.
+    /// A group without [`GroupBounds`] (directions of both signs on two axes) is traversed packet by packet.
     pub fn traverse_closest_group(&self, rays: &mut [Ray8], mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
         assert!(rays.len() <= GROUP, "at most {GROUP} packets per group");
         if self.nodes.is_empty() || rays.is_empty() {
@@ -205,8 +217,8 @@ impl Bvh {
     ///
     /// Returns each packet's occluded mask, as
     /// [`Bvh::traverse_any_x8`] would for that packet alone (same callback contract, for packet `j`).
-    /// Stops when every active lane of the group is occluded. A group whose active rays do not share
-    /// one direction octant is traversed packet by packet. The packets' `tmax` are used as working
+    /// Stops when every active lane of the group is occluded. A group without [`GroupBounds`] is
+    /// traversed packet by packet. The packets' `tmax` are used as working
     /// state (inactive and occluded lanes end at -1); nothing else of them changes.
     pub fn traverse_any_group(&self, rays: &mut [Ray8], mut leaf: impl FnMut(u32, usize, &Ray8) -> f32x8) -> [f32x8; GROUP] {
         assert!(rays.len() <= GROUP, "at most {GROUP} packets per group");
@@ -318,4 +330,35 @@ fn first_hit(n: &BvhNode, pr: &[PacketRay], rays: &[Ray8], first: usize, gb: &Gr
         return None;
     }
     (first + 1..pr.len()).find(|&j| intersect_aabb_x8(bmin, bmax, &pr[j], rays[j].tmax).1.any())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn group(dirs: &[Vec3]) -> Vec<Ray8> {
+        dirs.chunks(8)
+            .map(|c| {
+                let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| c[l % c.len()][a])));
+                Ray8::new(Vec3x8::splat(Vec3::new(1.0, 2.0, 3.0)), d, f32x8::splat(10.0))
+            })
+            .collect()
+    }
+
+    /// One axis with directions of both signs is left out of the bounds (entry -inf, exit +inf: the
+    /// other axes still cull); two such axes give no bounds (per-packet fallback).
+    #[test]
+    fn mixed_axes() {
+        let one = group(&[Vec3::new(-0.1, 1.0, 1.0), Vec3::new(0.1, 1.0, 1.0)]);
+        let gb = GroupBounds::new(&one).expect("one mixed axis keeps the group");
+        // A box in the rays' way, a box anywhere along x but behind them in y, and one far to the side
+        // in x (not culled: x bounds nothing).
+        assert!(!gb.misses(Vec3A::new(0.0, 4.0, 5.0), Vec3A::new(2.0, 6.0, 7.0), 10.0));
+        assert!(gb.misses(Vec3A::new(-1e3, -5.0, 4.0), Vec3A::new(1e3, 0.0, 6.0), 10.0));
+        assert!(!gb.misses(Vec3A::new(50.0, 4.0, 5.0), Vec3A::new(60.0, 6.0, 7.0), 10.0));
+        let two = group(&[Vec3::new(-0.1, -1.0, 1.0), Vec3::new(0.1, 1.0, 1.0)]);
+        assert!(GroupBounds::new(&two).is_none());
+        let none = group(&[Vec3::new(0.1, 1.0, 1.0), Vec3::new(0.2, 1.0, 1.0)]);
+        assert!(GroupBounds::new(&none).is_some_and(|g| g.o_lo.is_finite() && g.o_hi.is_finite()));
+    }
 }

@@ -58,8 +58,8 @@ impl GroupBounds {
 impl Bvh8 {
     /// Closest-hit traversal of up to [`WIDE_GROUP`] packets together (see the module doc). `leaf(prim, j,
     /// &mut rays[j])` has the contract of [`super::Bvh::traverse_closest_x8`]'s callback, for packet
-    /// `j`. A group whose active rays do not share one direction octant is traversed packet by packet
-    /// ([`Bvh8::traverse_closest_x8`]).
+    /// `j`. A group without `GroupBounds` (directions of both signs on two axes) is traversed packet by
+    /// packet ([`Bvh8::traverse_closest_x8`]).
     pub fn traverse_closest_group(&self, rays: &mut [Ray8], stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
         assert!(rays.len() <= WIDE_GROUP, "at most {WIDE_GROUP} packets per group");
         if self.nodes.is_empty() || rays.is_empty() {
@@ -154,7 +154,7 @@ mod tests {
     use glam::Vec3A;
 
     /// The 8-child interval test gives, child by child, the scalar test's verdict (`misses`): random
-    /// groups (clustered or spread origins, every octant) against random wide nodes (boxes near,
+    /// groups (clustered or spread origins, every octant, one axis with both signs) against random wide nodes (boxes near,
     /// around and behind the group, thin and huge ones, empty slots), finite and infinite `tmax`.
     #[test]
     fn children_verdicts_equal_the_scalar_test() {
@@ -172,11 +172,21 @@ mod tests {
                         f32x8::from(std::array::from_fn(|_| eye.y + (f() - 0.5) * spread)),
                         f32x8::from(std::array::from_fn(|_| eye.z + (f() - 0.5) * spread)),
                     );
-                    let mut dir = |s: f32| f32x8::from(std::array::from_fn(|_| s * (0.05 + f())));
-                    Ray8::new(o, Vec3x8::new(dir(signs.x), dir(signs.y), dir(signs.z)), f32x8::splat(1.0))
+                    // Every fifth group has directions of both signs on one axis.
+                    let mixed = (round % 5 == 4).then_some((round / 5) % 3);
+                    let mut dir = |a: usize, s: f32| {
+                        f32x8::from(std::array::from_fn(|l| {
+                            if mixed == Some(a) {
+                                [1.0, -1.0][l % 2] * (0.05 + f())
+                            } else {
+                                s * (0.05 + f())
+                            }
+                        }))
+                    };
+                    Ray8::new(o, Vec3x8::new(dir(0, signs.x), dir(1, signs.y), dir(2, signs.z)), f32x8::splat(1.0))
                 })
                 .collect();
-            let gb = GroupBounds::new(&rays).expect("one octant");
+            let gb = GroupBounds::new(&rays).expect("one octant, or one mixed axis");
             let mut n = Bvh8Node::EMPTY;
             for i in 0..(1 + round % WIDTH) {
                 let c = Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5) * 40.0 * scale;
