@@ -239,7 +239,7 @@ fn shade_into(scene: &Scene, profile: &Profile, q: &RayQueue, hits: &HitQueue, p
     shade(scene, profile, 1, q, hits, &mut w.order, ShadeOut { paths: &mut w.paths, next: &mut w.next, nee: &mut w.nee });
 }
 
-/// The whole shadow stage (light sampling, 64-ray any-hit groups, crediting the paths) on the requests
+/// The whole shadow stage (light sampling, 128-ray any-hit groups, crediting the paths) on the requests
 /// that shading the showcase's camera hits emits (two lights: a quad and a point). Validated before it
 /// times: the same radiance on every path, bit for bit, on a second run; every credited value finite
 /// and non-negative; some light reaches the paths and some is blocked (at most requests x lights rays).
@@ -385,7 +385,7 @@ fn bench_shadow(c: &mut Criterion) {
     let mut g = c.benchmark_group("shadow");
     g.throughput(Throughput::Elements(n));
     g.sample_size(20);
-    // Packets of 8 traced one by one, and groups of 8 packets traced together (`accel/group.rs`).
+    // Packets of 8 traced one by one, and groups of GROUP (16) packets traced together (`accel/group.rs`).
     g.bench_function("any_hit_packets/bench_spheres.toml", |b| {
         b.iter(|| {
             pool.install(|| {

@@ -623,7 +623,7 @@ fn slab_test_is_a_conservative_twin_of_f64() {
 
 // ---------------------------------------------------------------- group traversal (accel/group.rs)
 
-/// Groups of up to 8 packets: camera-like (one origin, a small frustum), shadow-like (origins over a
+/// Groups of up to GROUP (16) packets: camera-like (one origin, a small frustum), shadow-like (origins over a
 /// patch, towards one point), grazing (aimed at sphere silhouettes), mixed octants (the per-packet
 /// fallback), and frusta with directions of both signs on one axis (that axis left out of the group
 /// bounds); with inactive lanes, inactive packets and partial groups.

@@ -6,7 +6,7 @@
 //! - `build.rs`: binned SAH build (Wald 2007, "On fast Construction of SAH-based Bounding Volume
 //!   Hierarchies"), single-threaded, with a median-split fallback that bounds the depth.
 //! - `traverse.rs`: closest-hit and any-hit traversal of 8-ray packets, and a scalar f64 reference.
-//! - `group.rs`: traversal of up to 8 packets together through the binary tree (shadow rays, and the
+//! - `group.rs`: traversal of up to 16 packets together through the binary tree (shadow rays, and the
 //!   octant-sorted incoherent rays of trees under `WIDE_MIN_NODES`).
 //! - `wide_group.rs`: closest-hit traversal of up to 32 packets together through the wide tree, by an
 //!   interval test of 8 children at once (camera rays).

@@ -27,8 +27,8 @@ impl Tile {
     }
 
     /// The tile's pixels in 8x8 blocks (row by row), each block in Morton (Z) order: 8 consecutive
-    /// pixels form a 4x2 block and 64 an 8x8 block, so the 8-ray packets and 64-ray traversal groups of
-    /// camera rays are compact in the image (row order made a group a 64x1 strip). Cells of a block
+    /// pixels form a 4x2 block and 64 an 8x8 block, so the 8-ray packets and the traversal groups (four
+    /// blocks) of camera rays are compact in the image (row order made a group a 64x1 strip). Cells of a block
     /// outside the tile are skipped, so the cost is at most 64 per block whatever the tile's shape.
     pub fn pixels_z_order(&self) -> impl Iterator<Item = (u32, u32)> {
         let (w, h) = (self.x1 - self.x0, self.y1 - self.y0);

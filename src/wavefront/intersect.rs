@@ -1,11 +1,11 @@
 //! Stage 2: nearest hits of a ray queue: the unbounded planes first, then the BVH with the SIMD
 //! primitive kernels at the leaves. Coherent queues (camera rays, and any queue with at most one
 //! direction-octant change per 64 rays) traverse the 8-wide BVH in groups of up to 32 8-ray packets
-//! (`accel/wide_group.rs`; the binary tree's groups of 8, `accel/group.rs`, only for a scene without a
+//! (`accel/wide_group.rs`; the binary tree's groups of 16, `accel/group.rs`, only for a scene without a
 //! wide tree, i.e. without bounded primitives). Queues of incoherent rays are first partitioned by
 //! direction octant and gathered into packets, which traverse the 8-wide BVH one packet at a time
 //! (`accel/wide_traverse.rs`) when `scene.wide_incoherent` (trees of at least `WIDE_MIN_NODES` binary
-//! nodes), else the binary tree in groups of 8 packets. CSG solids are not solved here: a packet that
+//! nodes), else the binary tree in groups of 16 packets. CSG solids are not solved here: a packet that
 //! reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
 use super::queues::{CsgCandidates, HitQueue, RayQueue, NONE};
@@ -252,7 +252,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     // Queue position -> ray index.
     let ray_at = |q: usize| if sorted { order[q] as usize } else { q };
     // Packets traverse together: coherent queues up to WIDE_GROUP packets (256 rays) through the wide
-    // tree when the scene has one (`accel/wide_group.rs`), else up to GROUP (64 rays) through the
+    // tree when the scene has one (`accel/wide_group.rs`), else up to GROUP (128 rays) through the
     // binary tree (`accel/group.rs`).
     let wide = !sorted && !scene.bvh8.is_empty();
     let group = if wide { WIDE_GROUP } else { GROUP };

@@ -1,5 +1,5 @@
 //! Stage 5: next-event estimation. Each request (a shading point) is expanded into light samples with the
-//! profile's light strategy; the shadow rays are packed in batches of 8 packets of 8 (consecutive samples
+//! profile's light strategy; the shadow rays are packed in batches of 16 packets of 8 (consecutive samples
 //! of one point, and neighbouring points, are coherent) and traced together with any-hit group traversal;
 //! unoccluded samples add their contribution to the path.
 //! Smooth dielectrics block direct light (the light they pass is a caustic), except where they do not
