@@ -15,7 +15,7 @@ use crate::optics::{
     sample_hemisphere_cos_x8,
 };
 use crate::sample::{hash_combine, random_f32, sample_2d, stream_key, Sampler2d};
-use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape};
+use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture};
 use crate::simd::{f32x8, gather8, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
@@ -430,6 +430,10 @@ impl Ctx<'_> {
         let mut pla = 0u32;
         let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
         let mut shift = [[0.0f32; LANES]; 3];
+        // Only what the scene needs: without motion every shift is zero (and `p - 0` is `p`); lanes with
+        // a checker texture (else albedo is the constant colour, which the checker would give too).
+        let motion = scene.features.motion;
+        let mut checker = 0u32;
         for (l, &i) in idx.iter().enumerate() {
             let i = i as usize;
             if media[l] != MediumStack::default() {
@@ -441,7 +445,7 @@ impl Ctx<'_> {
                 }
             }
             let prim = &scene.prims[prims[l] as usize];
-            let sh = prim.motion * times[l];
+            let sh = if motion { prim.motion * times[l] } else { Vec3::ZERO };
             let material = match prim.shape {
                 Shape::Sphere { center, radius } => {
                     sph |= 1 << l;
@@ -475,8 +479,13 @@ impl Ctx<'_> {
             };
             let (ta, tb, ts) = albedo.checker_params();
             let key = last_point.get((pixel, branch[l], depth[l]), || point_key(pixel, branch[l], depth[l]));
+            if motion {
+                for (row, c) in shift.iter_mut().zip(sh.to_array()) {
+                    row[l] = c;
+                }
+            }
+            checker |= (matches!(albedo, Texture::Checker { .. }) as u32) << l;
             for c in 0..3 {
-                shift[c][l] = sh[c];
                 tex_a[c][l] = ta[c];
                 tex_b[c][l] = tb[c];
             }
@@ -511,10 +520,14 @@ impl Ctx<'_> {
             (p, nf) = (pv.rows(), nv.rows());
             scale = mask.select(f32x8::ZERO, v(&scale)).to_array();
         }
-        // Texture lookups happen in the primitive's frame at the ray's time.
-        let ps = v3(&p) - v3(&shift);
-        // Albedo (checker or constant) and the path weight, 8 lanes.
-        let albedo = checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), ps);
+        // Albedo (checker or constant) and the path weight, 8 lanes. Texture lookups happen in the
+        // primitive's frame at the ray's time.
+        let albedo = if checker == 0 {
+            v3(&tex_a)
+        } else {
+            let ps = if motion { v3(&p) - v3(&shift) } else { v3(&p) };
+            checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), ps)
+        };
         let wv = v3(&thr) * albedo;
         let w = wv.rows();
         let (pv, nv) = (v3(&p), v3(&nf));
