@@ -25,6 +25,15 @@ pub fn valid_sample(a: [f32; 3]) -> bool {
     a.iter().all(|x| x.abs() < MAX_SAMPLE_VALUE)
 }
 
+/// [`valid_sample`] of 8 samples (channel rows `r`, `g`, `b`) as lane bits: the same comparison, in 8 lanes.
+#[inline(always)]
+pub fn valid_x8(r: &[f32; 8], g: &[f32; 8], b: &[f32; 8]) -> u32 {
+    use wide::f32x8;
+    let lim = f32x8::splat(MAX_SAMPLE_VALUE);
+    let ok = |v: &[f32; 8]| f32x8::from(*v).abs().simd_lt(lim);
+    (ok(r) & ok(g) & ok(b)).to_bitmask()
+}
+
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Pixel {
     pub sum: [i128; 3],
@@ -78,6 +87,23 @@ impl Pixel {
             self.sum_sq[c] += (q * q) >> 32;
         }
         self.count += 1;
+    }
+
+    /// Add 8 valid quantized samples (`q[c]` = channel `c` of the 8): the sums of 8 calls of
+    /// [`Pixel::add_quantized`], each channel summed in registers first (exact integers: the same sums).
+    #[inline(always)]
+    pub fn add_quantized_x8(&mut self, q: &[[i64; 8]; 3]) {
+        for (c, row) in q.iter().enumerate() {
+            let (mut s, mut s2) = (0i128, 0i128);
+            for &q in row {
+                let q = q as i128;
+                s += q;
+                s2 += (q * q) >> 32;
+            }
+            self.sum[c] += s;
+            self.sum_sq[c] += s2;
+        }
+        self.count += 8;
     }
 
     #[inline]
@@ -151,6 +177,54 @@ mod tests {
     /// The 8-lane quantization equals the scalar one on every kind of valid value: exact halves of the
     /// 2^-32 grid (the rounding ties, both signs), values just beside them, subnormals, zeros of both
     /// signs, the largest valid magnitude, and random values at every exponent.
+    /// Eight `add_quantized` calls, lane by lane.
+    fn by_lane(q: &[[i64; 8]; 3]) -> Pixel {
+        let mut p = Pixel::default();
+        (0..8).for_each(|l| p.add_quantized([q[0][l], q[1][l], q[2][l]]));
+        p
+    }
+
+    /// The 8-lane validity bits equal `valid_sample` lane by lane (NaN, infinities, the limit and
+    /// just below it, both signs, random magnitudes); `add_quantized_x8` equals 8 `add_quantized` calls
+    /// (extreme magnitudes of both signs included).
+    #[test]
+    fn valid_x8_and_add_quantized_x8_match_scalar() {
+        let special = [0.0, -0.0, 1.0, -1.0, f32::NAN, -f32::NAN, f32::INFINITY, f32::NEG_INFINITY, MAX_SAMPLE_VALUE, -MAX_SAMPLE_VALUE];
+        let edge = [MAX_SAMPLE_VALUE.next_down(), -MAX_SAMPLE_VALUE.next_down(), 1e-45, f32::MAX];
+        let vals: Vec<f32> = special.iter().chain(&edge).copied().collect();
+        let mut next = crate::sample::hash::test_uniforms(0x7a11d);
+        let (mut valid, mut invalid) = (0, 0);
+        for round in 0..4000 {
+            let mut pick = || {
+                let u = next();
+                if u < 0.3 {
+                    vals[(next() * vals.len() as f32) as usize % vals.len()]
+                } else {
+                    (u - 0.65) * 2.4 * MAX_SAMPLE_VALUE * [1e-9, 1.0][round % 2]
+                }
+            };
+            let rows: [[f32; 8]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| pick()));
+            let bits = valid_x8(&rows[0], &rows[1], &rows[2]);
+            for (l, ((&x, &y), &z)) in rows[0].iter().zip(&rows[1]).zip(&rows[2]).enumerate() {
+                let want = valid_sample([x, y, z]);
+                assert_eq!(bits >> l & 1 != 0, want, "{:?}", [x, y, z]);
+                (valid, invalid) = (valid + want as u32, invalid + !want as u32);
+            }
+            if bits == 0xff {
+                let q = rows.map(|r| quantize_x8(&r));
+                let mut a = Pixel::default();
+                a.add_quantized_x8(&q);
+                assert_eq!(a, by_lane(&q));
+            }
+        }
+        let max = quantize(MAX_SAMPLE_VALUE.next_down());
+        let q = [[max; 8], [-max; 8], [max, -max, max, -max, 0, 1, -1, max]];
+        let mut a = Pixel::default();
+        a.add_quantized_x8(&q);
+        assert_eq!(a, by_lane(&q));
+        assert!(valid > 3000 && invalid > 3000, "{valid} valid, {invalid} invalid");
+    }
+
     #[test]
     fn quantize_x8_matches_scalar() {
         let mut vals: Vec<f32> = vec![0.0, -0.0, f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 1e-45, -1e-45, 1.0, -1.0];
