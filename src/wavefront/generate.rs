@@ -191,7 +191,7 @@ mod tests {
             }
             out
         };
-        let whole = rays_of(&[0..16]);
+        let whole = rays_of(std::slice::from_ref(&(0..16)));
         let single = rays_of(&(0..16).map(|s| s..s + 1).collect::<Vec<_>>());
         assert_eq!(whole.len(), 11 * 5 * 16);
         assert!(whole == single, "whole-packet and lane-by-lane rays differ");
