@@ -174,9 +174,6 @@ impl Film {
 mod tests {
     use super::*;
 
-    /// The 8-lane quantization equals the scalar one on every kind of valid value: exact halves of the
-    /// 2^-32 grid (the rounding ties, both signs), values just beside them, subnormals, zeros of both
-    /// signs, the largest valid magnitude, and random values at every exponent.
     /// Eight `add_quantized` calls, lane by lane.
     fn by_lane(q: &[[i64; 8]; 3]) -> Pixel {
         let mut p = Pixel::default();
@@ -225,6 +222,9 @@ mod tests {
         assert!(valid > 3000 && invalid > 3000, "{valid} valid, {invalid} invalid");
     }
 
+    /// The 8-lane quantization equals the scalar one on every kind of valid value: exact halves of the
+    /// 2^-32 grid (the rounding ties, both signs), values just beside them, subnormals, zeros of both
+    /// signs, the largest valid magnitude, and random values at every exponent.
     #[test]
     fn quantize_x8_matches_scalar() {
         let mut vals: Vec<f32> = vec![0.0, -0.0, f32::MIN_POSITIVE, -f32::MIN_POSITIVE, 1e-45, -1e-45, 1.0, -1.0];

@@ -2,16 +2,26 @@
 //! additions irrelevant (see `film`); non-finite samples are discarded and counted.
 
 use super::queues::PathTable;
-use crate::film::{quantize_x8, valid_sample, valid_x8, Film, Pixel};
+use crate::film::{quantize_x8, valid_x8, Film, Pixel};
 
 /// Returns the number of samples discarded as non-finite.
 pub fn accumulate(paths: &PathTable, film: &mut Film) -> u64 {
     let mut bad = 0;
     // A pixel's samples are consecutive paths: they are summed into a local pixel and merged into the
     // film once per run (exact: the sums are integers, so the grouping changes nothing). Samples are
-    // quantized 8 at a time (`quantize_x8`, equal to the scalar `quantize` that `Pixel::add` uses).
+    // quantized 8 at a time (`quantize_x8`, equal to the scalar `quantize` that `Pixel::add` uses), and
+    // their validity decided 8 at a time (`valid_x8`, the comparison of `valid_sample`).
     let mut run = Pixel::default();
     let mut at = None;
+    // Make `px` the pixel of the run, merging the previous run into the film.
+    let switch = |px: u32, run: &mut Pixel, at: &mut Option<u32>, film: &mut Film| {
+        if *at != Some(px) {
+            if let Some(a) = *at {
+                film.pixels[a as usize].merge(run);
+            }
+            (*run, *at) = (Pixel::default(), Some(px));
+        }
+    };
     let n = paths.len();
     for base in (0..n).step_by(8) {
         let m = (n - base).min(8);
@@ -24,28 +34,18 @@ pub fn accumulate(paths: &PathTable, film: &mut Film) -> u64 {
         };
         let (r, g, b) = (lanes(&paths.lr), lanes(&paths.lg), lanes(&paths.lb));
         let q = [quantize_x8(&r), quantize_x8(&g), quantize_x8(&b)];
+        let valid = valid_x8(&r, &g, &b);
+        let px8 = &paths.pixel[base..base + m];
         // Eight valid samples of one pixel (the usual case from 8 samples per pixel on): summed per
         // channel in registers, then added to the run once.
-        let px8 = &paths.pixel[base..base + m];
-        if m == 8 && px8.iter().all(|&p| p == px8[0]) && valid_x8(&r, &g, &b) == 0xff {
-            if at != Some(px8[0]) {
-                if let Some(a) = at {
-                    film.pixels[a as usize].merge(&run);
-                }
-                (run, at) = (Pixel::default(), Some(px8[0]));
-            }
+        if m == 8 && valid == 0xff && px8.iter().all(|&p| p == px8[0]) {
+            switch(px8[0], &mut run, &mut at, film);
             run.add_quantized_x8(&q);
             continue;
         }
-        for l in 0..m {
-            let px = paths.pixel[base + l];
-            if at != Some(px) {
-                if let Some(a) = at {
-                    film.pixels[a as usize].merge(&run);
-                }
-                (run, at) = (Pixel::default(), Some(px));
-            }
-            if valid_sample([r[l], g[l], b[l]]) {
+        for (l, &px) in px8.iter().enumerate() {
+            switch(px, &mut run, &mut at, film);
+            if valid >> l & 1 != 0 {
                 run.add_quantized([q[0][l], q[1][l], q[2][l]]);
             } else {
                 bad += 1;
@@ -56,4 +56,48 @@ pub fn accumulate(paths: &PathTable, film: &mut Film) -> u64 {
         film.pixels[a as usize].merge(&run);
     }
     bad
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// The stage gives the film what `Pixel::add` gives sample by sample, and counts the samples it
+    /// discards: runs of 1 to 24 samples per pixel (whole 8-sample chunks of one pixel, chunks spanning
+    /// pixels, a short tail), with non-finite and out-of-range samples among valid ones.
+    #[test]
+    fn equals_pixel_add_sample_by_sample() {
+        let mut next = crate::sample::hash::test_uniforms(0xacc);
+        for round in 0..40 {
+            let mut paths = PathTable::default();
+            let (w, h) = (16u32, 12u32);
+            let mut pixel = 0;
+            while pixel < w * h && paths.len() < 600 {
+                let n = 1 + (next() * [8.0, 24.0][round % 2]) as u32;
+                paths.push_pixel(pixel, 0..n);
+                pixel += 1 + (next() * 2.0) as u32;
+            }
+            for i in 0..paths.len() {
+                let v = |u: f32| match (u * 100.0) as u32 {
+                    0 => f32::NAN,
+                    1 => f32::INFINITY,
+                    2 => -3e9,
+                    _ => (u - 0.2) * 5.0,
+                };
+                (paths.lr[i], paths.lg[i], paths.lb[i]) = (v(next()), v(next()), v(next()));
+            }
+            let mut film = Film::new(w, h);
+            let bad = accumulate(&paths, &mut film);
+            let mut want = Film::new(w, h);
+            let mut want_bad = 0;
+            for i in 0..paths.len() {
+                let c = Vec3::new(paths.lr[i], paths.lg[i], paths.lb[i]);
+                want_bad += !want.pixels[paths.pixel[i] as usize].add(c) as u64;
+            }
+            assert_eq!(bad, want_bad, "round {round}");
+            assert!(film == want, "round {round}: films differ");
+            assert!(want_bad > 0 && want.total_samples() > 200, "round {round}: {want_bad} bad, {} kept", want.total_samples());
+        }
+    }
 }
