@@ -630,7 +630,7 @@ fn slab_test_is_a_conservative_twin_of_f64() {
 fn test_groups(rng: &mut Rand, spheres: &[Sphere], count: usize) -> Vec<Vec<Packet>> {
     (0..count)
         .map(|g| {
-            let k = if g % 7 == 0 { 1 + rng.below(8) as usize } else { GROUP };
+            let k = if g % 7 == 0 { 1 + rng.below(GROUP as u32) as usize } else { GROUP };
             let kind = g % 5;
             let o0 = rng.vec(-20.0, 20.0);
             let target = rng.vec(-8.0, 8.0);
@@ -716,7 +716,8 @@ fn group_traversal_matches_brute_force_and_single_packets() {
 
 #[test]
 fn group_traversal_shares_the_walk_of_coherent_rays() {
-    // 64 camera-like rays over a 2,000-sphere field: one group test per node instead of eight.
+    // GROUP x 8 (128) camera-like rays over a 2,000-sphere field: one group test per node instead of
+    // one per packet.
     let mut rng = Rand::new(11);
     let spheres = random_spheres(&mut rng, 2_000);
     let bvh = build_ok(&sphere_bounds(&spheres), &BuildOptions::default());

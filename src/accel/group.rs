@@ -36,6 +36,8 @@ pub const GROUP: usize = 16;
 
 /// Interval bounds of a group of rays, mirrored so that every axis has positive directions: on an axis
 /// whose directions are negative, origins and boxes are negated (then `t = (b - o) * inv` with `inv > 0`).
+/// An axis with directions of both signs is not mirrored: its origins span -inf..+inf with a unit
+/// inverse, which makes its entry -inf and its exit +inf (it culls nothing).
 /// Kept in SSE vectors (`Vec3A`): the test costs about 15 vector instructions per node.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct GroupBounds {
@@ -52,8 +54,9 @@ pub(super) struct GroupBounds {
 
 impl GroupBounds {
     /// Bounds of the active lanes (`tmax >= 0`) of `rays`; `None` when their directions have both signs
-    /// on more than [`MAX_MIXED_AXES`] axes (a zero or non-finite direction component also gives
-    /// `None`) or no lane is active.
+    /// on more than [`MAX_MIXED_AXES`] axes or no lane is active. A zero direction component (infinite
+    /// inverse) gives `None`; an infinite one (zero inverse) counts as a mixed axis (left out, so still
+    /// conservative); NaN inverses are skipped by the min/max folds, as before.
     pub(super) fn new(rays: &[Ray8]) -> Option<Self> {
         let inf = f32x8::splat(f32::INFINITY);
         let mut lo = [inf; 6];

@@ -25,7 +25,8 @@ pub const WIDTH: usize = 8;
 /// Smallest binary tree (in nodes) for which the intersect stage sends incoherent rays through the
 /// [`Bvh8`] (`Scene::wide_incoherent`; camera rays take it at every size, `wide_group.rs`). Below it, groups of packets
 /// through the binary tree were faster: the top levels, where a packet's rays still enter the same
-/// nodes, are most of a small tree, and there a group shares one box test among 64 rays while the wide
+/// nodes, are most of a small tree, and there a group shares one box test among 64 rays (groups of 8
+/// packets then; 16 since session 5) while the wide
 /// packet traversal tests each ray. Secondary rays of the intersect benchmark's construction, one
 /// thread, best of 15, M rays/s groups / wide:
 ///

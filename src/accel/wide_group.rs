@@ -48,8 +48,9 @@ impl GroupBounds {
         let tn = nx.fast_max(ny).fast_max(nz).fast_max(f32x8::ZERO);
         let tf = fx.fast_min(fy).fast_min(fz).fast_min(f32x8::splat(tmax));
         let cull = (tn - tf).simd_gt(f32x8::splat(SLACK) * (tn.abs() + tf.abs()) + f32x8::splat(f32::MIN_POSITIVE));
-        // Empty slots (min = +inf, max = -inf) give tn = +inf, tf = -inf, which the verdict's
-        // arithmetic does not cull (inf > inf is false): they are excluded by their box.
+        // Empty slots (min = +inf, max = -inf) give tn = +inf, tf = -inf (NaN on a mixed axis, whose
+        // origins are infinite), which the verdict's arithmetic does not cull: they are excluded by
+        // their box.
         let occupied = row(0).simd_le(row(3));
         (tn, (!cull & occupied).to_bitmask())
     }

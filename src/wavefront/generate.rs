@@ -164,37 +164,44 @@ mod tests {
     use super::*;
 
     /// Whole packets of one pixel's samples (filled as vectors) give the rays the lane-by-lane fill
-    /// gives: 16 samples per pixel generated at once (two whole packets per pixel) against one sample
-    /// at a time (always lane by lane), per (pixel, sample), with lens and motion (every field).
+    /// gives: 16 samples per pixel generated at once (two whole packets per pixel), and the range 3..13
+    /// (one whole packet, then a partial one that spans pixels), against one sample at a time (always
+    /// lane by lane), per (pixel, sample), with lens, motion and dispersion: origin, direction, time,
+    /// wavelength and throughput.
     #[test]
     fn whole_pixel_packets_equal_lane_by_lane() {
         let text = "[image]\nwidth = 12\nheight = 5\n[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\nfov = 40\n\
             aperture = 0.2\nfocus_distance = 5\nshutter = [0, 1]\n\
             [materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
-            [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\nmotion = [1, 0, 0]\n";
+            [materials.g]\ntype = \"dielectric\"\ncauchy = [1.52, 0.03]\n\
+            [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\nmotion = [1, 0, 0]\n\
+            [[shapes]]\ntype = \"sphere\"\ncenter = [2, 0, 0]\nradius = 0.5\nmaterial = \"g\"\n";
         let scene = crate::scene::parse_scene(std::path::Path::new("g.toml"), text).unwrap();
-        assert!(scene.features.lens && scene.features.motion);
+        assert!(scene.features.lens && scene.features.motion && scene.features.dispersion);
         let mut profile = Profile::builtin("preview");
         profile.spp = 16;
         let tile = Tile { x0: 1, y0: 0, x1: 12, y1: 5 };
         let rays_of = |ranges: &[Range<u32>]| {
             let mut out = std::collections::BTreeMap::new();
             for r in ranges {
-                let (mut paths, mut q) = (PathTable::default(), RayQueue::new(true, false));
+                let (mut paths, mut q) = (PathTable::default(), RayQueue::new(true, true));
                 generate(&scene, &profile, 7, tile, r.clone(), &mut paths, &mut q);
                 for i in 0..q.len() {
                     let ray = q.get(i);
                     let key = (paths.pixel[ray.path as usize], paths.sample[ray.path as usize]);
                     let bits = [ray.o.to_array(), ray.d.to_array()].concat().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-                    assert!(out.insert(key, (bits, ray.time.to_bits(), ray.throughput.to_array())).is_none());
+                    let rest = (ray.time.to_bits(), ray.lambda.to_bits(), ray.throughput.to_array());
+                    assert!(out.insert(key, (bits, rest)).is_none());
                 }
             }
             out
         };
-        let whole = rays_of(std::slice::from_ref(&(0..16)));
-        let single = rays_of(&(0..16).map(|s| s..s + 1).collect::<Vec<_>>());
-        assert_eq!(whole.len(), 11 * 5 * 16);
-        assert!(whole == single, "whole-packet and lane-by-lane rays differ");
+        for range in [0..16, 3..13] {
+            let whole = rays_of(std::slice::from_ref(&range));
+            let single = rays_of(&range.clone().map(|s| s..s + 1).collect::<Vec<_>>());
+            assert_eq!(whole.len(), 11 * 5 * range.len());
+            assert!(whole == single, "samples {range:?}: whole-packet and lane-by-lane rays differ");
+        }
     }
 
     #[test]

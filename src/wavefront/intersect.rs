@@ -180,7 +180,7 @@ fn octant_order(rays: &RayQueue, order: &mut Vec<u32>) -> bool {
 /// holds them equal.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Traversal {
-    /// Groups of 8 octant-sorted packets through the binary BVH (`accel/group.rs`).
+    /// Groups of up to `GROUP` (16) octant-sorted packets through the binary BVH (`accel/group.rs`).
     Groups,
     /// Octant-sorted 8-ray packets through the 8-wide BVH (`accel/wide_traverse.rs`), when the scene
     /// says so (`scene.wide_incoherent`: trees of at least `WIDE_MIN_NODES` binary nodes); else

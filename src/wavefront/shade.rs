@@ -430,9 +430,9 @@ impl Ctx<'_> {
         let mut pla = 0u32;
         let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
         let mut shift = [[0.0f32; LANES]; 3];
-        // Only what the scene needs: without motion every shift is zero (and `p - 0` is `p`); lanes with
-        // a checker texture (else albedo is the constant colour, which the checker would give too).
-        let motion = scene.features.motion;
+        // Lanes with a checker texture (else albedo is the constant colour, which the checker would
+        // give too: its two colours are equal). The time shift is kept even without motion: `motion *
+        // 0` can be -0, and a centre plus -0 is what `surface_hit` computes.
         let mut checker = 0u32;
         for (l, &i) in idx.iter().enumerate() {
             let i = i as usize;
@@ -445,7 +445,7 @@ impl Ctx<'_> {
                 }
             }
             let prim = &scene.prims[prims[l] as usize];
-            let sh = if motion { prim.motion * times[l] } else { Vec3::ZERO };
+            let sh = prim.motion * times[l];
             let material = match prim.shape {
                 Shape::Sphere { center, radius } => {
                     sph |= 1 << l;
@@ -479,10 +479,8 @@ impl Ctx<'_> {
             };
             let (ta, tb, ts) = albedo.checker_params();
             let key = last_point.get((pixel, branch[l], depth[l]), || point_key(pixel, branch[l], depth[l]));
-            if motion {
-                for (row, c) in shift.iter_mut().zip(sh.to_array()) {
-                    row[l] = c;
-                }
+            for (row, c) in shift.iter_mut().zip(sh.to_array()) {
+                row[l] = c;
             }
             checker |= (matches!(albedo, Texture::Checker { .. }) as u32) << l;
             for c in 0..3 {
@@ -522,12 +520,7 @@ impl Ctx<'_> {
         }
         // Albedo (checker or constant) and the path weight, 8 lanes. Texture lookups happen in the
         // primitive's frame at the ray's time.
-        let albedo = if checker == 0 {
-            v3(&tex_a)
-        } else {
-            let ps = if motion { v3(&p) - v3(&shift) } else { v3(&p) };
-            checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), ps)
-        };
+        let albedo = if checker == 0 { v3(&tex_a) } else { checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), v3(&p) - v3(&shift)) };
         let wv = v3(&thr) * albedo;
         let w = wv.rows();
         let (pv, nv) = (v3(&p), v3(&nf));
