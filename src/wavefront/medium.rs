@@ -38,6 +38,11 @@ fn priority(scene: &Scene, m: u32) -> i32 {
 /// The medium a ray with this stack is in: highest priority, the last entered among equals.
 #[inline]
 pub fn current(scene: &Scene, stack: MediumStack) -> Option<u32> {
+    // At most one entry (slot 0; the usual case: air, or inside one object): it is the medium, whatever
+    // its priority.
+    if stack.0 >> 16 == 0 {
+        return (stack.0 != 0).then(|| (stack.0 & 0xffff) as u32 - 1);
+    }
     let mut best: Option<(u32, i32)> = None;
     for m in stack.iter() {
         let p = priority(scene, m);
@@ -109,6 +114,29 @@ mod tests {
     const GLASS: u32 = 1;
     const ICE: u32 = 2;
     const WATER: u32 = 3;
+
+    /// `current` (with its one-entry shortcut) equals the rule of the module doc computed directly: the
+    /// entry of highest priority, the innermost among equals; on every stack of up to 4 entries drawn
+    /// from the four media (repeats included).
+    #[test]
+    fn current_equals_the_priority_rule() {
+        let s = scene();
+        let ids = [BUBBLE, GLASS, ICE, WATER];
+        let prio = |m: u32| dielectric(&s, m).map(|d| d.priority).unwrap();
+        let mut checked = 0;
+        for depth in 0..=MediumStack::DEPTH as u32 {
+            for code in 0..4usize.pow(depth) {
+                let entries: Vec<u32> = (0..depth).map(|k| ids[code / 4usize.pow(k) % 4]).collect();
+                let stack = entries.iter().fold(MediumStack::default(), |st, &m| st.push(m));
+                // Outermost first: among the highest priority, the last entered.
+                let top = entries.iter().map(|&m| prio(m)).max();
+                let want = entries.iter().copied().rev().find(|&m| Some(prio(m)) == top);
+                assert_eq!(current(&s, stack), want, "stack {entries:?}");
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 1 + 4 + 16 + 64 + 256);
+    }
 
     #[test]
     fn current_is_highest_priority_then_last_entered() {
