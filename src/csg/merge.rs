@@ -67,38 +67,43 @@ pub(crate) fn group_end(t0: f32, base: f32) -> f32 {
     t0 + tol_at(t0, base)
 }
 
-/// `out = a op b` (appended). Both lists alternate entry/exit starting with an entry.
-pub(crate) fn merge(a: &[Ev], b: &[Ev], op: Op, base: f32, out: &mut Vec<Ev>) {
-    let flip_b = if op == Op::Difference { FLIP } else { 0 };
+/// `a op b` for the two lists on top of the stack `evs` (`a = evs[sa..sb]`, `b = evs[sb..]`), left in
+/// place as `evs[sa..]`. Both lists alternate entry/exit starting with an entry. An empty operand or
+/// disjoint spans (farther apart than the tolerance) need no sweep, and mostly no copy: the result is
+/// one operand, already where it belongs, or nothing; only the general sweep goes through `tmp`.
+#[inline(always)]
+pub(crate) fn combine_top(evs: &mut Vec<Ev>, sa: usize, sb: usize, op: Op, base: f32, tmp: &mut Vec<Ev>) {
+    let (a_empty, b_empty) = (sa == sb, sb == evs.len());
     // Empty operands.
     match op {
-        Op::Union if a.is_empty() => return out.extend_from_slice(b),
-        Op::Union | Op::Difference if b.is_empty() => return out.extend_from_slice(a),
-        Op::Intersection | Op::Difference if a.is_empty() => return,
-        Op::Intersection if b.is_empty() => return,
+        // b (at sb == sa) is the result.
+        Op::Union if a_empty => return,
+        // a is the result.
+        Op::Union | Op::Difference if b_empty => return evs.truncate(sb),
+        Op::Intersection | Op::Difference if a_empty => return evs.truncate(sa),
+        Op::Intersection if b_empty => return evs.truncate(sa),
         _ => {}
     }
-    // Disjoint spans (farther apart than the tolerance): no sweep needed.
-    let (a_first, a_last) = (a[0].t, a[a.len() - 1].t);
-    let (b_first, b_last) = (b[0].t, b[b.len() - 1].t);
+    let (a_first, a_last) = (evs[sa].t, evs[sb - 1].t);
+    let (b_first, b_last) = (evs[sb].t, evs[evs.len() - 1].t);
     let a_before = group_end(a_last, base) < b_first;
     let b_before = group_end(b_last, base) < a_first;
     if a_before || b_before {
         match op {
-            Op::Intersection => {}
-            Op::Difference => out.extend_from_slice(a),
-            Op::Union if a_before => {
-                out.extend_from_slice(a);
-                out.extend_from_slice(b);
-            }
-            Op::Union => {
-                out.extend_from_slice(b);
-                out.extend_from_slice(a);
-            }
+            Op::Intersection => evs.truncate(sa),
+            Op::Difference => evs.truncate(sb),
+            // a then b: as they are.
+            Op::Union if a_before => {}
+            // b then a.
+            Op::Union => evs[sa..].rotate_left(sb - sa),
         }
         return;
     }
-    sweep(a, b, op, flip_b, base, out);
+    let flip_b = if op == Op::Difference { FLIP } else { 0 };
+    tmp.clear();
+    sweep(&evs[sa..sb], &evs[sb..], op, flip_b, base, tmp);
+    evs.truncate(sa);
+    evs.extend_from_slice(tmp);
 }
 
 /// The general sweep with grouping of coincident crossings.
@@ -195,11 +200,7 @@ pub(crate) fn eval_lane(
                 let (Some(sb), Some(sa)) = (starts.pop(), starts.last().copied()) else {
                     return None;
                 };
-                tmp.clear();
-                let (left, right) = evs.split_at(sb);
-                merge(&left[sa..], right, op, base, tmp);
-                evs.truncate(sa);
-                evs.extend_from_slice(tmp);
+                combine_top(evs, sa, sb, op, base, tmp);
             }
         }
     }
