@@ -11,8 +11,8 @@ use crate::geometry::{
     refine_sphere_point_x8,
 };
 use crate::optics::{
-    beer_lambert, fresnel_dielectric, fresnel_schlick, reflect, refract, sample_ggx_reflect, sample_ggx_reflect_weight,
-    sample_hemisphere_cos_x8,
+    beer_lambert, fresnel_dielectric, fresnel_refract_x8, fresnel_schlick, reflect, reflect_x8, refract, sample_ggx_reflect,
+    sample_ggx_reflect_weight, sample_hemisphere_cos_x8,
 };
 use crate::sample::{hash_combine, random_f32, sample_2d, stream_key, Sampler2d};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture};
@@ -270,6 +270,12 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
             }
             continue;
         }
+        if b == MaterialKind::Mirror as usize || b == MaterialKind::Dielectric as usize {
+            for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
+                ctx.specular_x8(rays, hits, chunk, paths, next);
+            }
+            continue;
+        }
         // Hit geometry 8 hits at a time (spheres in 8 lanes), then each hit's material.
         for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
             let geometry = surface_hits_x8(scene, (1 << chunk.len()) - 1, |l| HitRay::of(rays, hits, chunk[l] as usize));
@@ -286,20 +292,9 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                             paths.add(r.path, r.throughput * *radiance);
                         }
                     }
-                    // Shaded 8 at a time by `Ctx::lambert_x8`.
-                    Material::Lambert { .. } => unreachable!("Lambert hits are shaded by lambert_x8"),
-                    Material::Mirror { tint } => {
-                        if (r.depth as u32) < profile.max_depth {
-                            let d = reflect(-r.d.normalize(), hit.n_facing);
-                            let child = RayItem {
-                                o: hit.spawn(hit.n_facing),
-                                d,
-                                throughput: r.throughput * *tint,
-                                flags: FLAG_SPECULAR,
-                                ..next_of(&r)
-                            };
-                            ctx.spawn(next, child, pixel, sample, 0);
-                        }
+                    // Shaded 8 at a time by `Ctx::lambert_x8` and `Ctx::specular_x8`.
+                    Material::Lambert { .. } | Material::Mirror { .. } | Material::Dielectric(_) => {
+                        unreachable!("Lambert, mirror and dielectric hits are shaded 8 at a time")
                     }
                     Material::Glossy { tint, alpha } => {
                         if (r.depth as u32) < profile.max_depth {
@@ -325,8 +320,6 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                             }
                         }
                     }
-                    // Checks max_depth itself: null crossings are not bounces.
-                    Material::Dielectric(d) => ctx.dielectric(d, &r, &hit, pixel, sample, next),
                 }
             }
         }
@@ -611,6 +604,125 @@ impl Ctx<'_> {
             k += 1;
         }
         next.push_rows(k, &rows);
+    }
+
+    /// Up to 8 mirror or dielectric hits (`idx`, ray indices; one kind per chunk): the hit geometry
+    /// (spheres in 8 lanes), then lane by lane the medium bookkeeping (is the surface a real interface,
+    /// between which indices), then the directions, reflectance and spawn points of all lanes as 8-lane
+    /// arithmetic ([`fresnel_refract_x8`], [`reflect_x8`], [`offset_ray_origin_scaled_x8`], each
+    /// bit-identical to its scalar twin), then the children lane by lane. Thin sheets and Schlick's
+    /// approximation take the scalar [`Ctx::dielectric`]. Same rays, in the same order, as shading the
+    /// hits one by one.
+    // Out of line (one call per 8 hits): keeps it a separate entry in profiles.
+    #[inline(never)]
+    fn specular_x8(&self, rays: &RayQueue, hits: &HitQueue, idx: &[u32], paths: &PathTable, next: &mut RayQueue) {
+        let (scene, profile) = (self.scene, self.profile);
+        let m = idx.len();
+        let geo = surface_hits_x8(scene, (1 << m) - 1, |l| HitRay::of(rays, hits, idx[l] as usize));
+        let mut r = [RayItem::default(); LANES];
+        let (mut pixel, mut sample) = ([0u32; LANES], [0u32; LANES]);
+        let mut eta = [1.0f32; LANES];
+        let mut stack = [MediumStack::default(); LANES];
+        let mut tint = [Vec3::ZERO; LANES];
+        // Lanes by what they do: pass straight through (a null or index-matched crossing), reflect
+        // (mirrors), reflect and refract (real interfaces), take the scalar path; lanes in none of
+        // them are at the depth limit.
+        let (mut pass, mut mirror, mut real, mut scalar) = (0u32, 0u32, 0u32, 0u32);
+        let disp = scene.features.dispersion;
+        for (l, &i) in idx.iter().enumerate() {
+            let i = i as usize;
+            r[l] = rays.get(i);
+            absorb(scene, &mut r[l], hits.t[i]);
+            (pixel[l], sample[l]) = (paths.pixel[r[l].path as usize], paths.sample[r[l].path as usize]);
+            let (h, bit) = (&geo[l], 1 << l);
+            let deeper = (r[l].depth as u32) < profile.max_depth;
+            match &scene.materials[h.material as usize] {
+                Material::Mirror { tint: t } => {
+                    if deeper {
+                        mirror |= bit;
+                        tint[l] = *t;
+                    }
+                }
+                Material::Dielectric(d) if d.thin || d.schlick => scalar |= bit,
+                // As `dielectric`: null crossings are not bounces (no depth check for them).
+                Material::Dielectric(_) => {
+                    let c = medium::cross(scene, r[l].media, h.material, h.front);
+                    stack[l] = c.stack;
+                    let (n1, n2) = if c.is_real() {
+                        (ior_of(scene, c.before, r[l].lambda, disp), ior_of(scene, c.after, r[l].lambda, disp))
+                    } else {
+                        (1.0, 1.0)
+                    };
+                    if n1 == n2 {
+                        pass |= bit;
+                    } else if deeper {
+                        real |= bit;
+                        eta[l] = n1 / n2;
+                    }
+                }
+                _ => unreachable!("specular_x8 is given mirror and dielectric hits only"),
+            }
+        }
+        // All lanes in 8-lane arithmetic (lanes past `m` shade a zero hit; discarded).
+        let v3 = |f: &dyn Fn(usize) -> Vec3| {
+            let a: [Vec3; LANES] = std::array::from_fn(f);
+            Vec3x8::new(f32x8::from(a.map(|v| v.x)), f32x8::from(a.map(|v| v.y)), f32x8::from(a.map(|v| v.z)))
+        };
+        let d = v3(&|l| r[l].d);
+        let (p, nf) = (v3(&|l| geo[l].p), v3(&|l| geo[l].n_facing));
+        let scale = f32x8::from(geo.map(|h| h.error_scale));
+        // -normalize(d), as glam rounds it.
+        let rcp = f32x8::ONE / d.dot_unfused(d).sqrt();
+        let wo = Vec3x8::new(-(d.x * rcp), -(d.y * rcp), -(d.z * rcp));
+        let refl = reflect_x8(wo, nf);
+        let (fres, refr, tir) = fresnel_refract_x8(wo, nf, f32x8::from(eta));
+        let p_refl = offset_ray_origin_scaled_x8(p, nf, scale);
+        let p_trans = offset_ray_origin_scaled_x8(p, Vec3x8::new(-nf.x, -nf.y, -nf.z), scale);
+        let (fres, tir) = (fres.to_array(), tir.to_bitmask());
+        // The Fresnel coin of each lane (roulette branching), in one branch-free loop.
+        let mut coin = [0.0f32; LANES];
+        if real != 0 && profile.branching == Branching::Roulette {
+            for l in 0..LANES {
+                let key = hash_combine(branch_stream(pixel[l], r[l].branch), sample[l] as u64);
+                coin[l] = random_f32(self.seed, key, dims::FRESNEL + r[l].depth as u32, 0);
+            }
+        }
+        // Under transmissive shadows the shadow stage already carried light through this interface to
+        // diffuse points: a diffuse path that reaches a light through it must not count it again.
+        let keep_flags = profile.transmissive_shadows;
+        for l in 0..m {
+            let (rl, bit) = (&r[l], 1 << l);
+            let (o_refl, o_trans) = (p_refl.lane(l), p_trans.lane(l));
+            if pass & bit != 0 {
+                next.push(&RayItem { o: o_trans, throughput: rl.throughput, media: stack[l], tmax: f32::INFINITY, ..*rl });
+            } else if scalar & bit != 0 {
+                let Material::Dielectric(d) = &scene.materials[geo[l].material as usize] else { unreachable!() };
+                self.dielectric(d, rl, &geo[l], pixel[l], sample[l], next);
+            } else if mirror & bit != 0 {
+                let child =
+                    RayItem { o: o_refl, d: refl.lane(l), throughput: rl.throughput * tint[l], flags: FLAG_SPECULAR, ..next_of(rl) };
+                self.spawn(next, child, pixel[l], sample[l], 0);
+            } else if real & bit != 0 {
+                let (f, trans) = (fres[l], tir & bit == 0);
+                let reflected = |thr: Vec3| RayItem { o: o_refl, d: refl.lane(l), throughput: thr, flags: FLAG_SPECULAR, ..next_of(rl) };
+                let flags = if keep_flags { rl.flags } else { FLAG_SPECULAR };
+                let transmitted =
+                    |thr: Vec3| RayItem { o: o_trans, d: refr.lane(l), throughput: thr, flags, media: stack[l], ..next_of(rl) };
+                match profile.branching {
+                    Branching::Split => {
+                        if f > 0.0 {
+                            let c = RayItem { branch: child_branch(rl.branch, rl.depth, 1), ..reflected(rl.throughput * f) };
+                            self.spawn(next, c, pixel[l], sample[l], 1);
+                        }
+                        if trans && f < 1.0 {
+                            self.spawn(next, transmitted(rl.throughput * (1.0 - f)), pixel[l], sample[l], 2);
+                        }
+                    }
+                    Branching::Roulette if trans && coin[l] >= f => self.spawn(next, transmitted(rl.throughput), pixel[l], sample[l], 2),
+                    Branching::Roulette => self.spawn(next, reflected(rl.throughput), pixel[l], sample[l], 1),
+                }
+            }
+        }
     }
 
     /// Queue a child ray, after an unbiased Russian roulette on low throughput.
