@@ -200,6 +200,8 @@ impl Compiler<'_> {
                 _ => {}
             }
         }
+        let prim_kind = self.prims.iter().map(|p| self.materials[p.material as usize].kind()).collect();
+        let leaf_kind = (0..self.csg.leaf_count()).map(|l| self.materials[self.csg.leaf(l as u32).material as usize].kind()).collect();
         Ok(Scene {
             width,
             height,
@@ -216,6 +218,8 @@ impl Compiler<'_> {
             csg: std::mem::replace(&mut self.csg, Csg::new()),
             lights: std::mem::take(&mut self.lights),
             features,
+            prim_kind,
+            leaf_kind,
             hash,
         })
     }

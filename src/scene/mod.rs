@@ -242,6 +242,11 @@ pub struct Scene {
     pub csg: Csg,
     pub lights: Vec<Light>,
     pub features: Features,
+    /// The kind of each prim's material (for a CSG prim, of its `material` field; its hits take their
+    /// leaf's, `leaf_kind`): the shading stage sorts hits by it without following two indices.
+    pub prim_kind: Vec<MaterialKind>,
+    /// The kind of each CSG leaf's material (global leaf ids).
+    pub leaf_kind: Vec<MaterialKind>,
     /// A stable hash of the scene file text (films from different scenes are never merged).
     pub hash: u64,
 }

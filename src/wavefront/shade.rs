@@ -218,24 +218,25 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
     // Stable counting sort of ray indices by material kind (misses last).
     let mut counts = [0usize; MaterialKind::COUNT + 2];
     let bucket = |i: usize| -> usize {
-        match hits.prim[i] {
-            NONE => MISS_BUCKET,
-            p => {
-                let m = if hits.leaf[i] != NONE { scene.csg.leaf(hits.leaf[i]).material } else { scene.prims[p as usize].material };
-                scene.materials[m as usize].kind() as usize
-            }
+        match (hits.prim[i], hits.leaf[i]) {
+            (NONE, _) => MISS_BUCKET,
+            (p, NONE) => scene.prim_kind[p as usize] as usize,
+            (_, leaf) => scene.leaf_kind[leaf as usize] as usize,
         }
     };
     // `order` holds each ray's bucket in its first half (computed once) and the partition in its second.
     order.clear();
     order.resize(2 * n, 0);
+    // Four sets of counters, taken in turn: one set would make each hit's increment wait for the last
+    // (most hits have the same kind).
+    let mut count4 = [[0usize; MaterialKind::COUNT + 2]; 4];
     for (i, slot) in order[..n].iter_mut().enumerate() {
         let b = bucket(i);
         *slot = b as u32;
-        counts[b + 1] += 1;
+        count4[i & 3][b + 1] += 1;
     }
     for k in 1..counts.len() {
-        counts[k] += counts[k - 1];
+        counts[k] = counts[k - 1] + count4[0][k] + count4[1][k] + count4[2][k] + count4[3][k];
     }
     let mut fill = counts;
     let (buckets, sorted) = order.split_at_mut(n);
