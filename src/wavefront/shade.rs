@@ -459,7 +459,14 @@ impl Ctx<'_> {
                     prim.material
                 }
                 _ => {
-                    let hit = surface_hit(scene, &rays.get(i), rt[l], prims[l], hits.leaf[i], hits.flip[i]);
+                    // (`surface_hit` reads the ray's origin, direction and time only.)
+                    let r = RayItem {
+                        o: Vec3::new(ro[0][l], ro[1][l], ro[2][l]),
+                        d: Vec3::new(rd[0][l], rd[1][l], rd[2][l]),
+                        time: times[l],
+                        ..RayItem::default()
+                    };
+                    let hit = surface_hit(scene, &r, rt[l], prims[l], hits.leaf[i], hits.flip[i]);
                     for k in 0..3 {
                         (p[k][l], nf[k][l]) = (hit.p[k], hit.n_facing[k]);
                     }
