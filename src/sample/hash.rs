@@ -198,9 +198,54 @@ pub fn permute_pow2(i: u32, sh: &PermuteShape, key: u32) -> u32 {
     k.rotate(k.scramble(i & sh.w, sh), sh.n)
 }
 
+/// Eight lanes of [`permute`] for indices below `n` (`sh = PermuteShape::new(n)`): the cycle-walk
+/// takes every lane one round at a time until the last has landed in `0..n`, each lane keeping its
+/// first value in range; branch-free within a round, so the rounds vectorise. Equal to
+/// `permute(i[l], n, keys[l])` lane by lane when every `i[l] < n`.
+#[inline(always)]
+pub fn permute_x8(i: &[u32; 8], sh: &PermuteShape, keys: &[u32; 8]) -> [u32; 8] {
+    debug_assert!(i.iter().all(|&i| i < sh.n));
+    let k: [PermuteKey; 8] = std::array::from_fn(|l| PermuteKey::new(keys[l]));
+    let n = sh.n;
+    let mut cur = *i;
+    // All ones while the lane still walks.
+    let mut walking = [u32::MAX; 8];
+    loop {
+        let mut any = 0;
+        for l in 0..8 {
+            let next = k[l].scramble(cur[l], sh);
+            cur[l] = (next & walking[l]) | (cur[l] & !walking[l]);
+            walking[l] &= 0u32.wrapping_sub((cur[l] >= n) as u32);
+            any |= walking[l];
+        }
+        if any == 0 {
+            break;
+        }
+    }
+    std::array::from_fn(|l| k[l].rotate(cur[l], n))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `permute_x8` equals `permute` lane by lane: sizes 1..=300, powers of two and their neighbours up
+    /// to 2^24 (where one lane may walk many rounds while the others have landed).
+    #[test]
+    fn permute_x8_equals_permute() {
+        let sizes = (1..=300u32).chain((5..=24).flat_map(|b| [(1u32 << b) - 1, 1 << b, (1 << b) + 1, 3 << (b - 2)]));
+        for n in sizes {
+            let sh = PermuteShape::new(n);
+            for round in 0..24u32 {
+                let keys: [u32; 8] = std::array::from_fn(|l| mix32(round * 8 + l as u32 + n));
+                let i: [u32; 8] = std::array::from_fn(|l| mix32(keys[l] ^ 0x55) % n);
+                let got = permute_x8(&i, &sh, &keys);
+                for l in 0..8 {
+                    assert_eq!(got[l], permute(i[l], n, keys[l]), "n={n} key={} i={}", keys[l], i[l]);
+                }
+            }
+        }
+    }
 
     /// SplitMix64 reference outputs for seed 1234567 (the test vector of the reference C
     /// implementation by Vigna): our `random_bits(seed, i)` must be its `(i+1)`-th output.

@@ -1,7 +1,9 @@
 //! The five sampling strategies and the 1D / 2D sample functions (see the module doc of `sample` for the
 //! semantics and conventions).
 
-use super::hash::{permute, permute_pow2, random_2d_keyed, random_bits, random_f32_keyed, stream_key, PermuteShape, ONE_MINUS_EPSILON};
+use super::hash::{
+    permute, permute_pow2, permute_x8, random_2d_keyed, random_bits, random_f32_keyed, stream_key, PermuteShape, ONE_MINUS_EPSILON,
+};
 use super::sobol::{sobol_owen_1d, sobol_owen_2d};
 use crate::simd::{f32x8, LANES};
 
@@ -96,6 +98,29 @@ fn jitter_in_cell(k: u32, n: u32, bits: u32) -> f32 {
     q.min(ONE - 1) as f32 * (1.0 / ONE as f32)
 }
 
+/// `s / d` (integer quotient) for integers `0 <= s < 2^24`, `d >= 1`, held in f64 (exactly): by an f64
+/// division and truncation, which vectorise where integer division does not. The rounded quotient is
+/// within 2^-29 of `s / d`, whose fraction is 0 (the division then exact) or at least `1/d > 2^-24`
+/// away from the next integer, so truncation gives the integer quotient.
+#[inline(always)]
+fn quotient_below_2_24(s: f64, d: f64) -> f64 {
+    (s / d).trunc()
+}
+
+/// [`jitter_in_cell`] for `k < n <= 2^24`, in f64 (`k`, `n` integers held exactly): every value below is
+/// an integer below 2^48, exact in f64, and the quotient `a / n` is taken by an f64 division:
+/// `a / n < 2^25`, so the rounded quotient is within 2^-28 of the true one, whose fraction is 0 (then
+/// the division is exact) or between 1/n >= 2^-24 and 1 - 1/n: truncating it gives the integer
+/// quotient. The result is `jitter_in_cell(k, n, bits)` bit for bit.
+#[inline(always)]
+fn jitter_in_cell_div(k: f64, n: f64, bits: u32) -> f32 {
+    const ONE: f64 = (1u64 << 24) as f64;
+    // (bits >> 8) (ONE + 1 - n) < 2^48: exact; >> 24 is a division by 2^24 and truncation.
+    let t = (n - 1.0) + (((bits >> 8) as f64 * (ONE + 1.0 - n)) * (1.0 / ONE)).trunc();
+    let q = ((k * ONE + t) / n).trunc();
+    q.min(ONE - 1.0) as f32 * (1.0 / ONE as f32)
+}
+
 /// [`jitter_in_cell`] for `n = 2^log2n <= 2^24`: the same quotient by a shift, branch-free.
 #[inline(always)]
 fn jitter_in_cell_pow2(k: u32, log2n: u32, bits: u32) -> f32 {
@@ -187,6 +212,21 @@ impl Sampler2d {
                 let h = random_bits(keys[l], index[l]);
                 u[0][l] = jitter_in_cell_pow2(s & (self.nx - 1), lx, (h >> 32) as u32);
                 u[1][l] = jitter_in_cell_pow2(s >> lx, ly, h as u32);
+            }
+        } else if self.strategy == Strategy::Jittered && self.n <= 1 << 24 && index.iter().all(|&i| i < self.n) {
+            // Other counts (48, 100, 1000 spp): the same strata and jitter as `sample_impl`, with the
+            // cycle-walking permutation in 8 lanes and the integer divisions as f64 ones (exact here,
+            // see `jitter_in_cell_div`), which vectorise where the integer ones do not.
+            let (nx, ny) = (self.nx, self.ny);
+            let s = if permuted { permute_x8(index, &PermuteShape::new(self.n), &keys.map(perm_key)) } else { *index };
+            let (nx, ny) = (nx as f64, ny as f64);
+            for l in 0..LANES {
+                let sl = s[l] as f64;
+                let sy = quotient_below_2_24(sl, nx);
+                let sx = sl - sy * nx;
+                let h = random_bits(keys[l], index[l]);
+                u[0][l] = jitter_in_cell_div(sx, nx, (h >> 32) as u32);
+                u[1][l] = jitter_in_cell_div(sy, ny, h as u32);
             }
         } else if self.strategy == Strategy::Grid && !permuted && index.iter().all(|&i| i == index[0]) {
             // An unpermuted grid sample depends on its index alone (no key): one for all lanes (the
@@ -281,7 +321,8 @@ mod tests {
     #[test]
     fn sample_x8_matches_scalar() {
         for strategy in Strategy::ALL {
-            for n in [1u32, 2, 4, 8, 12, 16, 64, 256, 1 << 20, 1 << 24, (1 << 24) + 1, 1 << 25] {
+            for n in [1u32, 2, 3, 4, 5, 6, 8, 12, 16, 48, 64, 100, 256, 1000, 4095, 1 << 20, (1 << 24) - 1, 1 << 24, (1 << 24) + 1, 1 << 25]
+            {
                 let s = Sampler2d::new(strategy, n);
                 for round in 0..40u64 {
                     let keys = std::array::from_fn(|l| crate::sample::hash::mix64(round * 8 + l as u64 + n as u64));
@@ -300,6 +341,62 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// The f64 quotient of `jitter_in_cell_div` equals the u64 one of `jitter_in_cell`: every cell
+    /// edge case (first, middle, last cell), bits at both ends and where `k 2^24 + t` is a multiple of
+    /// `n` (the quotient then exact), for counts up to 2^24 that are not powers of two.
+    #[test]
+    fn jitter_in_cell_div_equals_integer_division() {
+        let mut next = crate::sample::hash::test_uniforms(0xd1f);
+        for n in [3u32, 5, 6, 7, 48, 100, 1000, 4095, 65_537, 1_000_003, (1 << 24) - 3, (1 << 24) - 1] {
+            let span = (1u64 << 24) + 1 - n as u64;
+            for k in [0, 1, n / 2, n - 2, n - 1] {
+                let mut bits: Vec<u32> = vec![0, 255, 256, u32::MAX, u32::MAX - 255];
+                bits.extend((0..300).map(|_| (next() * 16_777_216.0) as u32).map(|b| b << 8));
+                // Bits whose t makes k 2^24 + t a multiple of n (those reachable with 24 bits).
+                let a0 = k as u64 * (1 << 24) + (n as u64 - 1);
+                let first = a0.div_ceil(n as u64) * n as u64 - a0;
+                for target in (0..400).map(|j| first + j * n as u64) {
+                    let b = (target << 24).div_ceil(span);
+                    if b < 1 << 24 {
+                        assert_eq!(k as u64 * (1 << 24) + (n as u64 - 1) + ((b * span) >> 24), a0 + target);
+                        bits.push((b as u32) << 8);
+                    }
+                }
+                for b in bits {
+                    assert_eq!(
+                        jitter_in_cell_div(k as f64, n as f64, b).to_bits(),
+                        jitter_in_cell(k, n, b).to_bits(),
+                        "n={n} k={k} bits={b}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// `quotient_below_2_24` is the integer quotient: every divisor's multiples and their neighbours,
+    /// for divisors up to 2^24 - 1 (the column counts of the grids of up to 2^24 samples).
+    #[test]
+    fn quotient_below_2_24_is_exact() {
+        let mut next = crate::sample::hash::test_uniforms(0x9d1);
+        for d in [1u32, 2, 3, 7, 48, 1000, 4095, 4097, 65_535, 1_000_003, (1 << 23) + 1, (1 << 24) - 1] {
+            let mut checked = 0;
+            let step = ((1u32 << 24) / d / 200).max(1);
+            for q in (0..=(1u32 << 24) / d).step_by(step as usize) {
+                for s in [q * d, (q * d).wrapping_sub(1), q * d + 1, q * d + d / 2] {
+                    if s < 1 << 24 {
+                        assert_eq!(quotient_below_2_24(s as f64, d as f64), (s / d) as f64, "{s} / {d}");
+                        checked += 1;
+                    }
+                }
+            }
+            for _ in 0..200 {
+                let s = (next() * 16_777_216.0) as u32;
+                assert_eq!(quotient_below_2_24(s as f64, d as f64), (s / d) as f64, "{s} / {d}");
+            }
+            assert!(checked >= 4, "{d}");
         }
     }
 
