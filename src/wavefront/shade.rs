@@ -424,9 +424,9 @@ impl Ctx<'_> {
         let mut pla = 0u32;
         let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
         let mut shift = [[0.0f32; LANES]; 3];
-        // Lanes with a checker texture (else albedo is the constant colour, which the checker would
-        // give too: its two colours are equal). The time shift is kept even without motion: `motion *
-        // 0` can be -0, and a centre plus -0 is what `surface_hit` computes.
+        // Lanes with a checker texture (the others take their constant colour). The time shift is kept
+        // even without motion: `motion * 0` can be -0, and a centre plus -0 is what `surface_hit`
+        // computes.
         let mut checker = 0u32;
         for (l, &i) in idx.iter().enumerate() {
             let i = i as usize;
@@ -478,17 +478,23 @@ impl Ctx<'_> {
             let Material::Lambert { albedo } = &scene.materials[material as usize] else {
                 unreachable!("lambert_x8 is given Lambert hits only")
             };
-            let (ta, tb, ts) = albedo.checker_params();
             let key = last_point.get((pixel, branch[l], depth[l]), || point_key(pixel, branch[l], depth[l]));
-            for (row, c) in shift.iter_mut().zip(sh.to_array()) {
-                row[l] = c;
+            match *albedo {
+                Texture::Constant(a) => {
+                    for c in 0..3 {
+                        tex_a[c][l] = a[c];
+                    }
+                }
+                // The second colour, scale and frame shift only for checker lanes (the others take
+                // their constant below).
+                Texture::Checker { a, b, scale } => {
+                    checker |= 1 << l;
+                    for c in 0..3 {
+                        (tex_a[c][l], tex_b[c][l], shift[c][l]) = (a[c], b[c], sh[c]);
+                    }
+                    tex_scale[l] = scale;
+                }
             }
-            checker |= (matches!(albedo, Texture::Checker { .. }) as u32) << l;
-            for c in 0..3 {
-                tex_a[c][l] = ta[c];
-                tex_b[c][l] = tb[c];
-            }
-            tex_scale[l] = ts;
             (keys[l], samples[l], pixels[l]) = (key, sample, pixel);
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
@@ -521,7 +527,12 @@ impl Ctx<'_> {
         }
         // Albedo (checker or constant) and the path weight, 8 lanes. Texture lookups happen in the
         // primitive's frame at the ray's time.
-        let albedo = if checker == 0 { v3(&tex_a) } else { checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), v3(&p) - v3(&shift)) };
+        let albedo = if checker == 0 {
+            v3(&tex_a)
+        } else {
+            let eval = checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), v3(&p) - v3(&shift));
+            Vec3x8::select(lanes_mask(checker), eval, v3(&tex_a))
+        };
         let wv = v3(&thr) * albedo;
         let w = wv.rows();
         let (pv, nv) = (v3(&p), v3(&nf));
