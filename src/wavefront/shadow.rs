@@ -164,7 +164,19 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
         let mut lane_keys = [[0u64; LANES]; KEY_CACHE];
-        if keyed {
+        // Usually the whole chunk is one pixel's samples (one key per light, splat below); lanes written
+        // one by one would stall the vector loads of the keys.
+        let one_pixel = keyed && across && nee.key[base..base + m].iter().all(|&k| k == nee.key[base]);
+        if one_pixel {
+            if cached != Some(nee.key[base]) {
+                cached = Some(nee.key[base]);
+                for (li, k) in keys.iter_mut().enumerate().take(scene.lights.len()) {
+                    if !scene.lights[li].is_point() {
+                        *k = light_key(base, li);
+                    }
+                }
+            }
+        } else if keyed {
             for l in 0..m {
                 let i = base + l;
                 if !across || cached != Some(nee.key[i]) {
@@ -186,6 +198,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             let point = light.is_point();
             let keys_li: [u64; LANES] = if point {
                 [0; LANES]
+            } else if one_pixel && li < KEY_CACHE {
+                [keys[li]; LANES]
             } else if li < KEY_CACHE {
                 lane_keys[li]
             } else {
