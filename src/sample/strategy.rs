@@ -350,7 +350,7 @@ mod tests {
     #[test]
     fn jitter_in_cell_div_equals_integer_division() {
         let mut next = crate::sample::hash::test_uniforms(0xd1f);
-        for n in [3u32, 5, 6, 7, 48, 100, 1000, 4095, 65_537, 1_000_003, (1 << 24) - 3, (1 << 24) - 1] {
+        for n in [3u32, 5, 6, 7, 48, 49, 98, 100, 1000, 4095, 65_537, 1_000_003, (1 << 24) - 3, (1 << 24) - 1] {
             let span = (1u64 << 24) + 1 - n as u64;
             for k in [0, 1, n / 2, n - 2, n - 1] {
                 let mut bits: Vec<u32> = vec![0, 255, 256, u32::MAX, u32::MAX - 255];
@@ -381,7 +381,7 @@ mod tests {
     #[test]
     fn quotient_below_2_24_is_exact() {
         let mut next = crate::sample::hash::test_uniforms(0x9d1);
-        for d in [1u32, 2, 3, 7, 48, 1000, 4095, 4097, 65_535, 1_000_003, (1 << 23) + 1, (1 << 24) - 1] {
+        for d in [1u32, 2, 3, 7, 48, 49, 103, 161, 1000, 4095, 4097, 65_535, 1_000_003, (1 << 23) + 1, (1 << 24) - 1] {
             let mut checked = 0;
             let step = ((1u32 << 24) / d / 200).max(1);
             for q in (0..=(1u32 << 24) / d).step_by(step as usize) {
