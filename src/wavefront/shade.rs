@@ -698,6 +698,9 @@ impl Ctx<'_> {
         let p_refl = offset_ray_origin_scaled_x8(p, nf, scale);
         let p_trans = offset_ray_origin_scaled_x8(p, Vec3x8::new(-nf.x, -nf.y, -nf.z), scale);
         let (fres, tir) = (fres.to_array(), tir.to_bitmask());
+        // As lane rows once (`Vec3x8::lane` in the loop below would spill all 8 lanes per call).
+        let (p_refl, p_trans, refl, refr) = (p_refl.rows(), p_trans.rows(), refl.rows(), refr.rows());
+        let lane = |rows: &[[f32; LANES]; 3], l: usize| Vec3::new(rows[0][l], rows[1][l], rows[2][l]);
         // The Fresnel coin of each lane (roulette branching), in one branch-free loop.
         let mut coin = [0.0f32; LANES];
         if real != 0 && profile.branching == Branching::Roulette {
@@ -711,7 +714,7 @@ impl Ctx<'_> {
         let keep_flags = profile.transmissive_shadows;
         for l in 0..m {
             let (rl, bit) = (&r[l], 1 << l);
-            let (o_refl, o_trans) = (p_refl.lane(l), p_trans.lane(l));
+            let (o_refl, o_trans) = (lane(&p_refl, l), lane(&p_trans, l));
             if pass & bit != 0 {
                 next.push(&RayItem { o: o_trans, throughput: rl.throughput, media: stack[l], tmax: f32::INFINITY, ..*rl });
             } else if scalar & bit != 0 {
@@ -719,14 +722,14 @@ impl Ctx<'_> {
                 self.dielectric(d, rl, &geo[l], pixel[l], sample[l], next);
             } else if mirror & bit != 0 {
                 let child =
-                    RayItem { o: o_refl, d: refl.lane(l), throughput: rl.throughput * tint[l], flags: FLAG_SPECULAR, ..next_of(rl) };
+                    RayItem { o: o_refl, d: lane(&refl, l), throughput: rl.throughput * tint[l], flags: FLAG_SPECULAR, ..next_of(rl) };
                 self.spawn(next, child, pixel[l], sample[l], 0);
             } else if real & bit != 0 {
                 let (f, trans) = (fres[l], tir & bit == 0);
-                let reflected = |thr: Vec3| RayItem { o: o_refl, d: refl.lane(l), throughput: thr, flags: FLAG_SPECULAR, ..next_of(rl) };
+                let reflected = |thr: Vec3| RayItem { o: o_refl, d: lane(&refl, l), throughput: thr, flags: FLAG_SPECULAR, ..next_of(rl) };
                 let flags = if keep_flags { rl.flags } else { FLAG_SPECULAR };
                 let transmitted =
-                    |thr: Vec3| RayItem { o: o_trans, d: refr.lane(l), throughput: thr, flags, media: stack[l], ..next_of(rl) };
+                    |thr: Vec3| RayItem { o: o_trans, d: lane(&refr, l), throughput: thr, flags, media: stack[l], ..next_of(rl) };
                 match profile.branching {
                     Branching::Split => {
                         if f > 0.0 {
