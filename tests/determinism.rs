@@ -269,3 +269,43 @@ fn several_shading_points_per_path_sum_the_same_way_in_any_tile() {
     merged.merge(&run(2, 5, 1..3));
     assert!(merged == reference, "sample ranges 0..1 + 1..3 differ from 0..3");
 }
+
+/// Light-stream keys are the same whether a chunk of shading points is one pixel's (one key per light,
+/// splat: the shadow stage's fast path) or spans pixels (keys lane by lane): with 12 samples per pixel
+/// the 8-request chunks of the full range are one pixel's or split across two, and a range starting at
+/// sample 5 shifts every boundary, so a request's keys come from the other path. Twelve lights mix point,
+/// quad, disk and sphere lights, area lights sitting past the first eight (the key cache).
+#[test]
+fn light_keys_do_not_depend_on_how_requests_share_a_chunk() {
+    let mut text = String::from(
+        "[image]\nwidth = 20\nheight = 14\n[camera]\nposition = [0, 3, 7]\nlook_at = [0, 0.5, 0]\nfov = 40\n\
+         [materials.m]\ntype = \"lambert\"\nalbedo = [0.6, 0.6, 0.6]\n\
+         [[shapes]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\nmaterial = \"m\"\n\
+         [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0.7, 0]\nradius = 0.7\nmaterial = \"m\"\n",
+    );
+    for i in 0..12 {
+        let x = i as f32 - 5.5;
+        text += &match i % 4 {
+            0 => format!("[[lights]]\ntype = \"point\"\nposition = [{x}, 4, 1]\nintensity = [2, 2, 2]\n"),
+            1 => format!("[[lights]]\ntype = \"quad\"\norigin = [{x}, 4, -1]\nu = [0.5, 0, 0]\nv = [0, 0, 0.5]\nradiance = [3, 3, 3]\n"),
+            2 => format!("[[lights]]\ntype = \"disk\"\ncenter = [{x}, 4.5, 0]\nnormal = [0, -1, 0]\nradius = 0.3\nradiance = [3, 3, 3]\n"),
+            _ => format!("[[lights]]\ntype = \"sphere\"\ncenter = [{x}, 5, 2]\nradius = 0.2\nradiance = [3, 3, 3]\n"),
+        };
+    }
+    let scene = parse_scene(Path::new("lights.toml"), &text).unwrap();
+    assert_eq!(scene.lights.len(), 12);
+    let mut profile = Profile::builtin("final");
+    (profile.spp, profile.light_samples) = (12, 2);
+    let run = |threads: usize, tile: u32, samples: std::ops::Range<u32>| {
+        let mut job = RenderJob::new(&scene, Settings { profile: profile.clone(), seed: 3 });
+        (job.threads, job.tile, job.samples) = (threads, tile, samples);
+        render_into(&job, Film::new(scene.width, scene.height)).0
+    };
+    let reference = run(1, 16, 0..12);
+    let mut split = run(2, 5, 0..5);
+    split.merge(&run(1, 7, 5..12));
+    assert!(split == reference, "sample ranges 0..5 + 5..12 differ from 0..12");
+    assert!(run(2, 3, 0..12) == reference, "tile 3 differs");
+    let lum: Vec<f32> = reference.to_rgb().iter().map(|c| c.x + c.y + c.z).collect();
+    assert!(lum.iter().all(|&l| l.is_finite()) && lum.iter().any(|&l| l > 0.0), "the image is black");
+}

@@ -910,17 +910,23 @@ mod tests {
     /// mirror and glass hits of five bounces of real scenes: glass in glass with priorities (nested),
     /// absorbing, thin and Schlick media (absorption: those lanes take the scalar path inside a chunk),
     /// dispersion (prism: a wavelength per lane), CSG glass and the showcase's mirror; roulette and split
-    /// branching, with and without transmissive shadows; chunks of 1 to 8 hits.
+    /// branching, with and without transmissive shadows, and with roulette on most children; chunks of 1
+    /// to 8 hits.
     #[test]
     fn specular_x8_equals_scalar_shading() {
         let mut compared = 0usize;
         for name in ["glass", "nested", "absorption", "prism", "csg_glass", "showcase"] {
             let scene = crate::scene::load_scene(std::path::Path::new(&format!("scenes/{name}.toml"))).unwrap();
-            for split in [false, true] {
+            for variant in 0..3 {
                 let mut profile = Profile::builtin("bench");
                 (profile.spp, profile.max_depth) = (2, 4);
+                let split = variant > 0;
                 if split {
-                    (profile.branching, profile.transmissive_shadows) = (Branching::Split, true);
+                    (profile.branching, profile.transmissive_shadows) = (Branching::Split, variant == 1);
+                }
+                if variant == 2 {
+                    // Russian roulette on most children (`spawn`'s stream per child kind), a low depth limit.
+                    (profile.throughput_cutoff, profile.max_depth) = (0.5, 2);
                 }
                 let ctx = Ctx { scene: &scene, profile: &profile, seed: 5, diffuse: Sampler2d::new(profile.diffuse_strategy, profile.spp) };
                 let (cx, cy) = (scene.width / 2, scene.height / 2);
