@@ -217,9 +217,8 @@ impl Sampler2d {
             // Other counts (48, 100, 1000 spp): the same strata and jitter as `sample_impl`, with the
             // cycle-walking permutation in 8 lanes and the integer divisions as f64 ones (exact here,
             // see `jitter_in_cell_div`), which vectorise where the integer ones do not.
-            let (nx, ny) = (self.nx, self.ny);
             let s = if permuted { permute_x8(index, &PermuteShape::new(self.n), &keys.map(perm_key)) } else { *index };
-            let (nx, ny) = (nx as f64, ny as f64);
+            let (nx, ny) = (self.nx as f64, self.ny as f64);
             for l in 0..LANES {
                 let sl = s[l] as f64;
                 let sy = quotient_below_2_24(sl, nx);

@@ -705,18 +705,14 @@ impl Ctx<'_> {
         let mut coin = [0.0f32; LANES];
         if real != 0 && profile.branching == Branching::Roulette {
             for l in 0..LANES {
-                let key = hash_combine(branch_stream(pixel[l], r[l].branch), sample[l] as u64);
-                coin[l] = random_f32(self.seed, key, dims::FRESNEL + r[l].depth as u32, 0);
+                coin[l] = self.fresnel_coin(pixel[l], r[l].branch, sample[l], r[l].depth);
             }
         }
-        // Under transmissive shadows the shadow stage already carried light through this interface to
-        // diffuse points: a diffuse path that reaches a light through it must not count it again.
-        let keep_flags = profile.transmissive_shadows;
         for l in 0..m {
             let (rl, bit) = (&r[l], 1 << l);
             let (o_refl, o_trans) = (lane(&p_refl, l), lane(&p_trans, l));
             if pass & bit != 0 {
-                next.push(&RayItem { o: o_trans, throughput: rl.throughput, media: stack[l], tmax: f32::INFINITY, ..*rl });
+                next.push(&passed(rl, o_trans, stack[l]));
             } else if scalar & bit != 0 {
                 let Material::Dielectric(d) = &scene.materials[geo[l].material as usize] else { unreachable!() };
                 self.dielectric(d, rl, &geo[l], pixel[l], sample[l], next);
@@ -725,24 +721,8 @@ impl Ctx<'_> {
                     RayItem { o: o_refl, d: lane(&refl, l), throughput: rl.throughput * tint[l], flags: FLAG_SPECULAR, ..next_of(rl) };
                 self.spawn(next, child, pixel[l], sample[l], 0);
             } else if real & bit != 0 {
-                let (f, trans) = (fres[l], tir & bit == 0);
-                let reflected = |thr: Vec3| RayItem { o: o_refl, d: lane(&refl, l), throughput: thr, flags: FLAG_SPECULAR, ..next_of(rl) };
-                let flags = if keep_flags { rl.flags } else { FLAG_SPECULAR };
-                let transmitted =
-                    |thr: Vec3| RayItem { o: o_trans, d: lane(&refr, l), throughput: thr, flags, media: stack[l], ..next_of(rl) };
-                match profile.branching {
-                    Branching::Split => {
-                        if f > 0.0 {
-                            let c = RayItem { branch: child_branch(rl.branch, rl.depth, 1), ..reflected(rl.throughput * f) };
-                            self.spawn(next, c, pixel[l], sample[l], 1);
-                        }
-                        if trans && f < 1.0 {
-                            self.spawn(next, transmitted(rl.throughput * (1.0 - f)), pixel[l], sample[l], 2);
-                        }
-                    }
-                    Branching::Roulette if trans && coin[l] >= f => self.spawn(next, transmitted(rl.throughput), pixel[l], sample[l], 2),
-                    Branching::Roulette => self.spawn(next, reflected(rl.throughput), pixel[l], sample[l], 1),
-                }
+                let trans = (tir & bit == 0).then(|| (o_trans, lane(&refr, l), stack[l], self.refracted_flags(rl)));
+                self.interface_children(rl, fres[l], (o_refl, lane(&refl, l)), trans, || coin[l], pixel[l], sample[l], next);
             }
         }
     }
@@ -776,23 +756,20 @@ impl Ctx<'_> {
         let ior = |m: Option<u32>| ior_of(scene, m, r.lambda, disp);
         let this = hit.material;
         let p_trans = hit.spawn(-hit.n_facing);
-        // Through the surface unbent: the same bounce count, branch and flags (what the ray would have
-        // done without the surface; shadow rays see through such crossings too).
-        let pass = |thr: Vec3, media: MediumStack| RayItem { o: p_trans, throughput: thr, media, tmax: f32::INFINITY, ..*r };
 
         let (n1, n2, stack) = if d.thin {
             (ior(medium::current(scene, r.media)), ior(Some(this)), r.media)
         } else {
             let c = medium::cross(scene, r.media, this, hit.front);
             if !c.is_real() {
-                next.push(&pass(r.throughput, c.stack));
+                next.push(&passed(r, p_trans, c.stack));
                 return;
             }
             (ior(c.before), ior(c.after), c.stack)
         };
         if n1 == n2 {
             // Index-matched: no reflection, no bending (exactly what Fresnel and Snell give for eta = 1).
-            next.push(&pass(r.throughput, stack));
+            next.push(&passed(r, p_trans, stack));
             return;
         }
         if (r.depth as u32) >= self.profile.max_depth {
@@ -810,45 +787,77 @@ impl Ctx<'_> {
             let rr = if r1 < 1.0 { 2.0 * r1 / (1.0 + r1) } else { 1.0 };
             (rr, Some((r.d, stack, r.flags)))
         } else {
-            // Under transmissive shadows the shadow stage already carried light through this interface to
-            // diffuse points: a diffuse path that reaches a light through it must not count it again.
-            let flags = if self.profile.transmissive_shadows { r.flags } else { FLAG_SPECULAR };
-            (fres(cos_i, eta), refract(wo, hit.n_facing, eta).map(|dir| (dir, stack, flags)))
+            (fres(cos_i, eta), refract(wo, hit.n_facing, eta).map(|dir| (dir, stack, self.refracted_flags(r))))
         };
         let f = if trans.is_none() { 1.0 } else { f };
-        let p_refl = hit.spawn(hit.n_facing);
-        let refl_dir = reflect(wo, hit.n_facing);
-        let reflected = |thr: Vec3| RayItem { o: p_refl, d: refl_dir, throughput: thr, flags: FLAG_SPECULAR, ..next_of(r) };
-        let transmitted = |thr: Vec3, dir: Vec3, media: MediumStack, flags: u8| RayItem {
-            o: p_trans,
-            d: dir,
-            throughput: thr,
-            flags,
-            media,
-            ..next_of(r)
-        };
+        let refl = (hit.spawn(hit.n_facing), reflect(wo, hit.n_facing));
+        let coin = || self.fresnel_coin(pixel, r.branch, sample, r.depth);
+        self.interface_children(r, f, refl, trans.map(|(dir, media, flags)| (p_trans, dir, media, flags)), coin, pixel, sample, next);
+    }
+
+    /// The flags of a ray refracted through a real interface. Under transmissive shadows the shadow stage
+    /// already carried light through the interface to diffuse points: a diffuse path that reaches a light
+    /// through it must not count it again, so only then it keeps its own.
+    #[inline(always)]
+    fn refracted_flags(&self, r: &RayItem) -> u8 {
+        if self.profile.transmissive_shadows {
+            r.flags
+        } else {
+            FLAG_SPECULAR
+        }
+    }
+
+    /// The uniform number that picks reflection or transmission at a dielectric under roulette branching.
+    #[inline(always)]
+    fn fresnel_coin(&self, pixel: u32, branch: u32, sample: u32, depth: u16) -> f32 {
+        let key = hash_combine(branch_stream(pixel, branch), sample as u64);
+        random_f32(self.seed, key, dims::FRESNEL + depth as u32, 0)
+    }
+
+    /// The children of ray `r` at a dielectric interface of reflectance `f`: reflected from `refl` (origin,
+    /// direction), transmitted when `trans` (origin, direction, media after, flags) is given; both,
+    /// weighted, under split branching, else one picked by `coin()` (drawn only when there is a choice).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn interface_children(
+        &self,
+        r: &RayItem,
+        f: f32,
+        refl: (Vec3, Vec3),
+        trans: Option<(Vec3, Vec3, MediumStack, u8)>,
+        coin: impl FnOnce() -> f32,
+        pixel: u32,
+        sample: u32,
+        next: &mut RayQueue,
+    ) {
+        let reflected = |thr: Vec3| RayItem { o: refl.0, d: refl.1, throughput: thr, flags: FLAG_SPECULAR, ..next_of(r) };
+        let transmitted =
+            |thr: Vec3, (o, d, media, flags): (Vec3, Vec3, MediumStack, u8)| RayItem { o, d, throughput: thr, flags, media, ..next_of(r) };
         match self.profile.branching {
             Branching::Split => {
                 if f > 0.0 {
                     let c = RayItem { branch: child_branch(r.branch, r.depth, 1), ..reflected(r.throughput * f) };
                     self.spawn(next, c, pixel, sample, 1);
                 }
-                if let Some((dir, media, flags)) = trans {
+                if let Some(t) = trans {
                     if f < 1.0 {
-                        self.spawn(next, transmitted(r.throughput * (1.0 - f), dir, media, flags), pixel, sample, 2);
+                        self.spawn(next, transmitted(r.throughput * (1.0 - f), t), pixel, sample, 2);
                     }
                 }
             }
-            Branching::Roulette => {
-                let key = hash_combine(branch_stream(pixel, r.branch), sample as u64);
-                let u = random_f32(self.seed, key, dims::FRESNEL + r.depth as u32, 0);
-                match trans {
-                    Some((dir, media, flags)) if u >= f => self.spawn(next, transmitted(r.throughput, dir, media, flags), pixel, sample, 2),
-                    _ => self.spawn(next, reflected(r.throughput), pixel, sample, 1),
-                }
-            }
+            Branching::Roulette => match trans {
+                Some(t) if coin() >= f => self.spawn(next, transmitted(r.throughput, t), pixel, sample, 2),
+                _ => self.spawn(next, reflected(r.throughput), pixel, sample, 1),
+            },
         }
     }
+}
+
+/// Ray `r` through a surface unbent, from `o` with `media`: the same bounce count, branch and flags (what
+/// it would have done without the surface; shadow rays see through such crossings too).
+#[inline(always)]
+fn passed(r: &RayItem, o: Vec3, media: MediumStack) -> RayItem {
+    RayItem { o, media, tmax: f32::INFINITY, ..*r }
 }
 
 #[cfg(test)]

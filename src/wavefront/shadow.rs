@@ -108,6 +108,40 @@ impl Batch {
     }
 }
 
+/// Key of light `li`'s sample stream for request `i`: shared by a pixel's samples (`across`), or the
+/// sample's own.
+#[inline(always)]
+fn light_key(seed: u64, nee: &NeeQueue, across: bool, i: usize, li: usize) -> u64 {
+    let stream = hash_combine(nee.key[i], li as u64);
+    if across {
+        stream_key(seed, stream, dims::LIGHT)
+    } else {
+        stream_key(seed, hash_combine(stream, nee.sample[i] as u64), dims::LIGHT)
+    }
+}
+
+/// The stream keys of the first [`KEY_CACHE`] lights for the last request they were computed for.
+struct LightKeys {
+    keys: [u64; KEY_CACHE],
+    /// Across samples, the request key they belong to (a pixel's requests share it).
+    cached: Option<u64>,
+}
+
+impl LightKeys {
+    /// Make `keys` those of request `i` (unless they already are). Point lights draw no sample: no key.
+    #[inline(always)]
+    fn refresh(&mut self, scene: &Scene, seed: u64, nee: &NeeQueue, across: bool, i: usize) {
+        if !across || self.cached != Some(nee.key[i]) {
+            self.cached = Some(nee.key[i]);
+            for (li, k) in self.keys.iter_mut().enumerate().take(scene.lights.len()) {
+                if !scene.lights[li].is_point() {
+                    *k = light_key(seed, nee, across, i, li);
+                }
+            }
+        }
+    }
+}
+
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
     let mut pk = Batch::new();
     let mut traced = 0u64;
@@ -119,18 +153,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     let across = matches!(profile.light_strategy, Strategy::Jittered | Strategy::Sobol) && spp * nl <= 1 << 24;
     let area = Sampler2d::new(profile.light_strategy, if across { (spp * nl) as u32 } else { profile.light_samples });
     let walk = any_passable(scene, profile);
-    // Key of light `li`'s sample stream for request `i`: shared by a pixel's samples (across), or the
-    // sample's own.
-    let light_key = |i: usize, li: usize| {
-        let stream = hash_combine(nee.key[i], li as u64);
-        if across {
-            stream_key(seed, stream, dims::LIGHT)
-        } else {
-            stream_key(seed, hash_combine(stream, nee.sample[i] as u64), dims::LIGHT)
-        }
-    };
-    let mut keys = [0u64; KEY_CACHE];
-    let mut cached = None;
+    let light_key = |i: usize, li: usize| light_key(seed, nee, across, i, li);
+    let mut keys = LightKeys { keys: [0; KEY_CACHE], cached: None };
     // Whether any light draws samples (needs stream keys).
     let keyed = scene.lights.iter().any(|l| !l.is_point());
     // Requests are taken up to 8 at a time: one lane each, every light sample of the chunk computed as
@@ -168,27 +192,11 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         // one by one would stall the vector loads of the keys.
         let one_pixel = keyed && across && nee.key[base..base + m].iter().all(|&k| k == nee.key[base]);
         if one_pixel {
-            if cached != Some(nee.key[base]) {
-                cached = Some(nee.key[base]);
-                for (li, k) in keys.iter_mut().enumerate().take(scene.lights.len()) {
-                    if !scene.lights[li].is_point() {
-                        *k = light_key(base, li);
-                    }
-                }
-            }
+            keys.refresh(scene, seed, nee, across, base);
         } else if keyed {
             for l in 0..m {
-                let i = base + l;
-                if !across || cached != Some(nee.key[i]) {
-                    cached = Some(nee.key[i]);
-                    for (li, k) in keys.iter_mut().enumerate().take(scene.lights.len()) {
-                        // Point lights draw no sample: no key.
-                        if !scene.lights[li].is_point() {
-                            *k = light_key(i, li);
-                        }
-                    }
-                }
-                for (lane_key, &k) in lane_keys.iter_mut().zip(&keys).take(scene.lights.len()) {
+                keys.refresh(scene, seed, nee, across, base + l);
+                for (lane_key, &k) in lane_keys.iter_mut().zip(&keys.keys).take(scene.lights.len()) {
                     lane_key[l] = k;
                 }
             }
@@ -199,7 +207,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             let keys_li: [u64; LANES] = if point {
                 [0; LANES]
             } else if one_pixel && li < KEY_CACHE {
-                [keys[li]; LANES]
+                [keys.keys[li]; LANES]
             } else if li < KEY_CACHE {
                 lane_keys[li]
             } else {
