@@ -105,8 +105,16 @@ impl Ior {
         match *self {
             Ior::Constant(n) => n,
             Ior::Abbe { nd, .. } => nd,
-            Ior::Cauchy { .. } => self.at(LAMBDA_D),
+            // Out of line: inlined, the compiler computes its division for every index and selects
+            // (a stall in the shadow stage's walk through glass, which asks for indices per crossing).
+            Ior::Cauchy { .. } => self.cauchy_nominal(),
         }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn cauchy_nominal(&self) -> f32 {
+        self.at(LAMBDA_D)
     }
 }
 
