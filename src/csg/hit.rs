@@ -2,7 +2,7 @@
 //! packet), then Roth's merge per lane (`merge.rs`).
 
 use super::interval_x8::leaf_x8;
-use super::merge::{eval_lane, tol_base, CsgArena, COINCIDENT_EPS};
+use super::merge::{eval_lane, for_each_boundary, tol_base, CsgArena, COINCIDENT_EPS};
 use super::program::{Csg, Solid};
 use crate::simd::{f32x8, Ray8, Vec3x8};
 use glam::Vec3;
@@ -32,6 +32,14 @@ fn fill_crossings(csg: &Csg, s: &Solid, o: &Vec3x8, d: &Vec3x8, arena: &mut CsgA
     }
 }
 
+/// The crossing table of a packet ([`fill_crossings`]) and each lane's coincidence tolerance base.
+#[inline(always)]
+fn prepare_x8(csg: &Csg, s: &Solid, ray: &Ray8, arena: &mut CsgArena) -> [f32; 8] {
+    fill_crossings(csg, s, &ray.o, &ray.d, arena);
+    let eps = f32x8::splat(COINCIDENT_EPS);
+    (eps * ray.o.dot(ray.o).sqrt().max(f32x8::splat(s.scale)) / ray.d.dot(ray.d).sqrt()).to_array()
+}
+
 /// First boundary of the solid along `o + t d` with `tmin < t < tmax` (`d` not necessarily unit); handles
 /// an origin inside the solid (the first boundary is then an exit). Uses the same 8-lane kernels as
 /// [`first_hit_x8`] (the ray in every lane), so both agree bit for bit. An unknown solid id gives `None`.
@@ -57,14 +65,33 @@ pub fn first_hit_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
     if mask == 0 {
         return;
     }
-    fill_crossings(csg, s, &ray.o, &ray.d, arena);
-    let eps = f32x8::splat(COINCIDENT_EPS);
-    let base = (eps * ray.o.dot(ray.o).sqrt().max(f32x8::splat(s.scale)) / ray.d.dot(ray.d).sqrt()).to_array();
+    let base = prepare_x8(csg, s, ray, arena);
     let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
     let prog = csg.program(s);
     for (lane, hit) in out.iter_mut().enumerate() {
         if mask & (1 << lane) != 0 {
             *hit = eval_lane(prog, s.leaf_start, lane, t0[lane], t1[lane], base[lane], arena);
+        }
+    }
+}
+
+/// Every boundary of the solid along 8 rays within `(tmin, tmax)`, lane by lane in order along the ray:
+/// `visit(lane, hit)` (the same leaf kernels and merge as [`first_hit_x8`], whose hit is each lane's first
+/// here). Inactive lanes (`tmax <= tmin`) are skipped.
+pub fn crossings_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, mut visit: impl FnMut(usize, CsgHit)) {
+    let Some(s) = csg.solids.get(solid as usize) else {
+        return;
+    };
+    let mask = ray.tmax.simd_gt(tmin).to_bitmask();
+    if mask == 0 {
+        return;
+    }
+    let base = prepare_x8(csg, s, ray, arena);
+    let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
+    let prog = csg.program(s);
+    for lane in 0..8 {
+        if mask & (1 << lane) != 0 {
+            for_each_boundary(prog, s.leaf_start, lane, t0[lane], t1[lane], base[lane], arena, |h| visit(lane, h));
         }
     }
 }

@@ -187,6 +187,55 @@ pub(crate) fn eval_lane(
     base: f32,
     arena: &mut CsgArena,
 ) -> Option<CsgHit> {
+    if !merge_lane(prog, leaf_start, lane, tmin, tmax, base, arena) {
+        return None;
+    }
+    for (i, e) in arena.evs.iter().enumerate() {
+        if e.t >= tmax {
+            break;
+        }
+        if e.t > tmin {
+            return Some(boundary(i, e));
+        }
+    }
+    None
+}
+
+/// Every boundary in `(tmin, tmax)` of one lane, in order along the ray (as [`eval_lane`] finds the first).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn for_each_boundary(
+    prog: &[Instr],
+    leaf_start: u32,
+    lane: usize,
+    tmin: f32,
+    tmax: f32,
+    base: f32,
+    arena: &mut CsgArena,
+    mut visit: impl FnMut(CsgHit),
+) {
+    if !merge_lane(prog, leaf_start, lane, tmin, tmax, base, arena) {
+        return;
+    }
+    for (i, e) in arena.evs.iter().enumerate() {
+        if e.t >= tmax {
+            break;
+        }
+        if e.t > tmin {
+            visit(boundary(i, e));
+        }
+    }
+}
+
+/// The boundary at position `i` of a merged list (even positions enter the solid).
+#[inline(always)]
+fn boundary(i: usize, e: &Ev) -> CsgHit {
+    CsgHit { t: e.t, leaf: e.tag & !FLIP, flip: e.tag & FLIP != 0, entering: i.is_multiple_of(2) }
+}
+
+/// The merge of [`eval_lane`]: the solid's interval list for `(tmin, tmax)` left in `arena.evs`. False for
+/// a malformed program.
+#[inline(always)]
+fn merge_lane(prog: &[Instr], leaf_start: u32, lane: usize, tmin: f32, tmax: f32, base: f32, arena: &mut CsgArena) -> bool {
     let CsgArena { evs, tmp, starts, cross } = arena;
     evs.clear();
     starts.clear();
@@ -208,21 +257,13 @@ pub(crate) fn eval_lane(
             }
             Instr::Op(op) => {
                 let (Some(sb), Some(sa)) = (starts.pop(), starts.last().copied()) else {
-                    return None;
+                    return false;
                 };
                 combine_top(evs, sa, sb, op, base, tmp);
             }
         }
     }
-    for (i, e) in evs.iter().enumerate() {
-        if e.t >= tmax {
-            break;
-        }
-        if e.t > tmin {
-            return Some(CsgHit { t: e.t, leaf: e.tag & !FLIP, flip: e.tag & FLIP != 0, entering: i % 2 == 0 });
-        }
-    }
-    None
+    true
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
-use super::transmit::{any_passable, passes, transmittance_x8};
+use super::transmit::{any_passable, passes, transmittance_x8, Walk};
 use crate::accel::GROUP;
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, CsgArena};
@@ -38,6 +38,8 @@ struct Batch {
     contrib: [[f32; BATCH]; 3],
     path: [u32; BATCH],
     len: usize,
+    /// Scratch of the walks through glass (made on the first walk).
+    walk: Option<Box<Walk>>,
 }
 
 /// Eight shadow rays (one per request of a chunk) before they join a batch.
@@ -60,6 +62,7 @@ impl Batch {
             contrib: [[0.0; BATCH]; 3],
             path: [0; BATCH],
             len: 0,
+            walk: None,
         })
     }
 
@@ -274,7 +277,17 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, paths: &mut PathTable
         let tr = if through != 0 {
             let arr = |a: &[f32; BATCH]| <[f32; LANES]>::try_from(&a[r.clone()]).unwrap();
             let (o, d) = ([0, 1, 2].map(|a| arr(&pk.o[a])), [0, 1, 2].map(|a| arr(&pk.d[a])));
-            let (tr, w) = transmittance_x8(scene, profile, &o, &d, &arr(&pk.tmax), &arr(&pk.time), through, arena);
+            let (tr, w) = transmittance_x8(
+                scene,
+                profile,
+                &o,
+                &d,
+                &arr(&pk.tmax),
+                &arr(&pk.time),
+                through,
+                arena,
+                pk.walk.get_or_insert_with(Walk::new),
+            );
             walked += w;
             tr
         } else {

@@ -1,8 +1,10 @@
 //! Shadow rays through dielectrics: the transmittance of the straight segment from a shading point to a
 //! light sample, for the lanes whose any-hit test met only dielectrics that do not block.
 //!
-//! The segment is walked surface by surface (closest hit, then on from just past it) and every crossing is
-//! recorded; then the crossings are replayed with the same which-side rule as camera paths
+//! One traversal of the segment collects every surface it crosses (a CSG solid's boundaries from its merged
+//! interval list, a convex prim's from each end of the segment, a flat prim's one hit: no re-spawned
+//! segments, so no offset points and one traversal instead of one per surface); sorted along the segment,
+//! the crossings are replayed with the same which-side rule as camera paths
 //! ([`medium::cross`]): Beer-Lambert absorption of the medium the ray is in along each piece, and at each
 //! surface:
 //! * a null crossing (an outranked medium's surface, index-matched media, a dielectric of index 1 in air):
@@ -17,12 +19,12 @@
 //! with no surface between, is not attenuated: no crossing tells.) Indices are the nominal ones (shadow rays
 //! carry no wavelength). A segment with more than [`MAX_CROSSINGS`] surfaces counts as blocked.
 
-use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
+use super::intersect::{in_prim_frame, prim_t_at_x8};
 use super::medium;
 use super::queues::{MediumStack, NONE};
 use super::shade::{surface_hits_x8, HitRay};
 use crate::accel::{intersect_aabb_x8, PacketRay};
-use crate::csg::{first_hit_x8, CsgArena};
+use crate::csg::{crossings_x8, CsgArena};
 use crate::optics::{beer_lambert, fresnel_dielectric, fresnel_schlick};
 use crate::scene::{Material, Profile, Scene, Shape};
 use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
@@ -57,9 +59,72 @@ pub fn passes(scene: &Scene, profile: &Profile, material: u32) -> bool {
     }
 }
 
+/// Surfaces collected per shadow ray before sorting (a convex prim can add a duplicate of its one crossing
+/// from the far end, dropped after); more count as blocked too.
+const MAX_RAW: usize = 2 * MAX_CROSSINGS;
+
+/// One boundary met by a segment, before its surface geometry is known.
+#[derive(Clone, Copy, Debug, Default)]
+struct Raw {
+    t: f32,
+    prim: u32,
+    leaf: u32,
+    flip: bool,
+    /// For the crossing a convex prim shows from the segment's far end: the index of the same prim's
+    /// crossing from the near end (the two are one crossing when they face the same way).
+    twin: u8,
+}
+
+const NO_TWIN: u8 = u8::MAX;
+
+/// What the replay needs of a boundary's surface.
+#[derive(Clone, Copy, Debug, Default)]
+struct Geo {
+    /// Distance from the segment's start.
+    s: f32,
+    /// |cos| of the angle between the segment and the surface normal.
+    cos: f32,
+    material: u32,
+    front: bool,
+}
+
+/// Scratch of the walk, reused by every call (per lane: the boundaries found and their geometry; only the
+/// first `count` entries are ever read).
+pub struct Walk {
+    raw: [[Raw; MAX_RAW]; LANES],
+    geo: [[Geo; MAX_RAW]; LANES],
+    count: [usize; LANES],
+    /// Lanes with more boundaries than fit.
+    full: u32,
+}
+
+impl Walk {
+    pub fn new() -> Box<Walk> {
+        Box::new(Walk { raw: [[Raw::default(); MAX_RAW]; LANES], geo: [[Geo::default(); MAX_RAW]; LANES], count: [0; LANES], full: 0 })
+    }
+
+    #[inline(always)]
+    fn push(&mut self, l: usize, r: Raw) -> Option<u8> {
+        let k = self.count[l];
+        if k == MAX_RAW {
+            self.full |= 1 << l;
+            return None;
+        }
+        self.raw[l][k] = r;
+        self.count[l] = k + 1;
+        Some(k as u8)
+    }
+}
+
 /// Transmittance of the segments `o + t d`, `t` in `(0, tmax)`, of the lanes set in `lanes`; other lanes
-/// get 0. `time` is each lane's shutter time (moving prims). Also returns the number of ray segments
-/// traced (one per lane per surface crossed, plus the last).
+/// get 0. `time` is each lane's shutter time (moving prims). Also returns the number of rays traced (one
+/// per lane: the segment is traversed once).
+///
+/// One traversal collects every surface the segment crosses: a CSG solid's boundaries from its merged
+/// interval list, a convex prim's (sphere, ellipsoid, box) from its nearest hit seen from each end of the
+/// segment, a flat prim's one hit. Their geometry (normal, side, material) comes from the shading stage's
+/// `surface_hits_x8`; sorted along the segment (ties by prim and leaf, whatever the traversal order), they
+/// are replayed.
 #[allow(clippy::too_many_arguments)]
 pub fn transmittance_x8(
     scene: &Scene,
@@ -70,65 +135,133 @@ pub fn transmittance_x8(
     time: &[f32; LANES],
     lanes: u32,
     arena: &mut CsgArena,
+    walk: &mut Walk,
 ) -> ([Vec3; LANES], u64) {
     let start: [Vec3; LANES] = std::array::from_fn(|l| Vec3::new(o[0][l], o[1][l], o[2][l]));
-    let end: [Vec3; LANES] = std::array::from_fn(|l| start[l] + Vec3::new(d[0][l], d[1][l], d[2][l]) * tmax[l]);
-    let mut cur = start;
-    let mut events = [[Event::default(); MAX_CROSSINGS]; LANES];
-    let mut count = [0usize; LANES];
-    let mut blocked = 0u32;
-    let mut active = lanes;
+    let dir: [Vec3; LANES] = std::array::from_fn(|l| Vec3::new(d[0][l], d[1][l], d[2][l]));
+    let tm = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if lanes & (1 << l) != 0 { tmax[l] } else { -1.0 }));
+    let ray = Ray8::new(Vec3x8::from_rows(o), Vec3x8::from_rows(d), tm);
     let time8 = scene.features.motion.then(|| f32x8::from(*time));
-    let mut traced = 0u64;
-    while active != 0 {
-        traced += active.count_ones() as u64;
-        // The rest of each active segment: from the current point to the end, t in (0, 1).
-        let seg: [Vec3; LANES] = std::array::from_fn(|l| end[l] - cur[l]);
-        let lane_f = |f: &dyn Fn(usize) -> f32| f32x8::from(std::array::from_fn::<f32, LANES, _>(f));
-        let mut ray = Ray8::new(
-            Vec3x8::new(lane_f(&|l| cur[l].x), lane_f(&|l| cur[l].y), lane_f(&|l| cur[l].z)),
-            Vec3x8::new(lane_f(&|l| seg[l].x), lane_f(&|l| seg[l].y), lane_f(&|l| seg[l].z)),
-            lane_f(&|l| if active & (1 << l) != 0 { 1.0 } else { -1.0 }),
-        );
-        let hit = closest_x8(scene, &mut ray, time8, arena);
-        let t = ray.tmax.to_array();
-        // The lanes that met a surface, and its geometry (spheres in 8 lanes).
-        for (l, h) in hit.iter().enumerate() {
-            if h.0 == NONE {
-                active &= !(1 << l);
-            }
-        }
-        let geometry = surface_hits_x8(scene, active, |l| {
-            let (prim, leaf, flip) = hit[l];
-            HitRay { o: cur[l], d: seg[l], time: time[l], t: t[l], prim, leaf, flip }
+    let cr = walk;
+    cr.count = [0; LANES];
+    cr.full = 0;
+    collect(scene, &ray, time8, arena, cr);
+
+    // Surface geometry of every boundary, round k over the lanes that have a k-th.
+    let most = cr.count.iter().fold(0, |m, &c| m.max(c));
+    for k in 0..most {
+        let mask = (0..LANES).fold(0u32, |m, l| m | (((cr.count[l] > k) as u32) << l)) & lanes;
+        let g = surface_hits_x8(scene, mask, |l| {
+            let r = cr.raw[l][k];
+            HitRay { o: start[l], d: dir[l], time: time[l], t: r.t, prim: r.prim, leaf: r.leaf, flip: r.flip }
         });
-        let mut bits = active;
+        let mut bits = mask;
         while bits != 0 {
             let l = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let h = geometry[l];
-            if !passes(scene, profile, h.material) || count[l] == MAX_CROSSINGS {
-                blocked |= 1 << l;
-                active &= !(1 << l);
-                continue;
-            }
-            events[l][count[l]] = Event {
-                s: (h.p - start[l]).length(),
-                material: h.material,
-                entering: h.front,
-                cos: seg[l].normalize_or_zero().dot(h.n).abs(),
-            };
-            count[l] += 1;
-            cur[l] = h.spawn(-h.n_facing);
+            let h = &g[l];
+            let cos = dir[l].normalize_or_zero().dot(h.n).abs();
+            cr.geo[l][k] = Geo { s: (h.p - start[l]).length(), cos, material: h.material, front: h.front };
         }
     }
+
     let tr = std::array::from_fn(|l| {
-        if lanes & (1 << l) == 0 || blocked & (1 << l) != 0 {
+        if lanes & (1 << l) == 0 || cr.full & (1 << l) != 0 {
             return Vec3::ZERO;
         }
-        replay(scene, profile, &events[l][..count[l]], (end[l] - start[l]).length())
+        // The crossings that count (a far-end twin facing the way its near-end crossing does is that same
+        // crossing), sorted along the segment.
+        let (raw, geo) = (&cr.raw[l], &cr.geo[l]);
+        let mut events = [Event::default(); MAX_CROSSINGS];
+        let mut order = [(0.0f32, 0u32, 0u32); MAX_CROSSINGS];
+        let mut n = 0;
+        for k in 0..cr.count[l] {
+            let (r, g) = (&raw[k], &geo[k]);
+            if r.twin != NO_TWIN && geo[r.twin as usize].front == g.front {
+                continue;
+            }
+            if !passes(scene, profile, g.material) || n == MAX_CROSSINGS {
+                return Vec3::ZERO;
+            }
+            // Insertion by (t, prim, leaf): the order does not depend on the traversal's.
+            let key = (r.t, r.prim, r.leaf);
+            let e = Event { s: g.s, material: g.material, entering: g.front, cos: g.cos };
+            let mut i = n;
+            while i > 0 && later(order[i - 1], key) {
+                order[i] = order[i - 1];
+                events[i] = events[i - 1];
+                i -= 1;
+            }
+            order[i] = key;
+            events[i] = e;
+            n += 1;
+        }
+        replay(scene, profile, &events[..n], (dir[l] * tmax[l]).length())
     });
-    (tr, traced)
+    (tr, lanes.count_ones() as u64)
+}
+
+/// Whether boundary key `a` sorts after `b` (by distance, then prim, then leaf).
+#[inline(always)]
+fn later(a: (f32, u32, u32), b: (f32, u32, u32)) -> bool {
+    a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)).is_gt()
+}
+
+/// Every boundary of the packet's segments (lanes with `tmax > 0`) into `cr`.
+fn collect(scene: &Scene, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena, cr: &mut Walk) {
+    let active = ray.tmax.simd_gt(f32x8::ZERO).to_bitmask();
+    // The segments backwards from their far ends (convex prims' far crossings).
+    let far = ray.o + ray.d.scale(ray.tmax);
+    let back = Ray8::new(far, Vec3x8::new(-ray.d.x, -ray.d.y, -ray.d.z), ray.tmax);
+    let tm = ray.tmax.to_array();
+    let prim_hits = |pid: u32, cr: &mut Walk| {
+        let prim = &scene.prims[pid as usize];
+        let tf = prim_t_at_x8(prim, ray, time);
+        let bits = tf.simd_lt(ray.tmax).to_bitmask() & active;
+        let t = tf.to_array();
+        let convex = matches!(prim.shape, Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_));
+        let tb = if convex { Some(prim_t_at_x8(prim, &back, time)) } else { None };
+        let far_bits = tb.map_or(0, |tb| tb.simd_lt(back.tmax).to_bitmask() & active);
+        let tb = tb.map(|v| v.to_array());
+        let mut lanes = bits | far_bits;
+        while lanes != 0 {
+            let l = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let mut twin = NO_TWIN;
+            if bits & (1 << l) != 0 {
+                match cr.push(l, Raw { t: t[l], prim: pid, leaf: NONE, flip: false, twin: NO_TWIN }) {
+                    Some(k) => twin = k,
+                    None => continue,
+                }
+            }
+            if let Some(tb) = &tb {
+                if far_bits & (1 << l) != 0 {
+                    cr.push(l, Raw { t: tm[l] - tb[l], prim: pid, leaf: NONE, flip: false, twin });
+                }
+            }
+        }
+    };
+    for &pid in &scene.unbounded {
+        prim_hits(pid, cr);
+    }
+    scene.bvh.traverse_any_x8(ray, |bi, r| {
+        let pid = scene.bounded[bi as usize];
+        let prim = &scene.prims[pid as usize];
+        if let Shape::Csg { solid } = prim.shape {
+            let b = &scene.bounds[pid as usize];
+            let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(r), r.tmax);
+            if mask.to_bitmask() != 0 {
+                let local = in_prim_frame(r, prim.motion, time);
+                let masked = Ray8 { tmax: mask.select(r.tmax, f32x8::splat(-1.0)), ..local };
+                crossings_x8(&scene.csg, solid, &masked, f32x8::ZERO, arena, |l, h| {
+                    cr.push(l, Raw { t: h.t, prim: pid, leaf: h.leaf, flip: h.flip, twin: NO_TWIN });
+                });
+            }
+        } else {
+            prim_hits(pid, cr);
+        }
+        f32x8::ZERO
+    });
 }
 
 /// Transmittance of one segment of length `len` from its recorded crossings (see the module doc).
@@ -180,46 +313,4 @@ fn replay(scene: &Scene, profile: &Profile, events: &[Event], len: f32) -> Vec3 
         stack = c.stack;
     }
     tr * absorb(stack, len - s_prev)
-}
-
-/// Closest hit of 8 segments (any material): per lane (prim, CSG leaf, CSG flip), prim = NONE on a miss;
-/// `ray.tmax` is lowered to the hit distances.
-fn closest_x8(scene: &Scene, ray: &mut Ray8, time: Option<f32x8>, arena: &mut CsgArena) -> [(u32, u32, bool); LANES] {
-    let mut best = [(NONE, NONE, false); LANES];
-    let record = |ray: &mut Ray8, best: &mut [(u32, u32, bool); LANES], t: [f32; LANES], hit: [(u32, u32, bool); LANES]| {
-        let mut tm = ray.tmax.to_array();
-        for l in 0..LANES {
-            if t[l] < tm[l] {
-                tm[l] = t[l];
-                best[l] = hit[l];
-            }
-        }
-        ray.tmax = f32x8::from(tm);
-    };
-    scene.bvh.traverse_closest_x8(ray, |bi, ray| {
-        let pid = scene.bounded[bi as usize];
-        let prim = &scene.prims[pid as usize];
-        if let Shape::Csg { solid } = prim.shape {
-            let local = in_prim_frame(ray, prim.motion, time);
-            let b = &scene.bounds[pid as usize];
-            let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(ray), ray.tmax);
-            if mask.to_bitmask() == 0 {
-                return;
-            }
-            let masked = Ray8 { tmax: mask.select(ray.tmax, f32x8::splat(-1.0)), ..local };
-            let mut out = [None; LANES];
-            first_hit_x8(&scene.csg, solid, &masked, f32x8::ZERO, arena, &mut out);
-            let t = std::array::from_fn(|l| out[l].map_or(f32::INFINITY, |h| h.t));
-            let hit = std::array::from_fn(|l| out[l].map_or((NONE, NONE, false), |h| (pid, h.leaf, h.flip)));
-            record(ray, &mut best, t, hit);
-        } else {
-            let t = prim_t_at_x8(prim, ray, time).to_array();
-            record(ray, &mut best, t, [(pid, NONE, false); LANES]);
-        }
-    });
-    for &pid in &scene.unbounded {
-        let t = prim_t_x8(&scene.prims[pid as usize], ray).to_array();
-        record(ray, &mut best, t, [(pid, NONE, false); LANES]);
-    }
-    best
 }
