@@ -21,8 +21,8 @@
 
 use super::intersect::{in_prim_frame, prim_t_at_x8};
 use super::medium;
-use super::queues::{MediumStack, NONE};
-use super::shade::{surface_hits_x8, HitRay};
+use super::queues::{MediumStack, RayItem, NONE};
+use super::shade::surface_hit;
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{crossings_x8, CsgArena};
 use crate::optics::{beer_lambert, fresnel_dielectric, fresnel_schlick};
@@ -147,21 +147,24 @@ pub fn transmittance_x8(
     cr.full = 0;
     collect(scene, &ray, time8, arena, cr);
 
-    // Surface geometry of every boundary, round k over the lanes that have a k-th.
-    let most = cr.count.iter().fold(0, |m, &c| m.max(c));
-    for k in 0..most {
-        let mask = (0..LANES).fold(0u32, |m, l| m | (((cr.count[l] > k) as u32) << l)) & lanes;
-        let g = surface_hits_x8(scene, mask, |l| {
+    // What the replay needs of every boundary's surface: its side, material and the angle (a sphere's
+    // normal straight from the point on the segment; other shapes as the shading stage finds them).
+    for l in (0..LANES).filter(|&l| lanes & (1 << l) != 0) {
+        let (o, d) = (start[l], dir[l]);
+        let (len, unit) = (d.length(), d.normalize_or_zero());
+        for k in 0..cr.count[l] {
             let r = cr.raw[l][k];
-            HitRay { o: start[l], d: dir[l], time: time[l], t: r.t, prim: r.prim, leaf: r.leaf, flip: r.flip }
-        });
-        let mut bits = mask;
-        while bits != 0 {
-            let l = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let h = &g[l];
-            let cos = dir[l].normalize_or_zero().dot(h.n).abs();
-            cr.geo[l][k] = Geo { s: (h.p - start[l]).length(), cos, material: h.material, front: h.front };
+            let prim = &scene.prims[r.prim as usize];
+            let (n, material) = match prim.shape {
+                Shape::Sphere { center, .. } => ((o + d * r.t - (center + prim.motion * time[l])).normalize_or_zero(), prim.material),
+                _ => {
+                    let ray = RayItem { o, d, time: time[l], ..RayItem::default() };
+                    let h = surface_hit(scene, &ray, r.t, r.prim, r.leaf, r.flip);
+                    (h.n, h.material)
+                }
+            };
+            let cos = unit.dot(n);
+            cr.geo[l][k] = Geo { s: r.t * len, cos: cos.abs(), material, front: cos < 0.0 };
         }
     }
 
