@@ -2,7 +2,7 @@
 //! packet), then Roth's merge per lane (`merge.rs`).
 
 use super::interval_x8::leaf_x8;
-use super::merge::{eval_lane, for_each_boundary, tol_base, CsgArena, COINCIDENT_EPS};
+use super::merge::{eval_lane, for_each_boundary, tol_base, CsgArena, LaneJob, COINCIDENT_EPS};
 use super::program::{Csg, Solid};
 use crate::simd::{f32x8, Ray8, Vec3x8};
 use glam::Vec3;
@@ -51,34 +51,26 @@ pub fn first_hit(csg: &Csg, solid: u32, o: Vec3, d: Vec3, tmin: f32, tmax: f32, 
     }
     fill_crossings(csg, s, &Vec3x8::splat(o), &Vec3x8::splat(d), arena);
     let base = tol_base(o.length(), d.length(), s.scale);
-    eval_lane(csg.program(s), s.leaf_start, 0, tmin, tmax, base, arena)
+    eval_lane(&LaneJob { prog: csg.program(s), leaf_start: s.leaf_start, lane: 0, tmin, tmax, base }, arena)
 }
 
 /// 8 rays against one solid: leaf crossings by the 8-lane kernels (one call per leaf per packet), then the
 /// merge per active lane. Inactive lanes (`tmax <= tmin`) get `None`.
 pub fn first_hit_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, out: &mut [Option<CsgHit>; 8]) {
     *out = [None; 8];
-    let Some(s) = csg.solids.get(solid as usize) else {
-        return;
-    };
-    let mask = ray.tmax.simd_gt(tmin).to_bitmask();
-    if mask == 0 {
-        return;
-    }
-    let base = prepare_x8(csg, s, ray, arena);
-    let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
-    let prog = csg.program(s);
-    for (lane, hit) in out.iter_mut().enumerate() {
-        if mask & (1 << lane) != 0 {
-            *hit = eval_lane(prog, s.leaf_start, lane, t0[lane], t1[lane], base[lane], arena);
-        }
-    }
+    each_lane_x8(csg, solid, ray, tmin, arena, |job, arena| out[job.lane] = eval_lane(job, arena));
 }
 
 /// Every boundary of the solid along 8 rays within `(tmin, tmax)`, lane by lane in order along the ray:
 /// `visit(lane, hit)` (the same leaf kernels and merge as [`first_hit_x8`], whose hit is each lane's first
 /// here). Inactive lanes (`tmax <= tmin`) are skipped.
 pub fn crossings_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, mut visit: impl FnMut(usize, CsgHit)) {
+    each_lane_x8(csg, solid, ray, tmin, arena, |job, arena| for_each_boundary(job, arena, |h| visit(job.lane, h)));
+}
+
+/// The crossing table of a packet against one solid, then `f` for each active lane (`tmax > tmin`).
+#[inline(always)]
+fn each_lane_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, mut f: impl FnMut(&LaneJob, &mut CsgArena)) {
     let Some(s) = csg.solids.get(solid as usize) else {
         return;
     };
@@ -91,7 +83,8 @@ pub fn crossings_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
     let prog = csg.program(s);
     for lane in 0..8 {
         if mask & (1 << lane) != 0 {
-            for_each_boundary(prog, s.leaf_start, lane, t0[lane], t1[lane], base[lane], arena, |h| visit(lane, h));
+            let job = LaneJob { prog, leaf_start: s.leaf_start, lane, tmin: t0[lane], tmax: t1[lane], base: base[lane] };
+            f(&job, arena);
         }
     }
 }

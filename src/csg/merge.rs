@@ -172,56 +172,50 @@ impl CsgArena {
     }
 }
 
-/// Run a solid's program on one lane of the crossings table; first boundary in `(tmin, tmax)` (the caller
-/// has checked `tmin < tmax`).
+/// One lane's merge: the solid's program and leaf ids, the lane's `(tmin, tmax)` (the caller has checked
+/// `tmin < tmax`) and its coincidence tolerance base.
+pub(crate) struct LaneJob<'a> {
+    pub(crate) prog: &'a [Instr],
+    pub(crate) leaf_start: u32,
+    pub(crate) lane: usize,
+    pub(crate) tmin: f32,
+    pub(crate) tmax: f32,
+    pub(crate) base: f32,
+}
+
+/// Run a solid's program on one lane of the crossings table; first boundary in `(tmin, tmax)`.
 ///
 /// Intervals that end before `tmin` or start after `tmax` by more than twice the tolerance cannot change
 /// the state in `(tmin, tmax)` and are skipped.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn eval_lane(
-    prog: &[Instr],
-    leaf_start: u32,
-    lane: usize,
-    tmin: f32,
-    tmax: f32,
-    base: f32,
-    arena: &mut CsgArena,
-) -> Option<CsgHit> {
-    if !merge_lane(prog, leaf_start, lane, tmin, tmax, base, arena) {
-        return None;
-    }
-    for (i, e) in arena.evs.iter().enumerate() {
-        if e.t >= tmax {
-            break;
-        }
-        if e.t > tmin {
-            return Some(boundary(i, e));
-        }
-    }
-    None
+pub(crate) fn eval_lane(job: &LaneJob, arena: &mut CsgArena) -> Option<CsgHit> {
+    let mut first = None;
+    boundaries(job, arena, |h| {
+        first = Some(h);
+        true
+    });
+    first
 }
 
 /// Every boundary in `(tmin, tmax)` of one lane, in order along the ray (as [`eval_lane`] finds the first).
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn for_each_boundary(
-    prog: &[Instr],
-    leaf_start: u32,
-    lane: usize,
-    tmin: f32,
-    tmax: f32,
-    base: f32,
-    arena: &mut CsgArena,
-    mut visit: impl FnMut(CsgHit),
-) {
-    if !merge_lane(prog, leaf_start, lane, tmin, tmax, base, arena) {
+pub(crate) fn for_each_boundary(job: &LaneJob, arena: &mut CsgArena, mut visit: impl FnMut(CsgHit)) {
+    boundaries(job, arena, |h| {
+        visit(h);
+        false
+    });
+}
+
+/// The merge, then the boundaries in `(tmin, tmax)` in order until `visit` returns true.
+#[inline(always)]
+fn boundaries(job: &LaneJob, arena: &mut CsgArena, mut visit: impl FnMut(CsgHit) -> bool) {
+    if !merge_lane(job, arena) {
         return;
     }
     for (i, e) in arena.evs.iter().enumerate() {
-        if e.t >= tmax {
+        if e.t >= job.tmax {
             break;
         }
-        if e.t > tmin {
-            visit(boundary(i, e));
+        if e.t > job.tmin && visit(boundary(i, e)) {
+            return;
         }
     }
 }
@@ -235,7 +229,8 @@ fn boundary(i: usize, e: &Ev) -> CsgHit {
 /// The merge of [`eval_lane`]: the solid's interval list for `(tmin, tmax)` left in `arena.evs`. False for
 /// a malformed program.
 #[inline(always)]
-fn merge_lane(prog: &[Instr], leaf_start: u32, lane: usize, tmin: f32, tmax: f32, base: f32, arena: &mut CsgArena) -> bool {
+fn merge_lane(job: &LaneJob, arena: &mut CsgArena) -> bool {
+    let LaneJob { prog, leaf_start, lane, tmin, tmax, base } = *job;
     let CsgArena { evs, tmp, starts, cross } = arena;
     evs.clear();
     starts.clear();
