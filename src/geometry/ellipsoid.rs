@@ -1,7 +1,7 @@
 //! Ellipsoids: the unit sphere in object space under a general affine map.
 
 use super::obox::object_map_f64;
-use super::sphere::{intersect_sphere_f64, nearest_root_x8, GRAZE};
+use super::sphere::{intersect_sphere_f64, nearest_x8, roots_x8, GRAZE};
 use super::{finish_x8, valid_f64};
 use crate::simd::{f32x8, Ray8, Vec3x8};
 use glam::{Affine3A, DAffine3, DVec3, Mat3, Vec3};
@@ -41,6 +41,21 @@ impl Ellipsoid {
 /// FMA chain (no compensation: `o'` itself already carries the transform's rounding).
 #[inline]
 pub fn intersect_ellipsoid_x8(e: &Ellipsoid, ray: &Ray8) -> f32x8 {
+    let (near, far, hit) = ellipsoid_roots_x8(e, ray);
+    finish_x8(nearest_x8(near, far), hit, ray)
+}
+
+/// Both crossings of the ellipsoid along the packet, `(entry, exit)` (any sign; NaN where a lane
+/// misses), the arithmetic of [`intersect_ellipsoid_x8`].
+#[inline]
+pub fn ellipsoid_interval_x8(e: &Ellipsoid, ray: &Ray8) -> (f32x8, f32x8) {
+    let (near, far, hit) = ellipsoid_roots_x8(e, ray);
+    let nan = f32x8::splat(f32::NAN);
+    (hit.select(near, nan), hit.select(far, nan))
+}
+
+#[inline(always)]
+fn ellipsoid_roots_x8(e: &Ellipsoid, ray: &Ray8) -> (f32x8, f32x8, f32x8) {
     let m = Mat3::from(e.world_to_object.matrix3);
     let (r0, r1, r2) = (m.row(0), m.row(1), m.row(2));
     let w = ray.o - Vec3x8::splat(e.center);
@@ -55,7 +70,8 @@ pub fn intersect_ellipsoid_x8(e: &Ellipsoid, ray: &Ray8) -> f32x8 {
     let disc = l.x.mul_neg_add(l.x, l.y.mul_neg_add(l.y, l.z.mul_neg_add(l.z, one)));
     let hit = disc.simd_ge(f32x8::splat(-GRAZE));
     let c = o.x.mul_add(o.x, o.y.mul_add(o.y, o.z.mul_sub(o.z, one)));
-    finish_x8(nearest_root_x8(a, inv_a, b, disc, c), hit, ray)
+    let (near, far) = roots_x8(a, inv_a, b, disc, c);
+    (near, far, hit)
 }
 
 /// f64 twin of [`intersect_ellipsoid_x8`]: transform by `world_to_object` (see

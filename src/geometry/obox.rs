@@ -62,16 +62,49 @@ pub(super) fn object_map_f64(m: Mat3, center: Vec3) -> DAffine3 {
 /// where it enters the face rectangle, or, starting inside it, where it leaves it.
 #[inline]
 pub fn intersect_obox_x8(b: &OBox, ray: &Ray8) -> f32x8 {
+    let (tnear, tfar) = obox_slabs_x8(b, ray);
+    let t = tnear.simd_gt(f32x8::ZERO).select(tnear, tfar);
+    finish_x8(t, tnear.simd_le(tfar), ray)
+}
+
+/// Entry and exit of the box along the packet (any sign; NaN where a lane misses), from the one slab
+/// computation of [`intersect_obox_x8`], with the object axis (0, 1, 2) of the face each is on: the
+/// slab entered last and the slab left first (at an edge, the slab the kernel decided by; the point
+/// alone cannot tell the faces apart there).
+#[inline]
+pub fn obox_interval_x8(b: &OBox, ray: &Ray8) -> (f32x8, f32x8, [u32; 8], [u32; 8]) {
     let m = Mat3::from(b.world_to_object.matrix3);
     let (r0, r1, r2) = (m.row(0), m.row(1), m.row(2));
     let w = ray.o - Vec3x8::splat(b.center);
     let (nx, fx) = slab_x8(w.dot3(r0), ray.d.dot3(r0), b.half.x);
     let (ny, fy) = slab_x8(w.dot3(r1), ray.d.dot3(r1), b.half.y);
     let (nz, fz) = slab_x8(w.dot3(r2), ray.d.dot3(r2), b.half.z);
-    let tnear = nx.max(ny).max(nz);
-    let tfar = fx.min(fy).min(fz);
-    let t = tnear.simd_gt(f32x8::ZERO).select(tnear, tfar);
-    finish_x8(t, tnear.simd_le(tfar), ray)
+    let (tnear, tfar) = (nx.max(ny).max(nz), fx.min(fy).min(fz));
+    let (hit, nan) = (tnear.simd_le(tfar), f32x8::splat(f32::NAN));
+    let axis = |x: f32x8, y: f32x8, t: f32x8| {
+        let (bx, by) = (x.simd_eq(t).to_bitmask(), y.simd_eq(t).to_bitmask());
+        std::array::from_fn(|l| {
+            if bx & (1 << l) != 0 {
+                0
+            } else if by & (1 << l) != 0 {
+                1
+            } else {
+                2
+            }
+        })
+    };
+    (hit.select(tnear, nan), hit.select(tfar, nan), axis(nx, ny, tnear), axis(fx, fy, tfar))
+}
+
+#[inline(always)]
+fn obox_slabs_x8(b: &OBox, ray: &Ray8) -> (f32x8, f32x8) {
+    let m = Mat3::from(b.world_to_object.matrix3);
+    let (r0, r1, r2) = (m.row(0), m.row(1), m.row(2));
+    let w = ray.o - Vec3x8::splat(b.center);
+    let (nx, fx) = slab_x8(w.dot3(r0), ray.d.dot3(r0), b.half.x);
+    let (ny, fy) = slab_x8(w.dot3(r1), ray.d.dot3(r1), b.half.y);
+    let (nz, fz) = slab_x8(w.dot3(r2), ray.d.dot3(r2), b.half.z);
+    (nx.max(ny).max(nz), fx.min(fy).min(fz))
 }
 
 /// Entry and exit of one slab `[-h, h]` along `o + t d` (object space).

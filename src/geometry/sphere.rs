@@ -49,8 +49,9 @@ pub fn intersect_sphere_moving_x8(center0: Vec3, velocity: Vec3, radius: f32, ra
     sphere_x8(c, radius, ray)
 }
 
+/// The two roots of the sphere kernel and the lanes that hit (None: no lane does).
 #[inline(always)]
-fn sphere_x8(c: Vec3x8, radius: f32, ray: &Ray8) -> f32x8 {
+fn sphere_roots_x8(c: Vec3x8, radius: f32, ray: &Ray8) -> Option<(f32x8, f32x8, f32x8)> {
     let d = ray.d;
     // f = o - c = s + e exactly; s alone carries the rounding error eps |f| that would otherwise
     // dominate c0 near a large sphere.
@@ -76,10 +77,30 @@ fn sphere_x8(c: Vec3x8, radius: f32, ray: &Ray8) -> f32x8 {
     if !hit.any() {
         // Every lane passes outside the sphere (the usual case for a packet at a sphere's silhouette
         // or a box corner): the accurate constant term and the roots are not needed.
-        return f32x8::splat(MISS);
+        return None;
     }
     let c0 = dist2_minus_r2_x8(s, e, r2v, f32x8::splat(r2_lo));
-    finish_x8(nearest_root_x8(a, inv_a, b, disc, c0), hit, ray)
+    let (near, far) = roots_x8(a, inv_a, b, disc, c0);
+    Some((near, far, hit))
+}
+
+#[inline(always)]
+fn sphere_x8(c: Vec3x8, radius: f32, ray: &Ray8) -> f32x8 {
+    match sphere_roots_x8(c, radius, ray) {
+        Some((near, far, hit)) => finish_x8(nearest_x8(near, far), hit, ray),
+        None => f32x8::splat(MISS),
+    }
+}
+
+/// Both crossings of the sphere's surface along the packet, `(entry, exit)` by distance (any sign;
+/// NaN where a lane misses), with the same arithmetic as [`intersect_sphere_x8`] (whose hit is the
+/// nearest positive one of them, within `(0, tmax)`).
+#[inline]
+pub fn sphere_interval_x8(center: Vec3, radius: f32, ray: &Ray8) -> (f32x8, f32x8) {
+    match sphere_roots_x8(Vec3x8::splat(center), radius, ray) {
+        Some((near, far, hit)) => (hit.select(near, f32x8::splat(f32::NAN)), hit.select(far, f32x8::splat(f32::NAN))),
+        None => (f32x8::splat(f32::NAN), f32x8::splat(f32::NAN)),
+    }
 }
 
 /// `|s + e|^2 - (r2 + r2_lo)` to about `eps` relative even when it cancels: squares split exactly
@@ -97,13 +118,13 @@ fn dist2_minus_r2_x8(s: Vec3x8, e: Vec3x8, r2: f32x8, r2_lo: f32x8) -> f32x8 {
     (w - r2) + (((eu + ew) + pi) + (cross - r2_lo))
 }
 
-/// Nearest root in the open interval `t > 0` of `a t^2 + 2 b t + c0 = 0`, given
-/// `disc = (b^2 - a c0) / a` (clamped at 0 here; the caller's mask decides hit or miss).
-/// Roots `c0 / q` and `q / a` with `q = -(b + sign(b) sqrt(b^2 - a c0))` (Haines et al. 2019,
-/// after Press et al., Numerical Recipes 5.6). Lanes with no root in `t > 0` return a value that
-/// fails `t > 0` or is +inf; `finish_x8` turns it into MISS.
+/// Both roots of `a t^2 + 2 b t + c0 = 0` as (smaller, larger), given `disc = (b^2 - a c0) / a`
+/// (clamped at 0 here; the caller's mask decides hit or miss): `c0 / q` and `q / a` with
+/// `q = -(b + sign(b) sqrt(b^2 - a c0))` (Haines et al. 2019, after Press et al., Numerical Recipes
+/// 5.6). [`nearest_x8`] then takes the nearest in `t > 0` (or a value that fails `t > 0` or is +inf,
+/// which `finish_x8` turns into MISS).
 #[inline(always)]
-pub(super) fn nearest_root_x8(a: f32x8, inv_a: f32x8, b: f32x8, disc: f32x8, c0: f32x8) -> f32x8 {
+pub(super) fn roots_x8(a: f32x8, inv_a: f32x8, b: f32x8, disc: f32x8, c0: f32x8) -> (f32x8, f32x8) {
     let h = (disc.max(f32x8::ZERO) * a).sqrt();
     let sign_b = b & f32x8::splat(-0.0);
     let q = -(b + (h | sign_b)); // h >= 0, so `h | sign(b)` is copysign(h, b)
@@ -111,8 +132,12 @@ pub(super) fn nearest_root_x8(a: f32x8, inv_a: f32x8, b: f32x8, disc: f32x8, c0:
     let t1 = q * inv_a;
     // min/max skip a NaN operand (t0 = 0/0 only when b = h = c0 = 0: origin at a tangent point;
     // then t1 = 0 and the lane misses).
-    let near = t0.min(t1);
-    let far = t0.max(t1);
+    (t0.min(t1), t0.max(t1))
+}
+
+/// The nearest positive of two roots (else the larger, which then fails the range test).
+#[inline(always)]
+pub(super) fn nearest_x8(near: f32x8, far: f32x8) -> f32x8 {
     near.simd_gt(f32x8::ZERO).select(near, far)
 }
 

@@ -25,10 +25,11 @@ use super::queues::{MediumStack, RayItem, NONE};
 use super::shade::surface_hit;
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{crossings_x8, CsgArena};
+use crate::geometry::{ellipsoid_interval_x8, obox_interval_x8, sphere_interval_x8};
 use crate::optics::{beer_lambert, fresnel_dielectric, fresnel_schlick};
 use crate::scene::{Material, Profile, Scene, Shape};
 use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 
 /// Surfaces recorded per shadow ray; a ray that crosses more is taken as blocked.
 pub const MAX_CROSSINGS: usize = 16;
@@ -70,12 +71,15 @@ struct Raw {
     prim: u32,
     leaf: u32,
     flip: bool,
-    /// For the crossing a convex prim shows from the segment's far end: the index of the same prim's
-    /// crossing from the near end (the two are one crossing when they face the same way).
-    twin: u8,
+    /// Whether the segment enters ([`SIDE_ENTRY`]) or leaves ([`SIDE_EXIT`]) the solid here, where the
+    /// interval it came from says so (convex prims, CSG solids); [`SIDE_NORMAL`] for flat prims, whose
+    /// normal decides.
+    side: u8,
 }
 
-const NO_TWIN: u8 = u8::MAX;
+const SIDE_NORMAL: u8 = 0;
+const SIDE_EXIT: u8 = 1;
+const SIDE_ENTRY: u8 = 2;
 
 /// What the replay needs of a boundary's surface.
 #[derive(Clone, Copy, Debug, Default)]
@@ -157,6 +161,9 @@ pub fn transmittance_x8(
             let prim = &scene.prims[r.prim as usize];
             let (n, material) = match prim.shape {
                 Shape::Sphere { center, .. } => ((o + d * r.t - (center + prim.motion * time[l])).normalize_or_zero(), prim.material),
+                // The face's normal direction in world space (the row of the world-to-object map for its
+                // axis); only |cos| is used, the side comes from the interval.
+                Shape::Box(b) => (Mat3::from(b.world_to_object.matrix3).row(r.leaf as usize).normalize_or_zero(), prim.material),
                 _ => {
                     let ray = RayItem { o, d, time: time[l], ..RayItem::default() };
                     let h = surface_hit(scene, &ray, r.t, r.prim, r.leaf, r.flip);
@@ -164,7 +171,8 @@ pub fn transmittance_x8(
                 }
             };
             let cos = unit.dot(n);
-            cr.geo[l][k] = Geo { s: r.t * len, cos: cos.abs(), material, front: cos < 0.0 };
+            let front = if r.side == SIDE_NORMAL { cos < 0.0 } else { r.side == SIDE_ENTRY };
+            cr.geo[l][k] = Geo { s: r.t * len, cos: cos.abs(), material, front };
         }
     }
 
@@ -172,22 +180,20 @@ pub fn transmittance_x8(
         if lanes & (1 << l) == 0 || cr.full & (1 << l) != 0 {
             return Vec3::ZERO;
         }
-        // The crossings that count (a far-end twin facing the way its near-end crossing does is that same
-        // crossing), sorted along the segment.
+        // The crossings, sorted along the segment.
         let (raw, geo) = (&cr.raw[l], &cr.geo[l]);
         let mut events = [Event::default(); MAX_CROSSINGS];
-        let mut order = [(0.0f32, 0u32, 0u32); MAX_CROSSINGS];
+        let mut order = [(0.0f32, 0u32, 0u32, 0u32); MAX_CROSSINGS];
         let mut n = 0;
         for k in 0..cr.count[l] {
             let (r, g) = (&raw[k], &geo[k]);
-            if r.twin != NO_TWIN && geo[r.twin as usize].front == g.front {
-                continue;
-            }
             if !passes(scene, profile, g.material) || n == MAX_CROSSINGS {
                 return Vec3::ZERO;
             }
-            // Insertion by (t, prim, leaf): the order does not depend on the traversal's.
-            let key = (r.t, r.prim, r.leaf);
+            // Insertion by (t, entries before exits, prim, leaf): the order does not depend on the
+            // traversal's, and where one solid ends exactly where another begins (glued faces) the ray
+            // is in both for an instant, so an index-matched pair is a null crossing, not two interfaces.
+            let key = (r.t, !g.front as u32, r.prim, r.leaf);
             let e = Event { s: g.s, material: g.material, entering: g.front, cos: g.cos };
             let mut i = n;
             while i > 0 && later(order[i - 1], key) {
@@ -204,43 +210,44 @@ pub fn transmittance_x8(
     (tr, lanes.count_ones() as u64)
 }
 
-/// Whether boundary key `a` sorts after `b` (by distance, then prim, then leaf).
+/// Whether boundary key `a` sorts after `b` (by distance, then exits after entries, prim, leaf).
 #[inline(always)]
-fn later(a: (f32, u32, u32), b: (f32, u32, u32)) -> bool {
-    a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)).is_gt()
+fn later(a: (f32, u32, u32, u32), b: (f32, u32, u32, u32)) -> bool {
+    a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)).then(a.3.cmp(&b.3)).is_gt()
 }
 
 /// Every boundary of the packet's segments (lanes with `tmax > 0`) into `cr`.
 fn collect(scene: &Scene, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena, cr: &mut Walk) {
     let active = ray.tmax.simd_gt(f32x8::ZERO).to_bitmask();
-    // The segments backwards from their far ends (convex prims' far crossings).
-    let far = ray.o + ray.d.scale(ray.tmax);
-    let back = Ray8::new(far, Vec3x8::new(-ray.d.x, -ray.d.y, -ray.d.z), ray.tmax);
-    let tm = ray.tmax.to_array();
+    let (zero, tmax) = (f32x8::ZERO, ray.tmax);
     let prim_hits = |pid: u32, cr: &mut Walk| {
         let prim = &scene.prims[pid as usize];
-        let tf = prim_t_at_x8(prim, ray, time);
-        let bits = tf.simd_lt(ray.tmax).to_bitmask() & active;
-        let t = tf.to_array();
-        let convex = matches!(prim.shape, Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_));
-        let tb = if convex { Some(prim_t_at_x8(prim, &back, time)) } else { None };
-        let far_bits = tb.map_or(0, |tb| tb.simd_lt(back.tmax).to_bitmask() & active);
-        let tb = tb.map(|v| v.to_array());
-        let mut lanes = bits | far_bits;
+        // A convex prim's entry and exit from one interval (so a segment that clips an edge gets both or
+        // neither); a flat prim's one hit.
+        let local = in_prim_frame(ray, prim.motion, time);
+        // A box's crossings carry their face's axis (in `leaf`), which the point cannot tell at an edge.
+        let no_axis = [NONE; LANES];
+        let ((near, far), side_near, (ax_near, ax_far)) = match &prim.shape {
+            Shape::Sphere { center, radius } => (sphere_interval_x8(*center, *radius, &local), SIDE_ENTRY, (no_axis, no_axis)),
+            Shape::Ellipsoid(e) => (ellipsoid_interval_x8(e, &local), SIDE_ENTRY, (no_axis, no_axis)),
+            Shape::Box(b) => {
+                let (n, f, an, af) = obox_interval_x8(b, &local);
+                ((n, f), SIDE_ENTRY, (an, af))
+            }
+            _ => ((prim_t_at_x8(prim, ray, time), f32x8::splat(f32::NAN)), SIDE_NORMAL, (no_axis, no_axis)),
+        };
+        let inside = |t: f32x8| (t.simd_gt(zero) & t.simd_lt(tmax)).to_bitmask() & active;
+        let (nb, fb) = (inside(near), inside(far));
+        let (tn, tf) = (near.to_array(), far.to_array());
+        let mut lanes = nb | fb;
         while lanes != 0 {
             let l = lanes.trailing_zeros() as usize;
             lanes &= lanes - 1;
-            let mut twin = NO_TWIN;
-            if bits & (1 << l) != 0 {
-                match cr.push(l, Raw { t: t[l], prim: pid, leaf: NONE, flip: false, twin: NO_TWIN }) {
-                    Some(k) => twin = k,
-                    None => continue,
-                }
+            if nb & (1 << l) != 0 {
+                cr.push(l, Raw { t: tn[l], prim: pid, leaf: ax_near[l], flip: false, side: side_near });
             }
-            if let Some(tb) = &tb {
-                if far_bits & (1 << l) != 0 {
-                    cr.push(l, Raw { t: tm[l] - tb[l], prim: pid, leaf: NONE, flip: false, twin });
-                }
+            if fb & (1 << l) != 0 {
+                cr.push(l, Raw { t: tf[l], prim: pid, leaf: ax_far[l], flip: false, side: SIDE_EXIT });
             }
         }
     };
@@ -257,7 +264,10 @@ fn collect(scene: &Scene, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena,
                 let local = in_prim_frame(r, prim.motion, time);
                 let masked = Ray8 { tmax: mask.select(r.tmax, f32x8::splat(-1.0)), ..local };
                 crossings_x8(&scene.csg, solid, &masked, f32x8::ZERO, arena, |l, h| {
-                    cr.push(l, Raw { t: h.t, prim: pid, leaf: h.leaf, flip: h.flip, twin: NO_TWIN });
+                    cr.push(
+                        l,
+                        Raw { t: h.t, prim: pid, leaf: h.leaf, flip: h.flip, side: if h.entering { SIDE_ENTRY } else { SIDE_EXIT } },
+                    );
                 });
             }
         } else {
