@@ -62,7 +62,8 @@ pub(super) fn object_map_f64(m: Mat3, center: Vec3) -> DAffine3 {
 /// where it enters the face rectangle, or, starting inside it, where it leaves it.
 #[inline]
 pub fn intersect_obox_x8(b: &OBox, ray: &Ray8) -> f32x8 {
-    let (tnear, tfar) = obox_slabs_x8(b, ray);
+    let ([nx, ny, nz], [fx, fy, fz]) = obox_slabs_x8(b, ray);
+    let (tnear, tfar) = (nx.max(ny).max(nz), fx.min(fy).min(fz));
     let t = tnear.simd_gt(f32x8::ZERO).select(tnear, tfar);
     finish_x8(t, tnear.simd_le(tfar), ray)
 }
@@ -73,12 +74,7 @@ pub fn intersect_obox_x8(b: &OBox, ray: &Ray8) -> f32x8 {
 /// alone cannot tell the faces apart there).
 #[inline]
 pub fn obox_interval_x8(b: &OBox, ray: &Ray8) -> (f32x8, f32x8, [u32; 8], [u32; 8]) {
-    let m = Mat3::from(b.world_to_object.matrix3);
-    let (r0, r1, r2) = (m.row(0), m.row(1), m.row(2));
-    let w = ray.o - Vec3x8::splat(b.center);
-    let (nx, fx) = slab_x8(w.dot3(r0), ray.d.dot3(r0), b.half.x);
-    let (ny, fy) = slab_x8(w.dot3(r1), ray.d.dot3(r1), b.half.y);
-    let (nz, fz) = slab_x8(w.dot3(r2), ray.d.dot3(r2), b.half.z);
+    let ([nx, ny, nz], [fx, fy, fz]) = obox_slabs_x8(b, ray);
     let (tnear, tfar) = (nx.max(ny).max(nz), fx.min(fy).min(fz));
     let (hit, nan) = (tnear.simd_le(tfar), f32x8::splat(f32::NAN));
     let axis = |x: f32x8, y: f32x8, t: f32x8| {
@@ -96,15 +92,16 @@ pub fn obox_interval_x8(b: &OBox, ray: &Ray8) -> (f32x8, f32x8, [u32; 8], [u32; 
     (hit.select(tnear, nan), hit.select(tfar, nan), axis(nx, ny, tnear), axis(fx, fy, tfar))
 }
 
+/// Entry and exit distances of the three slabs of the box (object axes x, y, z).
 #[inline(always)]
-fn obox_slabs_x8(b: &OBox, ray: &Ray8) -> (f32x8, f32x8) {
+fn obox_slabs_x8(b: &OBox, ray: &Ray8) -> ([f32x8; 3], [f32x8; 3]) {
     let m = Mat3::from(b.world_to_object.matrix3);
     let (r0, r1, r2) = (m.row(0), m.row(1), m.row(2));
     let w = ray.o - Vec3x8::splat(b.center);
     let (nx, fx) = slab_x8(w.dot3(r0), ray.d.dot3(r0), b.half.x);
     let (ny, fy) = slab_x8(w.dot3(r1), ray.d.dot3(r1), b.half.y);
     let (nz, fz) = slab_x8(w.dot3(r2), ray.d.dot3(r2), b.half.z);
-    (nx.max(ny).max(nz), fx.min(fy).min(fz))
+    ([nx, ny, nz], [fx, fy, fz])
 }
 
 /// Entry and exit of one slab `[-h, h]` along `o + t d` (object space).

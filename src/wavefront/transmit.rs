@@ -2,7 +2,7 @@
 //! light sample, for the lanes whose any-hit test met only dielectrics that do not block.
 //!
 //! One traversal of the segment collects every surface it crosses (a CSG solid's boundaries from its merged
-//! interval list, a convex prim's from each end of the segment, a flat prim's one hit: no re-spawned
+//! interval list, a convex prim's entry and exit from one interval, a flat prim's one hit: no re-spawned
 //! segments, so no offset points and one traversal instead of one per surface); sorted along the segment,
 //! the crossings are replayed with the same which-side rule as camera paths
 //! ([`medium::cross`]): Beer-Lambert absorption of the medium the ray is in along each piece, and at each
@@ -60,10 +60,6 @@ pub fn passes(scene: &Scene, profile: &Profile, material: u32) -> bool {
     }
 }
 
-/// Surfaces collected per shadow ray before sorting (a convex prim can add a duplicate of its one crossing
-/// from the far end, dropped after); more count as blocked too.
-const MAX_RAW: usize = 2 * MAX_CROSSINGS;
-
 /// One boundary met by a segment, before its surface geometry is known.
 #[derive(Clone, Copy, Debug, Default)]
 struct Raw {
@@ -95,8 +91,8 @@ struct Geo {
 /// Scratch of the walk, reused by every call (per lane: the boundaries found and their geometry; only the
 /// first `count` entries are ever read).
 pub struct Walk {
-    raw: [[Raw; MAX_RAW]; LANES],
-    geo: [[Geo; MAX_RAW]; LANES],
+    raw: [[Raw; MAX_CROSSINGS]; LANES],
+    geo: [[Geo; MAX_CROSSINGS]; LANES],
     count: [usize; LANES],
     /// Lanes with more boundaries than fit.
     full: u32,
@@ -104,19 +100,24 @@ pub struct Walk {
 
 impl Walk {
     pub fn new() -> Box<Walk> {
-        Box::new(Walk { raw: [[Raw::default(); MAX_RAW]; LANES], geo: [[Geo::default(); MAX_RAW]; LANES], count: [0; LANES], full: 0 })
+        Box::new(Walk {
+            raw: [[Raw::default(); MAX_CROSSINGS]; LANES],
+            geo: [[Geo::default(); MAX_CROSSINGS]; LANES],
+            count: [0; LANES],
+            full: 0,
+        })
     }
 
+    /// Record a boundary of lane `l` (past [`MAX_CROSSINGS`] the lane is full: blocked).
     #[inline(always)]
-    fn push(&mut self, l: usize, r: Raw) -> Option<u8> {
+    fn push(&mut self, l: usize, r: Raw) {
         let k = self.count[l];
-        if k == MAX_RAW {
+        if k == MAX_CROSSINGS {
             self.full |= 1 << l;
-            return None;
+            return;
         }
         self.raw[l][k] = r;
         self.count[l] = k + 1;
-        Some(k as u8)
     }
 }
 
@@ -125,10 +126,11 @@ impl Walk {
 /// per lane: the segment is traversed once).
 ///
 /// One traversal collects every surface the segment crosses: a CSG solid's boundaries from its merged
-/// interval list, a convex prim's (sphere, ellipsoid, box) from its nearest hit seen from each end of the
-/// segment, a flat prim's one hit. Their geometry (normal, side, material) comes from the shading stage's
-/// `surface_hits_x8`; sorted along the segment (ties by prim and leaf, whatever the traversal order), they
-/// are replayed.
+/// interval list, a convex prim's (sphere, ellipsoid, box) entry and exit from one interval, a flat
+/// prim's one hit. Their sides come from the intervals (a flat prim's from its normal), their angles from
+/// the normals (a sphere's from the point, a box's from the face of its slab, others' from the shading
+/// stage's `surface_hit`); sorted along the segment (entries before exits, then prim and leaf at equal
+/// distance, whatever the traversal order), they are replayed.
 #[allow(clippy::too_many_arguments)]
 pub fn transmittance_x8(
     scene: &Scene,
