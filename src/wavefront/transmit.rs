@@ -178,38 +178,45 @@ pub fn transmittance_x8(
         }
     }
 
-    let tr = std::array::from_fn(|l| {
-        if lanes & (1 << l) == 0 || cr.full & (1 << l) != 0 {
+    let mut tr = [Vec3::ZERO; LANES];
+    let mut bits = lanes & !cr.full;
+    while bits != 0 {
+        let l = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        tr[l] = lane_transmittance(scene, profile, cr, l, (dir[l] * tmax[l]).length());
+    }
+    (tr, lanes.count_ones() as u64)
+}
+
+/// Transmittance of lane `l`'s segment (of length `len`) from its collected crossings: 0 at a surface that
+/// stops shadow rays or past [`MAX_CROSSINGS`], else the replay of the crossings sorted along the segment.
+#[inline]
+fn lane_transmittance(scene: &Scene, profile: &Profile, cr: &Walk, l: usize, len: f32) -> Vec3 {
+    let (raw, geo) = (&cr.raw[l], &cr.geo[l]);
+    let mut events = [Event::default(); MAX_CROSSINGS];
+    let mut order = [(0.0f32, 0u32, 0u32, 0u32); MAX_CROSSINGS];
+    let mut n = 0;
+    for k in 0..cr.count[l] {
+        let (r, g) = (&raw[k], &geo[k]);
+        if !passes(scene, profile, g.material) || n == MAX_CROSSINGS {
             return Vec3::ZERO;
         }
-        // The crossings, sorted along the segment.
-        let (raw, geo) = (&cr.raw[l], &cr.geo[l]);
-        let mut events = [Event::default(); MAX_CROSSINGS];
-        let mut order = [(0.0f32, 0u32, 0u32, 0u32); MAX_CROSSINGS];
-        let mut n = 0;
-        for k in 0..cr.count[l] {
-            let (r, g) = (&raw[k], &geo[k]);
-            if !passes(scene, profile, g.material) || n == MAX_CROSSINGS {
-                return Vec3::ZERO;
-            }
-            // Insertion by (t, entries before exits, prim, leaf): the order does not depend on the
-            // traversal's, and where one solid ends exactly where another begins (glued faces) the ray
-            // is in both for an instant, so an index-matched pair is a null crossing, not two interfaces.
-            let key = (r.t, !g.front as u32, r.prim, r.leaf);
-            let e = Event { s: g.s, material: g.material, entering: g.front, cos: g.cos };
-            let mut i = n;
-            while i > 0 && later(order[i - 1], key) {
-                order[i] = order[i - 1];
-                events[i] = events[i - 1];
-                i -= 1;
-            }
-            order[i] = key;
-            events[i] = e;
-            n += 1;
+        // Insertion by (t, entries before exits, prim, leaf): the order does not depend on the
+        // traversal's, and where one solid ends exactly where another begins (glued faces) the ray is in
+        // both for an instant, so an index-matched pair is a null crossing, not two interfaces.
+        let key = (r.t, !g.front as u32, r.prim, r.leaf);
+        let e = Event { s: g.s, material: g.material, entering: g.front, cos: g.cos };
+        let mut i = n;
+        while i > 0 && later(order[i - 1], key) {
+            order[i] = order[i - 1];
+            events[i] = events[i - 1];
+            i -= 1;
         }
-        replay(scene, profile, &events[..n], (dir[l] * tmax[l]).length())
-    });
-    (tr, lanes.count_ones() as u64)
+        order[i] = key;
+        events[i] = e;
+        n += 1;
+    }
+    replay(scene, profile, &events[..n], len)
 }
 
 /// Whether boundary key `a` sorts after `b` (by distance, then exits after entries, prim, leaf).
