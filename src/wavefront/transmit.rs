@@ -77,22 +77,11 @@ const SIDE_NORMAL: u8 = 0;
 const SIDE_EXIT: u8 = 1;
 const SIDE_ENTRY: u8 = 2;
 
-/// What the replay needs of a boundary's surface.
-#[derive(Clone, Copy, Debug, Default)]
-struct Geo {
-    /// Distance from the segment's start.
-    s: f32,
-    /// |cos| of the angle between the segment and the surface normal.
-    cos: f32,
-    material: u32,
-    front: bool,
-}
-
-/// Scratch of the walk, reused by every call (per lane: the boundaries found and their geometry; only the
-/// first `count` entries are ever read).
+/// Scratch of the walk, reused by every call (per lane: the boundaries found and, as replay events in the
+/// same order, what their surfaces are; only the first `count` entries are ever read).
 pub struct Walk {
     raw: [[Raw; MAX_CROSSINGS]; LANES],
-    geo: [[Geo; MAX_CROSSINGS]; LANES],
+    geo: [[Event; MAX_CROSSINGS]; LANES],
     count: [usize; LANES],
     /// Lanes with more boundaries than fit.
     full: u32,
@@ -102,7 +91,7 @@ impl Walk {
     pub fn new() -> Box<Walk> {
         Box::new(Walk {
             raw: [[Raw::default(); MAX_CROSSINGS]; LANES],
-            geo: [[Geo::default(); MAX_CROSSINGS]; LANES],
+            geo: [[Event::default(); MAX_CROSSINGS]; LANES],
             count: [0; LANES],
             full: 0,
         })
@@ -173,8 +162,8 @@ pub fn transmittance_x8(
                 }
             };
             let cos = unit.dot(n);
-            let front = if r.side == SIDE_NORMAL { cos < 0.0 } else { r.side == SIDE_ENTRY };
-            cr.geo[l][k] = Geo { s: r.t * len, cos: cos.abs(), material, front };
+            let entering = if r.side == SIDE_NORMAL { cos < 0.0 } else { r.side == SIDE_ENTRY };
+            cr.geo[l][k] = Event { s: r.t * len, material, entering, cos: cos.abs() };
         }
     }
 
@@ -204,8 +193,8 @@ fn lane_transmittance(scene: &Scene, profile: &Profile, cr: &Walk, l: usize, len
         // Insertion by (t, entries before exits, prim, leaf): the order does not depend on the
         // traversal's, and where one solid ends exactly where another begins (glued faces) the ray is in
         // both for an instant, so an index-matched pair is a null crossing, not two interfaces.
-        let key = (r.t, !g.front as u32, r.prim, r.leaf);
-        let e = Event { s: g.s, material: g.material, entering: g.front, cos: g.cos };
+        let key = (r.t, !g.entering as u32, r.prim, r.leaf);
+        let e = *g;
         let mut i = n;
         while i > 0 && later(order[i - 1], key) {
             order[i] = order[i - 1];
