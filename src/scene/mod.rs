@@ -171,19 +171,6 @@ pub enum Shape {
     },
 }
 
-impl Shape {
-    /// The fixed (object-space and world-space) normal of a flat shape: plane, quad or disk.
-    #[inline(always)]
-    pub fn flat_normal(&self) -> Option<Vec3> {
-        match self {
-            Shape::Plane(p) => Some(p.normal),
-            Shape::Quad(q) => Some(q.normal()),
-            Shape::Disk(d) => Some(d.normal),
-            _ => None,
-        }
-    }
-}
-
 #[derive(Clone, Copy, Debug)]
 pub struct Prim {
     pub shape: Shape,

@@ -64,7 +64,9 @@ pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, 
             normal_sphere(c, p)
         }
         Shape::Ellipsoid(e) => normal_ellipsoid(e, p - shift),
-        Shape::Plane(_) | Shape::Quad(_) | Shape::Disk(_) => prim.shape.flat_normal().unwrap(),
+        Shape::Plane(pl) => pl.normal,
+        Shape::Quad(q) => q.normal(),
+        Shape::Disk(d) => d.normal,
         Shape::Box(b) => normal_obox(b, p - shift),
         Shape::Csg { .. } => {
             debug_assert!(leaf != NONE);
@@ -448,11 +450,10 @@ impl Ctx<'_> {
                     sr[l] = radius;
                     prim.material
                 }
-                Shape::Plane(_) | Shape::Quad(_) | Shape::Disk(_) => {
-                    // Flat prims (the other common case: a floor) in 8 lanes below too; the outward
-                    // normal here.
+                Shape::Plane(pl) => {
+                    // Planes (the other common case) in 8 lanes below too; the outward normal here.
                     pla |= 1 << l;
-                    for (row, c) in nf.iter_mut().zip(prim.shape.flat_normal().unwrap().to_array()) {
+                    for (row, c) in nf.iter_mut().zip(pl.normal.to_array()) {
                         row[l] = c;
                     }
                     prim.material
@@ -504,7 +505,7 @@ impl Ctx<'_> {
         // o + t d, as `surface_hit` computes it (unfused).
         let naive = o + d.scale(v(&rt));
         if pla != 0 {
-            // `surface_hit` of flat prims, 8 lanes, the same operations: the point o + t d, whose error
+            // `surface_hit` of planes, 8 lanes, the same operations: the point o + t d, whose error
             // scales with the origin's largest coordinate, and the plane's normal turned to face the ray.
             let n = v3(&nf);
             let front = d.dot_unfused(n).simd_lt(f32x8::ZERO);
