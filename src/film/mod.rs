@@ -34,7 +34,7 @@ pub fn valid_x8(r: &[f32; 8], g: &[f32; 8], b: &[f32; 8]) -> u32 {
     (ok(r) & ok(g) & ok(b)).to_bitmask()
 }
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Zeroable)]
 pub struct Pixel {
     pub sum: [i128; 3],
     pub sum_sq: [i128; 3],
@@ -149,21 +149,22 @@ pub struct Film {
 }
 
 impl Film {
-    /// An empty film. A large film is written by the rayon pool's threads, each a share of it
-    /// (`collect` of an indexed parallel iterator writes in place), so that its pages are faulted in on
-    /// every core: a 640 x 480 film is 34 MB, 8,400 fresh pages, and a page fault costs ~1.5 us on this
-    /// machine's VM; written on one thread the film took 12.8-14.8 ms to make (a sixth of a preview
-    /// render's wall time), on two 9.9-14.1 (page faults do not scale across cores). (Huge pages through
-    /// `madvise` took it to 3-5 ms, but the kernel's compaction for them made a process's first film take
-    /// 4-65 ms: not used.) A film of up to 4096 pixels (448 KB) is written on the calling thread.
+    /// An empty film. Its memory comes zeroed from the allocator (fresh pages for a large film) and is
+    /// then written with zeros by the rayon pool's threads, which faults its pages in on all cores at
+    /// once: a 640 x 480 film is 34 MB, 8,400 pages, and page faults cost ~1.5 us each on this
+    /// machine's VM, so writing it on one thread took 13 ms (a sixth of a preview render's wall
+    /// time), in parallel 7-8 ms. (Huge pages through `madvise` took it to 3-5 ms, but the kernel's
+    /// compaction for them made a process's first film take 4-65 ms: not used.) A film of one chunk
+    /// (up to 4096 pixels, 448 KB) is written on the calling thread.
     pub fn new(width: u32, height: u32) -> Film {
         use rayon::prelude::*;
-        let n = width as usize * height as usize;
-        let pixels = if n > 1 << 12 {
-            (0..n).into_par_iter().with_min_len(1 << 12).map(|_| Pixel::default()).collect()
+        const CHUNK: usize = 1 << 12;
+        let mut pixels: Vec<Pixel> = bytemuck::zeroed_vec(width as usize * height as usize);
+        if pixels.len() > CHUNK {
+            pixels.par_chunks_mut(CHUNK).for_each(|c| c.fill(Pixel::default()));
         } else {
-            vec![Pixel::default(); n]
-        };
+            pixels.fill(Pixel::default());
+        }
         Film { width, height, pixels }
     }
 
