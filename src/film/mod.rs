@@ -154,17 +154,11 @@ impl Film {
     /// once: a 640 x 480 film is 34 MB, 8,400 pages, and page faults cost ~1.5 us each on this
     /// machine's VM, so writing it on one thread took 13 ms (a sixth of a preview render's wall
     /// time), in parallel 7-8 ms. (Huge pages through `madvise` took it to 3-5 ms, but the kernel's
-    /// compaction for them made a process's first film take 4-65 ms: not used.) A film of one chunk
-    /// (up to 4096 pixels, 448 KB) is written on the calling thread.
+    /// compaction for them made a process's first film take 4-65 ms: not used.)
     pub fn new(width: u32, height: u32) -> Film {
         use rayon::prelude::*;
-        const CHUNK: usize = 1 << 12;
         let mut pixels: Vec<Pixel> = bytemuck::zeroed_vec(width as usize * height as usize);
-        if pixels.len() > CHUNK {
-            pixels.par_chunks_mut(CHUNK).for_each(|c| c.fill(Pixel::default()));
-        } else {
-            pixels.fill(Pixel::default());
-        }
+        pixels.par_chunks_mut(1 << 12).for_each(|c| c.fill(Pixel::default()));
         Film { width, height, pixels }
     }
 
