@@ -34,7 +34,7 @@ pub fn valid_x8(r: &[f32; 8], g: &[f32; 8], b: &[f32; 8]) -> u32 {
     (ok(r) & ok(g) & ok(b)).to_bitmask()
 }
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Pixel {
     pub sum: [i128; 3],
     pub sum_sq: [i128; 3],
@@ -149,17 +149,8 @@ pub struct Film {
 }
 
 impl Film {
-    /// An empty film. Its memory comes zeroed from the allocator (fresh pages for a large film) and is
-    /// then written with zeros by the rayon pool's threads, which faults its pages in on all cores at
-    /// once: a 640 x 480 film is 34 MB, 8,400 pages, and page faults cost ~1.5 us each on this
-    /// machine's VM, so writing it on one thread took 13 ms (a sixth of a preview render's wall
-    /// time), in parallel 7-8 ms. (Huge pages through `madvise` took it to 3-5 ms, but the kernel's
-    /// compaction for them made a process's first film take 4-65 ms: not used.)
     pub fn new(width: u32, height: u32) -> Film {
-        use rayon::prelude::*;
-        let mut pixels: Vec<Pixel> = bytemuck::zeroed_vec(width as usize * height as usize);
-        pixels.par_chunks_mut(1 << 12).for_each(|c| c.fill(Pixel::default()));
-        Film { width, height, pixels }
+        Film { width, height, pixels: vec![Pixel::default(); width as usize * height as usize] }
     }
 
     /// Linear radiance, row-major RGB.
