@@ -13,7 +13,7 @@
 # not run AVX-512 code, which `.cargo/config.toml`'s target-cpu=native emits on this machine.
 #
 # Usage: benches/icount.sh [--top N] [CASE...]     (default: all cases, top 12)
-# Cases: showcase spheres csg glass peer_a
+# Cases: showcase spheres csg glass peer_a peer_b peer_b_direct
 # Needs valgrind (apt-get install valgrind). Not run by CI or the tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,11 +22,11 @@ CASES=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --top) TOP=$2; shift 2 ;;
-    showcase|spheres|csg|glass|peer_a) CASES+=("$1"); shift ;;
-    *) echo "usage: $0 [--top N] [showcase|spheres|csg|glass|peer_a]..." >&2; exit 2 ;;
+    showcase|spheres|csg|glass|peer_a|peer_b|peer_b_direct) CASES+=("$1"); shift ;;
+    *) echo "usage: $0 [--top N] [showcase|spheres|csg|glass|peer_a|peer_b|peer_b_direct]..." >&2; exit 2 ;;
   esac
 done
-[ ${#CASES[@]} -eq 0 ] && CASES=(showcase spheres csg glass peer_a)
+[ ${#CASES[@]} -eq 0 ] && CASES=(showcase spheres csg glass peer_a peer_b peer_b_direct)
 command -v valgrind >/dev/null || { echo "valgrind not found (apt-get install valgrind)" >&2; exit 1; }
 
 OUT=target/icount
@@ -43,6 +43,8 @@ args_for() {
     csg) echo "scenes/bench_csg.toml --profile bench --spp 4" ;;
     glass) echo "scenes/glass.toml --profile bench --spp 4" ;;
     peer_a) echo "benches/peers/scenes/glass_csg.toml --profile benches/peers/profiles/pov_match.toml --spp 1 --light-samples 16" ;;
+    peer_b) echo "benches/peers/scenes/spheres_area.toml --profile benches/peers/profiles/mitsuba_path.toml --spp 4" ;;
+    peer_b_direct) echo "benches/peers/scenes/spheres_area.toml --profile benches/peers/profiles/mitsuba_direct.toml --spp 4" ;;
   esac
 }
 
