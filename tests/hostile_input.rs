@@ -565,3 +565,27 @@ fn work_units_cover_each_pixel_sample_once_at_any_size() {
         }
     }
 }
+
+/// Units are taken batch by batch, each batch's tiles column by column: `taken` is a bijection that
+/// keeps every unit in its batch, and two units taken one after the other inside a tile column are
+/// vertical neighbours (what two workers accumulate at the same time shares no film row).
+#[test]
+fn units_are_taken_column_by_column_within_a_batch() {
+    for (w, h, tile, samples) in [(37, 23, 16, 0..70), (5, 3, 7, 3..4), (64, 1, 1, 10..4200), (640, 400, 16, 0..4), (48, 80, 16, 0..40)] {
+        let units = WorkUnits::new(w, h, tile, samples.clone());
+        let (tiles_x, tiles_y) = (w.div_ceil(tile) as usize, h.div_ceil(tile) as usize);
+        let tiles = tiles_x * tiles_y;
+        let mut hit = vec![false; units.len()];
+        for k in 0..units.len() {
+            let i = units.taken(k);
+            assert!(i < units.len() && !hit[i], "{w}x{h} tile {tile}: unit {i} taken twice");
+            hit[i] = true;
+            assert_eq!(i / tiles, k / tiles, "{w}x{h}: a unit left its sample batch");
+            if k + 1 < units.len() && (k + 1) % tiles != 0 && (k + 1) % tiles % tiles_y != 0 {
+                let (a, b) = (units.get(i).tile, units.get(units.taken(k + 1)).tile);
+                assert_eq!((b.x0, b.y0), (a.x0, a.y1), "{w}x{h} tile {tile}: takes {k} and {} are not vertical neighbours", k + 1);
+            }
+        }
+        assert!(hit.iter().all(|&h| h));
+    }
+}
