@@ -145,94 +145,12 @@ impl Pixel {
 pub struct Film {
     pub width: u32,
     pub height: u32,
-    pub pixels: Pixels,
-}
-
-/// Cache line size the film aligns to.
-const LINE: usize = 64;
-
-/// A film's pixels (a slice through `Deref`), the first one at the start of a cache line. A pixel is
-/// 112 bytes, so a row of a 16-pixel tile is exactly 28 lines (1792 bytes): with the first pixel on a
-/// line boundary and an image width divisible by 4 (each image row then 7 x 64 bytes per 4 pixels),
-/// two tiles never share a cache line. Two workers accumulate horizontally adjacent tiles at the same
-/// time (work units are taken in row order); with the first and last line of every tile row shared
-/// (a `Vec<Pixel>` is only 16-byte aligned), each accumulation pulled them from the other core: on two
-/// threads the showcase's accumulate took 0.012-0.014 CPU s at 4 spp, aligned 0.010-0.012 (0.038-0.043
-/// and 0.028-0.034 in the machine's slow phase; one thread 0.007).
-pub struct Pixels {
-    raw: Vec<Pixel>,
-    off: usize,
-    len: usize,
-}
-
-impl Pixels {
-    /// `n` empty pixels.
-    pub fn new(n: usize) -> Pixels {
-        // The allocation is aligned to 16 bytes (`Pixel`'s alignment) and 112 = 48 mod 64, so one of
-        // the first four pixels starts a line.
-        let slots = LINE / std::mem::align_of::<Pixel>();
-        let raw = vec![Pixel::default(); n + slots - 1];
-        let off = (0..slots).find(|&k| (raw.as_ptr() as usize + k * std::mem::size_of::<Pixel>()).is_multiple_of(LINE)).unwrap_or(0);
-        Pixels { raw, off, len: n }
-    }
-}
-
-impl std::ops::Deref for Pixels {
-    type Target = [Pixel];
-    #[inline(always)]
-    fn deref(&self) -> &[Pixel] {
-        &self.raw[self.off..self.off + self.len]
-    }
-}
-
-impl std::ops::DerefMut for Pixels {
-    #[inline(always)]
-    fn deref_mut(&mut self) -> &mut [Pixel] {
-        &mut self.raw[self.off..self.off + self.len]
-    }
-}
-
-impl Clone for Pixels {
-    fn clone(&self) -> Pixels {
-        let mut p = Pixels::new(self.len);
-        p.copy_from_slice(self);
-        p
-    }
-}
-
-impl PartialEq for Pixels {
-    fn eq(&self, o: &Pixels) -> bool {
-        **self == **o
-    }
-}
-
-impl Eq for Pixels {}
-
-impl std::fmt::Debug for Pixels {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        (**self).fmt(f)
-    }
-}
-
-impl<'a> IntoIterator for &'a Pixels {
-    type Item = &'a Pixel;
-    type IntoIter = std::slice::Iter<'a, Pixel>;
-    fn into_iter(self) -> Self::IntoIter {
-        self.iter()
-    }
-}
-
-impl<'a> IntoIterator for &'a mut Pixels {
-    type Item = &'a mut Pixel;
-    type IntoIter = std::slice::IterMut<'a, Pixel>;
-    fn into_iter(self) -> Self::IntoIter {
-        self.iter_mut()
-    }
+    pub pixels: Vec<Pixel>,
 }
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Film {
-        Film { width, height, pixels: Pixels::new(width as usize * height as usize) }
+        Film { width, height, pixels: vec![Pixel::default(); width as usize * height as usize] }
     }
 
     /// Linear radiance, row-major RGB.
@@ -255,30 +173,6 @@ impl Film {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A film's first pixel starts a cache line, for every size (and after `clone`, which allocates
-    /// anew), and the pixels behave as a slice of `width x height` pixels: indexing, iteration,
-    /// equality of contents (not of padding or offset), `merge`.
-    #[test]
-    fn film_pixels_start_a_cache_line() {
-        for (w, h) in [(1, 1), (3, 2), (16, 16), (640, 480), (7, 13), (1024, 3)] {
-            let mut a = Film::new(w, h);
-            assert_eq!(a.pixels.len(), (w * h) as usize);
-            assert_eq!(a.pixels.as_ptr() as usize % LINE, 0, "{w}x{h}");
-            for (i, p) in a.pixels.iter_mut().enumerate() {
-                p.count = i as u64 + 1;
-            }
-            let b = a.clone();
-            assert_eq!(b.pixels.as_ptr() as usize % LINE, 0, "{w}x{h} clone");
-            assert!(a == b && b.pixels[0].count == 1 && b.pixels[(w * h - 1) as usize].count == (w * h) as u64);
-            let mut c = Film::new(w, h);
-            c.merge(&b);
-            assert!(c == b);
-            c.pixels[0].count += 1;
-            assert!(c != b);
-            assert_eq!((&c.pixels).into_iter().map(|p| p.count).sum::<u64>(), a.total_samples() + 1);
-        }
-    }
 
     /// Eight `add_quantized` calls, lane by lane.
     fn by_lane(q: &[[i64; 8]; 3]) -> Pixel {
