@@ -34,6 +34,35 @@ pub fn valid_x8(r: &[f32; 8], g: &[f32; 8], b: &[f32; 8]) -> u32 {
     (ok(r) & ok(g) & ok(b)).to_bitmask()
 }
 
+/// Samples below this magnitude in every channel (2^13) take the 64-bit path of accumulation
+/// ([`square_fixed_x8`], [`Pixel::add_small_x8`]): their quantized values are at most 2^45 and the
+/// squares' fixed-point values below 2^59, so 8 of each sum in an i64 without overflow.
+pub const SMALL_SAMPLE_VALUE: f32 = 8192.0;
+
+/// Lane bits of the samples (channel rows `r`, `g`, `b`) whose every channel is below
+/// [`SMALL_SAMPLE_VALUE`] in magnitude (so also valid: NaN compares false).
+#[inline(always)]
+pub fn small_x8(r: &[f32; 8], g: &[f32; 8], b: &[f32; 8]) -> u32 {
+    use wide::f32x8;
+    let lim = f32x8::splat(SMALL_SAMPLE_VALUE);
+    let ok = |v: &[f32; 8]| f32x8::from(*v).abs().simd_lt(lim);
+    (ok(r) & ok(g) & ok(b)).to_bitmask()
+}
+
+/// `(q * q) >> 32` (the sum-of-squares term of [`Pixel::add_quantized`]) of 8 quantized values of
+/// magnitude at most 2^45 ([`small_x8`] samples), in 64-bit lanes without a 128-bit product: with
+/// |q| = h 2^32 + l, `floor(q^2 / 2^32) = h^2 2^32 + 2 h l + floor(l^2 / 2^32)` exactly (the first two
+/// terms are whole multiples), and each product is of 32-bit factors (`vpmuludq`). Other lanes:
+/// unspecified (never used).
+#[inline(always)]
+pub fn square_fixed_x8(q: &[i64; 8]) -> [i64; 8] {
+    std::array::from_fn(|i| {
+        let a = q[i].unsigned_abs();
+        let (h, l) = (a >> 32, a & 0xffff_ffff);
+        ((h * h) << 32).wrapping_add(2 * h * l).wrapping_add((l * l) >> 32) as i64
+    })
+}
+
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Pixel {
     pub sum: [i128; 3],
@@ -102,6 +131,29 @@ impl Pixel {
             }
             self.sum[c] += s;
             self.sum_sq[c] += s2;
+        }
+        self.count += 8;
+    }
+
+    /// Add one [`small_x8`] sample given as its quantized channels and their [`square_fixed_x8`]
+    /// terms: the same sums as [`Pixel::add_quantized`], without its 128-bit products.
+    #[inline(always)]
+    pub fn add_small(&mut self, q: [i64; 3], sq: [i64; 3]) {
+        for c in 0..3 {
+            self.sum[c] += q[c] as i128;
+            self.sum_sq[c] += sq[c] as i128;
+        }
+        self.count += 1;
+    }
+
+    /// Add 8 [`small_x8`] samples (`q[c]`, `sq[c]`: channel `c` of the 8, quantized and squared): the
+    /// sums of 8 [`Pixel::add_quantized`] calls. Each channel's 8 values are summed in an i64 first
+    /// (below 2^48 and 2^62: no overflow).
+    #[inline(always)]
+    pub fn add_small_x8(&mut self, q: &[[i64; 8]; 3], sq: &[[i64; 8]; 3]) {
+        for c in 0..3 {
+            self.sum[c] += q[c].iter().sum::<i64>() as i128;
+            self.sum_sq[c] += sq[c].iter().sum::<i64>() as i128;
         }
         self.count += 8;
     }
@@ -220,6 +272,50 @@ mod tests {
         a.add_quantized_x8(&q);
         assert_eq!(a, by_lane(&q));
         assert!(valid > 3000 && invalid > 3000, "{valid} valid, {invalid} invalid");
+    }
+
+    /// The 64-bit path of small samples equals `add_quantized`'s 128-bit one: `small_x8` admits exactly
+    /// the samples below SMALL_SAMPLE_VALUE in every channel (the limit and its neighbours, NaN,
+    /// infinities, both signs), `square_fixed_x8` equals `(q * q) >> 32` on every admitted magnitude
+    /// (zero, the largest, every power of two and its neighbours, random bits), and `add_small` /
+    /// `add_small_x8` give the pixel of 8 `add_quantized` calls (the largest values in all 8 lanes too).
+    #[test]
+    fn small_samples_take_an_exact_64_bit_path() {
+        let lim = SMALL_SAMPLE_VALUE;
+        let edge = [lim, -lim, lim.next_down(), -lim.next_down(), lim.next_up(), f32::NAN, f32::INFINITY, 0.0, -0.0];
+        for (i, &v) in edge.iter().enumerate() {
+            let row = |c: usize| -> [f32; 8] { std::array::from_fn(|l| if l == c { v } else { 1.0 }) };
+            let bits = small_x8(&row(0), &row(1), &row(2));
+            let want = v.abs() < lim;
+            assert_eq!(bits, if want { 0xff } else { 0xff & !0b111 }, "value {i}: {v}");
+        }
+        let qmax = quantize(lim.next_down());
+        assert!(qmax <= 1 << 45);
+        let mut qs: Vec<i64> = vec![0, 1, -1, qmax, -qmax, (1 << 32) - 1, 1 << 32, (1 << 32) + 1];
+        for k in 0..46 {
+            qs.extend([(1i64 << k) - 1, 1 << k, -(1 << k), (1 << k) + 1].iter().filter(|q| q.unsigned_abs() <= qmax as u64));
+        }
+        let mut next = crate::sample::hash::test_uniforms(0x5a11);
+        qs.extend((0..4000).map(|_| ((next() as f64 - 0.5) * 2.0 * qmax as f64) as i64));
+        for c in qs.chunks(8) {
+            let q: [i64; 8] = std::array::from_fn(|l| c[l % c.len()]);
+            let sq = square_fixed_x8(&q);
+            for l in 0..8 {
+                assert_eq!(sq[l] as i128, (q[l] as i128 * q[l] as i128) >> 32, "q = {}", q[l]);
+            }
+            let rows = [q, q.map(|x| -x), q.map(|x| x / 3)];
+            let sqs = rows.map(|r| square_fixed_x8(&r));
+            let mut a = Pixel::default();
+            a.add_small_x8(&rows, &sqs);
+            assert_eq!(a, by_lane(&rows));
+            let mut b = Pixel::default();
+            (0..8).for_each(|l| b.add_small([rows[0][l], rows[1][l], rows[2][l]], [sqs[0][l], sqs[1][l], sqs[2][l]]));
+            assert_eq!(b, a);
+        }
+        let rows = [[qmax; 8], [-qmax; 8], [qmax, -qmax, qmax, -qmax, 0, 1, -1, qmax]];
+        let mut a = Pixel::default();
+        a.add_small_x8(&rows, &rows.each_ref().map(square_fixed_x8));
+        assert_eq!(a, by_lane(&rows));
     }
 
     /// The 8-lane quantization equals the scalar one on every kind of valid value: exact halves of the

@@ -2,7 +2,7 @@
 //! additions irrelevant (see `film`); non-finite samples are discarded and counted.
 
 use super::queues::PathTable;
-use crate::film::{quantize_x8, valid_x8, Film, Pixel};
+use crate::film::{quantize_x8, small_x8, square_fixed_x8, valid_x8, Film, Pixel};
 
 /// Returns the number of samples discarded as non-finite.
 pub fn accumulate(paths: &PathTable, film: &mut Film) -> u64 {
@@ -35,17 +35,27 @@ pub fn accumulate(paths: &PathTable, film: &mut Film) -> u64 {
         let (r, g, b) = (lanes(&paths.lr), lanes(&paths.lg), lanes(&paths.lb));
         let q = [quantize_x8(&r), quantize_x8(&g), quantize_x8(&b)];
         let valid = valid_x8(&r, &g, &b);
+        // Samples below SMALL_SAMPLE_VALUE (nearly all) have their squared terms computed 8 at a time
+        // in 64-bit lanes; the rest take `add_quantized`'s 128-bit products.
+        let small = small_x8(&r, &g, &b);
+        let sq = [square_fixed_x8(&q[0]), square_fixed_x8(&q[1]), square_fixed_x8(&q[2])];
         let px8 = &paths.pixel[base..base + m];
         // Eight valid samples of one pixel (the usual case from 8 samples per pixel on): summed per
         // channel in registers, then added to the run once.
         if m == 8 && valid == 0xff && px8.iter().all(|&p| p == px8[0]) {
             switch(px8[0], &mut run, &mut at, film);
-            run.add_quantized_x8(&q);
+            if small == 0xff {
+                run.add_small_x8(&q, &sq);
+            } else {
+                run.add_quantized_x8(&q);
+            }
             continue;
         }
         for (l, &px) in px8.iter().enumerate() {
             switch(px, &mut run, &mut at, film);
-            if valid >> l & 1 != 0 {
+            if small >> l & 1 != 0 {
+                run.add_small([q[0][l], q[1][l], q[2][l]], [sq[0][l], sq[1][l], sq[2][l]]);
+            } else if valid >> l & 1 != 0 {
                 run.add_quantized([q[0][l], q[1][l], q[2][l]]);
             } else {
                 bad += 1;
@@ -83,6 +93,10 @@ mod tests {
                     0 => f32::NAN,
                     1 => f32::INFINITY,
                     2 => -3e9,
+                    // Valid but beyond the 64-bit path (SMALL_SAMPLE_VALUE), either sign.
+                    3 => 1.0e6,
+                    4 => -2.0e9,
+                    5 => 8192.0,
                     _ => (u - 0.2) * 5.0,
                 };
                 (paths.lr[i], paths.lg[i], paths.lb[i]) = (v(next()), v(next()), v(next()));
