@@ -200,10 +200,14 @@ impl Sampler2d {
     /// is sample `index[l]` of the set keyed by `keys[l]`. Bit-identical to the scalar calls. Jittered
     /// sets of a power-of-two size up to 2^24 (the usual counts) take a branch-free path whose lane loop
     /// the compiler vectorises; other strategies and sizes call the scalar sampler per lane.
-    #[inline]
+    ///
+    /// The power-of-two jittered path is inlined into the caller (its keys and indices, often splats or
+    /// made lane by lane just before, then stay in registers instead of being reloaded as vectors from
+    /// scalar stores); the other paths are one out-of-line call.
+    #[inline(always)]
     pub fn sample_x8(&self, keys: &[u64; LANES], index: &[u32; LANES], permuted: bool) -> [f32x8; 2] {
-        let mut u = [[0.0f32; LANES]; 2];
         if self.strategy == Strategy::Jittered && self.n.is_power_of_two() && self.n <= 1 << 24 {
+            let mut u = [[0.0f32; LANES]; 2];
             let sh = PermuteShape::new(self.n);
             let (lx, ly) = (self.nx.trailing_zeros(), self.ny.trailing_zeros());
             let mask = self.n - 1;
@@ -213,7 +217,23 @@ impl Sampler2d {
                 u[0][l] = jitter_in_cell_pow2(s & (self.nx - 1), lx, (h >> 32) as u32);
                 u[1][l] = jitter_in_cell_pow2(s >> lx, ly, h as u32);
             }
-        } else if self.strategy == Strategy::Jittered && self.n <= 1 << 24 && index.iter().all(|&i| i < self.n) {
+            return [f32x8::from(u[0]), f32x8::from(u[1])];
+        }
+        self.sample_x8_general(keys, index, permuted)
+    }
+
+    /// [`Sampler2d::sample_x8`] as one out-of-line call: for loops that are long already (inlined
+    /// there, its code made the shadow stage's loop slower).
+    #[inline(never)]
+    pub fn sample_x8_call(&self, keys: &[u64; LANES], index: &[u32; LANES], permuted: bool) -> [f32x8; 2] {
+        self.sample_x8(keys, index, permuted)
+    }
+
+    /// [`Sampler2d::sample_x8`] for every set but the power-of-two jittered ones.
+    #[inline(never)]
+    fn sample_x8_general(&self, keys: &[u64; LANES], index: &[u32; LANES], permuted: bool) -> [f32x8; 2] {
+        let mut u = [[0.0f32; LANES]; 2];
+        if self.strategy == Strategy::Jittered && self.n <= 1 << 24 && index.iter().all(|&i| i < self.n) {
             // Other counts (48, 100, 1000 spp): the same strata and jitter as `sample_impl`, with the
             // cycle-walking permutation in 8 lanes and the integer divisions as f64 ones (exact here,
             // see `jitter_in_cell_div`), which vectorise where the integer ones do not.

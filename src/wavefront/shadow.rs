@@ -225,7 +225,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let permuted = across && !point;
                 let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
                 // A point light's one sample is the centre of its (unused) sample square.
-                let u = if point { [f32x8::splat(0.5); 2] } else { area.sample_x8(&keys_li, &index, permuted) };
+                let u = if point { [f32x8::splat(0.5); 2] } else { area.sample_x8_call(&keys_li, &index, permuted) };
                 let ls = sample_light_x8(light, p, u);
                 let cos = n.dot_unfused(ls.wi);
                 let c = (w * ls.weight).scale(cos / ns_lanes);
