@@ -400,13 +400,17 @@ fn bench_shadow(c: &mut Criterion) {
     g.bench_function("any_hit/bench_spheres.toml", |b| {
         b.iter(|| {
             pool.install(|| {
-                packets.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
-                    for g in ps.chunks(GROUP) {
-                        let mut rays = [g[0]; GROUP];
-                        rays[..g.len()].copy_from_slice(g);
-                        black_box(occlusion_group(&scene, &profile, &mut rays[..g.len()], &[None; GROUP], arena, false));
-                    }
-                })
+                // The packets are copied once per group (the traversal clobbers their tmax) into a
+                // scratch array made once per task.
+                packets.par_chunks(512).for_each_init(
+                    || (strata::csg::CsgArena::new(), [packets[0]; GROUP]),
+                    |(arena, rays), ps| {
+                        for g in ps.chunks(GROUP) {
+                            rays[..g.len()].copy_from_slice(g);
+                            black_box(occlusion_group(&scene, &profile, &mut rays[..g.len()], &[None; GROUP], arena, false));
+                        }
+                    },
+                )
             })
         })
     });
