@@ -252,6 +252,18 @@ impl Sampler2d {
             // light samples of a grid, sample j at every shading point of a chunk).
             let [x, y] = self.sample_impl(keys[0], index[0], false);
             return [f32x8::splat(x), f32x8::splat(y)];
+        } else if self.strategy == Strategy::Grid && self.n <= 1 << 24 && index.iter().all(|&i| i < self.n) {
+            // Grid samples (e.g. a 2x2 grid of pixel positions): the centres of the strata the jittered
+            // path above finds, the row and column by the same f64 quotient, the centres per lane.
+            let s = if permuted { permute_x8(index, &PermuteShape::new(self.n), &keys.map(perm_key)) } else { *index };
+            let nx = self.nx as f64;
+            for l in 0..LANES {
+                let sl = s[l] as f64;
+                let sy = quotient_below_2_24(sl, nx);
+                let sx = sl - sy * nx;
+                u[0][l] = cell_centre(sx as u32, self.nx);
+                u[1][l] = cell_centre(sy as u32, self.ny);
+            }
         } else {
             for l in 0..LANES {
                 [u[0][l], u[1][l]] = self.sample_impl(keys[l], index[l], permuted);
