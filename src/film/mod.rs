@@ -135,17 +135,6 @@ impl Pixel {
         self.count += 8;
     }
 
-    /// Add one [`small_x8`] sample given as its quantized channels and their [`square_fixed_x8`]
-    /// terms: the same sums as [`Pixel::add_quantized`], without its 128-bit products.
-    #[inline(always)]
-    pub fn add_small(&mut self, q: [i64; 3], sq: [i64; 3]) {
-        for c in 0..3 {
-            self.sum[c] += q[c] as i128;
-            self.sum_sq[c] += sq[c] as i128;
-        }
-        self.count += 1;
-    }
-
     /// Add 8 [`small_x8`] samples (`q[c]`, `sq[c]`: channel `c` of the 8, quantized and squared): the
     /// sums of 8 [`Pixel::add_quantized`] calls. Each channel's 8 values are summed in an i64 first
     /// (below 2^48 and 2^62: no overflow).
@@ -277,8 +266,8 @@ mod tests {
     /// The 64-bit path of small samples equals `add_quantized`'s 128-bit one: `small_x8` admits exactly
     /// the samples below SMALL_SAMPLE_VALUE in every channel (the limit and its neighbours, NaN,
     /// infinities, both signs), `square_fixed_x8` equals `(q * q) >> 32` on every admitted magnitude
-    /// (zero, the largest, every power of two and its neighbours, random bits), and `add_small` /
-    /// `add_small_x8` give the pixel of 8 `add_quantized` calls (the largest values in all 8 lanes too).
+    /// (zero, the largest, every power of two and its neighbours, random bits), and `add_small_x8`
+    /// gives the pixel of 8 `add_quantized` calls (the largest values in all 8 lanes too).
     #[test]
     fn small_samples_take_an_exact_64_bit_path() {
         let lim = SMALL_SAMPLE_VALUE;
@@ -308,9 +297,6 @@ mod tests {
             let mut a = Pixel::default();
             a.add_small_x8(&rows, &sqs);
             assert_eq!(a, by_lane(&rows));
-            let mut b = Pixel::default();
-            (0..8).for_each(|l| b.add_small([rows[0][l], rows[1][l], rows[2][l]], [sqs[0][l], sqs[1][l], sqs[2][l]]));
-            assert_eq!(b, a);
         }
         let rows = [[qmax; 8], [-qmax; 8], [qmax, -qmax, qmax, -qmax, 0, 1, -1, qmax]];
         let mut a = Pixel::default();

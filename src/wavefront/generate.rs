@@ -66,10 +66,12 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     let area = Sampler2d::new(profile.pixel_strategy, spp);
     let lens_set = Sampler2d::new(profile.lens_strategy, spp);
     // Per lane: pixel centre, the pixel's stream keys and the sample index; rays are made 8 at a time.
-    let mut cx = [0.0f32; LANES];
-    let mut cy = [0.0f32; LANES];
-    let mut keys = [[0u64; LANES]; 4]; // area, lens, time, wavelength
-    let mut index = [0u32; LANES];
+    // Lanes are written one by one into one of two buffers while the other, full, waits: a buffer is
+    // read (as vectors) one packet after it was filled, when its scalar stores have long reached the
+    // cache (read at once, each vector load would wait for the stores it overlaps).
+    let mut bufs = [Lanes::default(); 2];
+    let mut cur = 0;
+    let mut pending = false;
     let mut k = 0;
     let mut next_path = paths.len() as u32;
     let emit = |k: usize,
@@ -119,6 +121,13 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         // Whole packets of this pixel's samples (from 8 samples per pixel on) are filled as vectors:
         // the same lanes as below, without lane-by-lane stores that stall the vector loads after them.
         let mut first = samples.start;
+        if k == 0 && samples.end - first >= LANES as u32 && pending {
+            // (In order: the waiting packet's rays come first.)
+            let b = &bufs[cur ^ 1];
+            emit(LANES, &b.cx, &b.cy, &b.keys, &b.index, next_path, rays);
+            next_path += LANES as u32;
+            pending = false;
+        }
         while k == 0 && samples.end - first >= LANES as u32 {
             let (px, py) = ([x as f32 + 0.5; LANES], [y as f32 + 0.5; LANES]);
             let ids: [u32; LANES] = std::array::from_fn(|l| first + l as u32);
@@ -127,21 +136,41 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
             first += LANES as u32;
         }
         for s in first..samples.end {
-            (cx[k], cy[k], index[k]) = (x as f32 + 0.5, y as f32 + 0.5, s);
-            for (lane_keys, key) in keys.iter_mut().zip(pk) {
+            let b = &mut bufs[cur];
+            (b.cx[k], b.cy[k], b.index[k]) = (x as f32 + 0.5, y as f32 + 0.5, s);
+            for (lane_keys, key) in b.keys.iter_mut().zip(pk) {
                 lane_keys[k] = key;
             }
             k += 1;
             if k == LANES {
-                emit(LANES, &cx, &cy, &keys, &index, next_path, rays);
-                next_path += LANES as u32;
-                k = 0;
+                if pending {
+                    let b = &bufs[cur ^ 1];
+                    emit(LANES, &b.cx, &b.cy, &b.keys, &b.index, next_path, rays);
+                    next_path += LANES as u32;
+                }
+                (pending, cur, k) = (true, cur ^ 1, 0);
             }
         }
     }
-    if k > 0 {
-        emit(k, &cx, &cy, &keys, &index, next_path, rays);
+    if pending {
+        let b = &bufs[cur ^ 1];
+        emit(LANES, &b.cx, &b.cy, &b.keys, &b.index, next_path, rays);
+        next_path += LANES as u32;
     }
+    if k > 0 {
+        let b = &bufs[cur];
+        emit(k, &b.cx, &b.cy, &b.keys, &b.index, next_path, rays);
+    }
+}
+
+/// Eight lanes of camera samples waiting to become rays: pixel centres, the pixels' stream keys (area,
+/// lens, time, wavelength) and the sample indices.
+#[derive(Clone, Copy, Default)]
+struct Lanes {
+    cx: [f32; LANES],
+    cy: [f32; LANES],
+    keys: [[u64; LANES]; 4],
+    index: [u32; LANES],
 }
 
 /// Image-plane offsets of 8 pixel samples for `filter`: the box filter in 8 lanes, tent and Gaussian
