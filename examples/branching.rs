@@ -102,7 +102,7 @@ fn timed_render(scene: &Scene, profile: Profile, seed: u64, reps: u32) -> (Film,
 
 fn mse(a: &Film, reference: &[[f64; 3]]) -> f64 {
     let mut s = 0.0;
-    for (p, r) in a.pixels.iter().zip(reference) {
+    for (p, r) in a.pixels().zip(reference) {
         let m = p.mean();
         for c in 0..3 {
             s += (m[c] as f64 - r[c]).powi(2);
@@ -126,18 +126,16 @@ fn main() {
             jobs.push(render_into(&job, Film::new(scene.width, scene.height)).0);
         }
         let reference: Vec<[f64; 3]> = jobs[0]
-            .pixels
-            .iter()
-            .zip(&jobs[1].pixels)
+            .pixels()
+            .zip(jobs[1].pixels())
             .map(|(x, y)| {
                 let (m0, m1) = (x.mean(), y.mean());
                 [0, 1, 2].map(|c| 0.5 * (m0[c] as f64 + m1[c] as f64))
             })
             .collect();
         let ref_var: f64 = jobs[0]
-            .pixels
-            .iter()
-            .zip(&jobs[1].pixels)
+            .pixels()
+            .zip(jobs[1].pixels())
             .map(|(x, y)| {
                 let (v0, v1) = (x.variance_of_mean(), y.variance_of_mean());
                 (0..3).map(|c| 0.25 * (v0[c] as f64 + v1[c] as f64)).sum::<f64>()

@@ -181,8 +181,8 @@ fn analytic_reference_matches_the_renderer() {
 
 fn check_z_scores(film: &Film, exact: &[DVec3], what: &str) {
     let (mut z2, mut diff, mut var, mut mean_r, mut mean_a) = (0.0, 0.0, 0.0, 0.0, 0.0);
-    let n = film.pixels.len() as f64;
-    for (p, e) in film.pixels.iter().zip(exact) {
+    let n = film.len() as f64;
+    for (p, e) in film.pixels().zip(exact) {
         // One channel: the light is white, so the channels are the same estimate scaled by the albedo.
         let (m, v) = (p.mean().x as f64, p.variance_of_mean().x as f64);
         assert!(v > 0.0);

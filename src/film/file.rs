@@ -143,7 +143,7 @@ fn profile_differences(x: &str, y: &str, (a, b): (&str, &str)) -> String {
 pub fn encode(header: &FilmHeader, film: &Film) -> Vec<u8> {
     assert_eq!((header.width, header.height), (film.width, film.height), "film and header sizes differ");
     let n_units = header.completed.len();
-    let mut out = Vec::with_capacity(FIXED_HEADER + header.profile.len() + n_units.div_ceil(8) + film.pixels.len() * PIXEL_BYTES + 8);
+    let mut out = Vec::with_capacity(FIXED_HEADER + header.profile.len() + n_units.div_ceil(8) + film.len() * PIXEL_BYTES + 8);
     out.extend_from_slice(&MAGIC);
     for v in [VERSION, header.width, header.height, header.spp, header.samples.start, header.samples.end, header.tile, n_units as u32] {
         out.extend_from_slice(&v.to_le_bytes());
@@ -158,7 +158,7 @@ pub fn encode(header: &FilmHeader, film: &Film) -> Vec<u8> {
         bits[i / 8] |= 1 << (i % 8);
     }
     out.extend_from_slice(&bits);
-    for p in &film.pixels {
+    for p in film.pixels() {
         for v in p.sum.iter().chain(&p.sum_sq) {
             out.extend_from_slice(&v.to_le_bytes());
         }
@@ -263,8 +263,8 @@ pub fn decode(bytes: &[u8]) -> Result<FilmFile, String> {
         return bad("bits set past the last work unit".into());
     }
     let mut film = Film::new(width, height);
-    for p in film.pixels.iter_mut() {
-        *p = Pixel { sum: [c.i128(), c.i128(), c.i128()], sum_sq: [c.i128(), c.i128(), c.i128()], count: c.u64() };
+    for i in 0..film.len() {
+        film.set_pixel(i, Pixel { sum: [c.i128(), c.i128(), c.i128()], sum_sq: [c.i128(), c.i128(), c.i128()], count: c.u64() });
     }
     let header = FilmHeader { width, height, spp, samples, tile, scene_hash, seed, profile, completed };
     Ok(FilmFile { header, film })
@@ -309,11 +309,12 @@ mod tests {
 
     fn sample() -> (FilmHeader, Film) {
         let mut film = Film::new(5, 3);
-        for (i, p) in film.pixels.iter_mut().enumerate() {
-            // Values that use the high bits and the sign of the 128-bit sums.
-            p.sum = [i as i128 - 7, (i as i128) << 100, -(1i128 << 90)];
-            p.sum_sq = [1, 2, i as i128];
-            p.count = i as u64 * 3;
+        for i in 0..film.len() {
+            // Odd pixels use the high bits and the sign of the 128-bit sums (the film keeps them in its
+            // side table), even ones fit its 64-bit cells.
+            let big = if i % 2 == 1 { (i as i128) << 100 } else { i as i128 * 1000 };
+            let sum = [i as i128 - 7, big, -(1i128 << [40, 90][i % 2])];
+            film.set_pixel(i, Pixel { sum, sum_sq: [1, 2, i as i128], count: i as u64 * 3 });
         }
         let profile = profile_record(&Profile::builtin("preview"));
         let n = crate::render::unit_count(5, 3, 2, 1..4);

@@ -1,6 +1,7 @@
 //! The film: per pixel sum, sum of squares and sample count.
 //!
-//! Sums are kept in 128-bit fixed point rather than floating point, so accumulation is associative: the
+//! Sums are kept as fixed-point integers rather than floating point (64-bit in the film's compact cells,
+//! 128-bit [`Pixel`]s for pixels that outgrow them), so accumulation is associative: the
 //! image does not depend on the order in which samples arrive (threads, tiles), and two films of disjoint
 //! sample ranges add up to exactly (bit for bit) the film of their union. Each sample value v is quantised
 //! once to the integer q = round(v 2^32) (an i64: a fast conversion); the sum adds q and the sum of squares
@@ -182,32 +183,156 @@ impl Pixel {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// One pixel as the film stores it: the sums of a [`Pixel`] in 64 bits each and its count in 32, one
+/// cache line (half of a `Pixel`: half the memory, the page faults of a new film and the lines the
+/// accumulate stage touches). A pixel whose sums would leave that range (a sample above ~2^15 summed
+/// thousands of times, or more than 2^32 samples) moves to the film's side table of [`Pixel`]s, and
+/// `wide` is then its index there plus one. Either way the stored values are exact, so the film is the
+/// same whatever the order of additions.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+struct Cell {
+    sum: [i64; 3],
+    sum_sq: [i64; 3],
+    count: u32,
+    wide: u32,
+}
+
+/// Bytes the film takes per pixel (pixels moved to the side table take a [`Pixel`] more).
+pub const FILM_BYTES_PER_PIXEL: usize = std::mem::size_of::<Cell>();
+
+impl Cell {
+    /// `self` plus `p` as a compact cell, or `None` when a sum or the count leaves the cell's range.
+    #[inline(always)]
+    fn checked_add(&self, p: &Pixel) -> Option<Cell> {
+        // Every sum in 128 bits, then one test of all the ranges (no branch per value).
+        let mut out = *self;
+        let mut ok = true;
+        let mut add = |a: i64, b: i128| -> i64 {
+            let (s, over) = (a as i128).overflowing_add(b);
+            ok &= !over & (s as i64 as i128 == s);
+            s as i64
+        };
+        for c in 0..3 {
+            out.sum[c] = add(self.sum[c], p.sum[c]);
+            out.sum_sq[c] = add(self.sum_sq[c], p.sum_sq[c]);
+        }
+        let (n, over) = p.count.overflowing_add(self.count as u64);
+        out.count = n as u32;
+        (ok & !over & (n >> 32 == 0)).then_some(out)
+    }
+
+    fn to_pixel(self) -> Pixel {
+        Pixel { sum: self.sum.map(i128::from), sum_sq: self.sum_sq.map(i128::from), count: self.count as u64 }
+    }
+}
+
+/// Per pixel sums of a render (row-major), exact integers whatever the order of additions (see the
+/// module doc). Pixels are read as [`Pixel`]s ([`Film::pixel`], [`Film::pixels`]); the storage is
+/// compact ([`FILM_BYTES_PER_PIXEL`]).
+#[derive(Clone, Debug)]
 pub struct Film {
     pub width: u32,
     pub height: u32,
-    pub pixels: Vec<Pixel>,
+    cells: Vec<Cell>,
+    /// Pixels whose sums left the 64-bit range (`Cell::wide` - 1 indexes here).
+    wide: Vec<Pixel>,
 }
+
+/// Films are equal when every pixel's sums and count are (however each is stored).
+impl PartialEq for Film {
+    fn eq(&self, o: &Film) -> bool {
+        (self.width, self.height) == (o.width, o.height) && self.pixels().eq(o.pixels())
+    }
+}
+
+impl Eq for Film {}
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Film {
-        Film { width, height, pixels: vec![Pixel::default(); width as usize * height as usize] }
+        let mut cells = vec![Cell::default(); width as usize * height as usize];
+        // The allocation may come as untouched zero pages (the compiler turns allocate-and-zero into
+        // a zeroed allocation): touch every page now, once, rather than in the render, where each first
+        // write would fault inside the accumulate stage with the film locked (~1.5 us a page here).
+        for c in cells.iter_mut().step_by(4096 / FILM_BYTES_PER_PIXEL) {
+            std::hint::black_box(c).wide = 0;
+        }
+        Film { width, height, cells, wide: Vec::new() }
+    }
+
+    /// Number of pixels.
+    pub fn len(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Pixel `i` (row-major).
+    #[inline]
+    pub fn pixel(&self, i: usize) -> Pixel {
+        match self.cells[i] {
+            c @ Cell { wide: 0, .. } => c.to_pixel(),
+            Cell { wide, .. } => self.wide[wide as usize - 1],
+        }
+    }
+
+    /// Every pixel, row-major.
+    pub fn pixels(&self) -> impl ExactSizeIterator<Item = Pixel> + '_ {
+        (0..self.len()).map(|i| self.pixel(i))
+    }
+
+    /// Add `p`'s sums and count to pixel `i`.
+    #[inline(always)]
+    pub fn merge_pixel(&mut self, i: usize, p: &Pixel) {
+        let cell = &mut self.cells[i];
+        if cell.wide == 0 {
+            if let Some(sum) = cell.checked_add(p) {
+                *cell = sum;
+                return;
+            }
+        }
+        self.merge_wide(i, p);
+    }
+
+    /// [`Film::merge_pixel`] of a pixel in (or moving to) the side table.
+    #[cold]
+    #[inline(never)]
+    fn merge_wide(&mut self, i: usize, p: &Pixel) {
+        let cell = &mut self.cells[i];
+        if cell.wide == 0 {
+            self.wide.push(cell.to_pixel());
+            cell.wide = u32::try_from(self.wide.len()).expect("at most 2^32 - 1 wide pixels");
+        }
+        self.wide[cell.wide as usize - 1].merge(p);
+    }
+
+    /// Make pixel `i` exactly `p`.
+    pub fn set_pixel(&mut self, i: usize, p: Pixel) {
+        let cell = &mut self.cells[i];
+        if cell.wide != 0 {
+            self.wide[cell.wide as usize - 1] = p;
+        } else {
+            *cell = Cell::default();
+            self.merge_pixel(i, &p);
+        }
     }
 
     /// Linear radiance, row-major RGB.
     pub fn to_rgb(&self) -> Vec<Vec3> {
-        self.pixels.iter().map(|p| p.mean()).collect()
+        self.pixels().map(|p| p.mean()).collect()
     }
 
     pub fn merge(&mut self, o: &Film) {
         assert_eq!((self.width, self.height), (o.width, o.height));
-        for (a, b) in self.pixels.iter_mut().zip(&o.pixels) {
-            a.merge(b);
+        for (i, p) in o.pixels().enumerate() {
+            self.merge_pixel(i, &p);
         }
     }
 
     pub fn total_samples(&self) -> u64 {
-        self.pixels.iter().map(|p| p.count).sum()
+        self.pixels().map(|p| p.count).sum()
     }
 }
 
@@ -261,6 +386,53 @@ mod tests {
         a.add_quantized_x8(&q);
         assert_eq!(a, by_lane(&q));
         assert!(valid > 3000 && invalid > 3000, "{valid} valid, {invalid} invalid");
+    }
+
+    /// The film's compact cells hold exactly what 128-bit pixels hold: runs merged into a film and into
+    /// plain `Pixel`s agree pixel by pixel while sums cross the 64-bit range in either direction (up to
+    /// i64::MAX and past it, down to i64::MIN and past it), sums of squares do, and counts pass u32::MAX;
+    /// pixels that moved to the side table keep merging there; films equal in value are equal however
+    /// their pixels are stored; `set_pixel` replaces compact and wide pixels alike.
+    #[test]
+    fn compact_cells_hold_exact_sums_and_move_wide_pixels_aside() {
+        let max = i64::MAX as i128;
+        let runs: [Pixel; 6] = [
+            Pixel { sum: [max - 5, -max, 1], sum_sq: [3, 0, 1], count: 2 },
+            Pixel { sum: [5, -1, -2], sum_sq: [0, 1, 1], count: 1 },
+            Pixel { sum: [0, -1, 0], sum_sq: [0, 0, 0], count: 1 },
+            Pixel { sum: [1, 7, 1], sum_sq: [max, 0, 2], count: 1 },
+            Pixel { sum: [-(max + 3), 0, 0], sum_sq: [1, 0, 0], count: u32::MAX as u64 },
+            Pixel { sum: [1 << 100, 0, -1], sum_sq: [1 << 90, 1, 1], count: 3 },
+        ];
+        let mut film = Film::new(4, 2);
+        let mut want = vec![Pixel::default(); 8];
+        let mut next = crate::sample::hash::test_uniforms(0xf11);
+        let mut moved = 0;
+        for step in 0..400 {
+            let i = (next() * 8.0) as usize % 8;
+            let r = runs[(next() * 6.0) as usize % 6];
+            film.merge_pixel(i, &r);
+            want[i].merge(&r);
+            assert_eq!(film.pixel(i), want[i], "step {step}, pixel {i}");
+            moved = film.wide.len();
+        }
+        assert!(film.pixels().eq(want.iter().copied()));
+        assert!(moved > 0 && moved <= 8, "{moved} pixels moved to the side table");
+        // The same values stored compactly (a film built by set_pixel from small values) compare equal.
+        let mut a = Film::new(2, 1);
+        let mut b = Film::new(2, 1);
+        a.merge_pixel(0, &Pixel { sum: [max, 0, 0], sum_sq: [0; 3], count: 1 });
+        a.merge_pixel(0, &Pixel { sum: [1, 0, 0], sum_sq: [0; 3], count: 1 });
+        a.merge_pixel(0, &Pixel { sum: [-max, 0, 0], sum_sq: [0; 3], count: 1 });
+        assert_eq!(a.wide.len(), 1);
+        b.set_pixel(0, Pixel { sum: [1, 0, 0], sum_sq: [0; 3], count: 3 });
+        assert_eq!(b.wide.len(), 0);
+        assert_eq!(a, b);
+        b.set_pixel(1, Pixel { sum: [2, 0, 0], sum_sq: [0; 3], count: 1 });
+        assert_ne!(a, b);
+        a.set_pixel(0, Pixel { sum: [-4, 0, 0], sum_sq: [0; 3], count: 9 });
+        assert_eq!(a.pixel(0), Pixel { sum: [-4, 0, 0], sum_sq: [0; 3], count: 9 });
+        assert_eq!(FILM_BYTES_PER_PIXEL, 64);
     }
 
     /// The 64-bit path of small samples equals `add_quantized`'s 128-bit one: `small_x8` admits exactly

@@ -117,7 +117,7 @@ impl Compiler<'_> {
                 format!(
                     "{width} x {height} = {} pixels; the limit is {MAX_PIXELS} (the film takes {} bytes per pixel)",
                     width as u64 * height as u64,
-                    std::mem::size_of::<crate::film::Pixel>()
+                    crate::film::FILM_BYTES_PER_PIXEL
                 ),
             ));
         }

@@ -253,9 +253,9 @@ pub struct Scene {
 
 /// Limits that protect the machine; exceeding one is an input error.
 pub const MAX_IMAGE_SIDE: i64 = 16384;
-/// Largest image, in pixels (2^25: 8192 x 4096; 8K UHD fits). The film keeps `size_of::<film::Pixel>()`
-/// = 112 bytes per pixel (exact fixed-point sums and sums of squares), 3.75 GB at this limit; a 16384 x
-/// 16384 film would take 30 GB.
+/// Largest image, in pixels (2^25: 8192 x 4096; 8K UHD fits). The film keeps
+/// [`crate::film::FILM_BYTES_PER_PIXEL`] = 64 bytes per pixel (exact fixed-point sums and sums of
+/// squares), 2.1 GB at this limit; a 16384 x 16384 film would take 17 GB.
 pub const MAX_PIXELS: u64 = 1 << 25;
 pub const MAX_PRIMS: usize = 10_000_000;
 

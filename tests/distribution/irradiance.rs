@@ -162,8 +162,7 @@ fn grazing_quad_light_irradiance_matches_lambert_polygon_formula() {
     // Near the light the integrand is sharply peaked (per-pixel noise of several %), so each pixel is
     // checked against its own standard error: 256 independent samples per pixel.
     let zs: Vec<f64> = film
-        .pixels
-        .iter()
+        .pixels()
         .zip(&truth)
         .map(|(px, t)| ((px.mean().as_dvec3() - *t) / px.variance_of_mean().as_dvec3().max(DVec3::splat(1e-30)).sqrt()).abs().max_element())
         .collect();

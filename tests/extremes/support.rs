@@ -57,7 +57,7 @@ pub fn render_scene(scene: &Scene, profile: Profile) -> Image {
     assert_eq!(stats.nonfinite_samples, 0, "non-finite samples discarded");
     assert_eq!(film.total_samples(), scene.width as u64 * scene.height as u64 * spp as u64);
     let px = film.to_rgb();
-    let var = film.pixels.iter().map(|p| p.variance_of_mean()).collect();
+    let var = film.pixels().map(|p| p.variance_of_mean()).collect();
     for (i, p) in px.iter().enumerate() {
         assert!(p.is_finite() && p.min_element() >= 0.0, "pixel {i} = {p}");
     }

@@ -99,7 +99,7 @@ fn white_furnace_under_both_branching_policies() {
             profile.throughput_cutoff = 1e-3;
             let film = render(&s, profile, 5);
             let (mut lo, mut hi, mut sum) = (f64::MAX, f64::MIN, 0.0);
-            for p in &film.pixels {
+            for p in film.pixels() {
                 let (m, sd) = (p.mean().as_dvec3(), p.variance_of_mean().as_dvec3().max_element().sqrt());
                 lo = lo.min(m.min_element());
                 hi = hi.max(m.max_element());
@@ -107,7 +107,7 @@ fn white_furnace_under_both_branching_policies() {
                 assert!(m.min_element() >= 1.0 - loss_bound - 5.0 * sd - 1e-6, "{name} {branching:?}: pixel {m:?} (sd {sd})");
                 assert!(m.max_element() <= 1.0 + 5.0 * sd + 1e-6, "{name} {branching:?}: pixel {m:?} (sd {sd})");
             }
-            let mean = sum / (3.0 * film.pixels.len() as f64);
+            let mean = sum / (3.0 * film.len() as f64);
             eprintln!("furnace {name} {branching:?}: mean {mean:.6}, pixels in [{lo:.5}, {hi:.5}]");
             assert!((mean - 1.0).abs() < 2e-3, "{name} {branching:?}: mean {mean}");
             means.push(mean);
@@ -132,9 +132,9 @@ fn white_furnace_with_dispersion() {
     profile.max_depth = 64;
     profile.branching = Branching::Roulette;
     let film = render(&s, profile, 9);
-    let n = film.pixels.len() as f64;
+    let n = film.len() as f64;
     for c in 0..3 {
-        let vals: Vec<f64> = film.pixels.iter().map(|p| p.mean()[c] as f64).collect();
+        let vals: Vec<f64> = film.pixels().map(|p| p.mean()[c] as f64).collect();
         let mean = vals.iter().sum::<f64>() / n;
         let se = (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
         eprintln!("dispersive furnace channel {c}: mean {mean:.4} +- {se:.4}");
@@ -167,9 +167,9 @@ fn absorbing_slab_render_matches_the_series_of_internal_reflections() {
         profile.branching = branching;
         profile.throughput_cutoff = 1e-6;
         let film = render(&s, profile, 11);
-        let n_px = film.pixels.len() as f64;
-        let mean = film.pixels.iter().map(|p| p.mean().as_dvec3()).sum::<DVec3>() / n_px;
-        let se = (film.pixels.iter().map(|p| p.variance_of_mean().as_dvec3()).sum::<DVec3>() / (n_px * n_px)).powf(0.5);
+        let n_px = film.len() as f64;
+        let mean = film.pixels().map(|p| p.mean().as_dvec3()).sum::<DVec3>() / n_px;
+        let se = (film.pixels().map(|p| p.variance_of_mean().as_dvec3()).sum::<DVec3>() / (n_px * n_px)).powf(0.5);
         let rel = ((mean - want) / want).abs();
         eprintln!("slab {branching:?}: mean {mean:.6}, series {want:.6}, rel err {:.1e}, se {:.1e}", rel.max_element(), se.max_element());
         // Split is deterministic here (1e-3: the camera rays are up to 1 degree off normal); roulette adds noise.
