@@ -155,6 +155,13 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     let (spp, nl) = (profile.spp as u64, profile.light_samples as u64);
     let across = matches!(profile.light_strategy, Strategy::Jittered | Strategy::Sobol) && spp * nl <= 1 << 24;
     let area = Sampler2d::new(profile.light_strategy, if across { (spp * nl) as u32 } else { profile.light_samples });
+    // A grid's sample j is the same point of the light square for every shading point (no key, no
+    // permutation): computed once here.
+    let grid: Vec<[f32x8; 2]> = if profile.light_strategy == Strategy::Grid && !across {
+        (0..profile.light_samples).map(|j| area.sample_x8_call(&[0; LANES], &[j; LANES], false)).collect()
+    } else {
+        Vec::new()
+    };
     let walk = any_passable(scene, profile);
     let light_key = |i: usize, li: usize| light_key(seed, nee, across, i, li);
     let mut keys = LightKeys { keys: [0; KEY_CACHE], cached: None };
@@ -225,7 +232,11 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let permuted = across && !point;
                 let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
                 // A point light's one sample is the centre of its (unused) sample square.
-                let u = if point { [f32x8::splat(0.5); 2] } else { area.sample_x8_call(&keys_li, &index, permuted) };
+                let u = match (point, grid.get(j as usize)) {
+                    (true, _) => [f32x8::splat(0.5); 2],
+                    (false, Some(&u)) => u,
+                    (false, None) => area.sample_x8_call(&keys_li, &index, permuted),
+                };
                 let ls = sample_light_x8(light, p, u);
                 let cos = n.dot_unfused(ls.wi);
                 let c = (w * ls.weight).scale(cos / ns_lanes);
