@@ -74,16 +74,13 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     let mut pending = false;
     let mut k = 0;
     let mut next_path = paths.len() as u32;
-    let emit = |k: usize,
-                cx: &[f32; LANES],
-                cy: &[f32; LANES],
-                keys: &[[u64; LANES]; 4],
-                index: &[u32; LANES],
-                first: u32,
-                rays: &mut RayQueue| {
+    // Rays (and their path ids, from `next_path` on) for the first `k` lanes of `b`.
+    let emit = |k: usize, b: &Lanes, next_path: &mut u32, rays: &mut RayQueue| {
+        let (keys, index, first) = (&b.keys, &b.index, *next_path);
+        *next_path += k as u32;
         let off = filter_offsets(profile.filter, area.sample_x8(&keys[0], index, true));
         let lens = if f.lens { sample_disk_concentric_x8(lens_set.sample_x8(&keys[1], index, true)) } else { [f32x8::ZERO; 2] };
-        let (o, d) = cam.rays_x8(f32x8::from(*cx) + off[0], f32x8::from(*cy) + off[1], lens);
+        let (o, d) = cam.rays_x8(f32x8::from(b.cx) + off[0], f32x8::from(b.cy) + off[1], lens);
         // New paths: branch, depth, bounce counts, flags and media all start empty (zero).
         let mut rows = RayRows {
             o: o.rows(),
@@ -123,16 +120,17 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         let mut first = samples.start;
         if k == 0 && samples.end - first >= LANES as u32 && pending {
             // (In order: the waiting packet's rays come first.)
-            let b = &bufs[cur ^ 1];
-            emit(LANES, &b.cx, &b.cy, &b.keys, &b.index, next_path, rays);
-            next_path += LANES as u32;
+            emit(LANES, &bufs[cur ^ 1], &mut next_path, rays);
             pending = false;
         }
         while k == 0 && samples.end - first >= LANES as u32 {
-            let (px, py) = ([x as f32 + 0.5; LANES], [y as f32 + 0.5; LANES]);
-            let ids: [u32; LANES] = std::array::from_fn(|l| first + l as u32);
-            emit(LANES, &px, &py, &pk.map(|key| [key; LANES]), &ids, next_path, rays);
-            next_path += LANES as u32;
+            let whole = Lanes {
+                cx: [x as f32 + 0.5; LANES],
+                cy: [y as f32 + 0.5; LANES],
+                keys: pk.map(|key| [key; LANES]),
+                index: std::array::from_fn(|l| first + l as u32),
+            };
+            emit(LANES, &whole, &mut next_path, rays);
             first += LANES as u32;
         }
         for s in first..samples.end {
@@ -144,22 +142,17 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
             k += 1;
             if k == LANES {
                 if pending {
-                    let b = &bufs[cur ^ 1];
-                    emit(LANES, &b.cx, &b.cy, &b.keys, &b.index, next_path, rays);
-                    next_path += LANES as u32;
+                    emit(LANES, &bufs[cur ^ 1], &mut next_path, rays);
                 }
                 (pending, cur, k) = (true, cur ^ 1, 0);
             }
         }
     }
     if pending {
-        let b = &bufs[cur ^ 1];
-        emit(LANES, &b.cx, &b.cy, &b.keys, &b.index, next_path, rays);
-        next_path += LANES as u32;
+        emit(LANES, &bufs[cur ^ 1], &mut next_path, rays);
     }
     if k > 0 {
-        let b = &bufs[cur];
-        emit(k, &b.cx, &b.cy, &b.keys, &b.index, next_path, rays);
+        emit(k, &bufs[cur], &mut next_path, rays);
     }
 }
 
