@@ -185,8 +185,9 @@ impl Pixel {
 
 /// One pixel as the film stores it: the sums of a [`Pixel`] in 64 bits each and its count in 32, one
 /// cache line (half of a `Pixel`: half the memory, the page faults of a new film and the lines the
-/// accumulate stage touches). A pixel whose sums would leave that range (a sample above ~2^15 summed
-/// thousands of times, or more than 2^32 samples) moves to the film's side table of [`Pixel`]s, and
+/// accumulate stage touches). A pixel whose sums would leave that range (in units of 2^-32: a sum of
+/// squared samples reaching 2^31, e.g. radiance 1,000 over 2,000 samples or 100 over 200,000, or more
+/// than 2^32 samples) moves to the film's side table of [`Pixel`]s, and
 /// `wide` is then its index there plus one. Either way the stored values are exact, so the film is the
 /// same whatever the order of additions.
 #[derive(Clone, Copy, Debug, Default)]
