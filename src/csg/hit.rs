@@ -2,7 +2,7 @@
 //! packet), then Roth's merge per lane (`merge.rs`).
 
 use super::interval_x8::leaf_x8;
-use super::merge::{eval_lane, for_each_boundary, tol_base, CsgArena, LaneJob, COINCIDENT_EPS};
+use super::merge::{eval_lane, for_each_boundary, lanes_with_boundaries_x8, tol_base, CsgArena, LaneJob, COINCIDENT_EPS};
 use super::program::{Csg, Solid};
 use crate::simd::{f32x8, Ray8, Vec3x8};
 use glam::Vec3;
@@ -79,8 +79,10 @@ fn each_lane_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgA
         return;
     }
     let base = prepare_x8(csg, s, ray, arena);
-    let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
     let prog = csg.program(s);
+    // Lanes whose merge cannot have a boundary in (tmin, tmax) skip it.
+    let mask = mask & lanes_with_boundaries_x8(prog, &arena.cross[..s.leaf_count as usize], tmin, ray.tmax, f32x8::from(base));
+    let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
     for lane in 0..8 {
         if mask & (1 << lane) != 0 {
             let job = LaneJob { prog, leaf_start: s.leaf_start, lane, tmin: t0[lane], tmax: t1[lane], base: base[lane] };

@@ -34,6 +34,7 @@
 
 use super::program::{Instr, Op};
 use super::CsgHit;
+use crate::simd::f32x8;
 
 /// Relative tolerance of the coincident-crossing rule (see the module docs).
 pub const COINCIDENT_EPS: f32 = 1e-5;
@@ -226,6 +227,78 @@ fn boundary(i: usize, e: &Ev) -> CsgHit {
     CsgHit { t: e.t, leaf: e.tag & !FLIP, flip: e.tag & FLIP != 0, entering: i.is_multiple_of(2) }
 }
 
+/// Stack entries of [`lanes_with_boundaries_x8`]: deeper programs take the merge on every lane.
+const HULL_STACK: usize = 8;
+
+/// The lanes of a packet whose merge may have a boundary in `(tmin, tmax)`: a conservative test in 8
+/// lanes on the crossing table, before the merge per lane, which the other lanes skip.
+///
+/// Every event of a merged list is a copy of a leaf crossing (the sweep emits a crossing of the group
+/// it closes; the shortcuts keep or drop whole lists), so each node's events lie in an interval `[L, H]`
+/// computed bottom-up: a leaf's from its non-empty intervals; a union's `[min L, max H]`; an
+/// intersection's `[max L - tol, min H + tol]` (the result changes only inside both operands, up to the
+/// group that contains the change: its first crossing may precede the operand's own by the tolerance,
+/// and the emitted crossing may follow the group's start by as much); a difference's `[L_a - tol, H_a +
+/// tol]` (only where `a` is inside); `L > H` means no event. `tol` is the lane's largest group tolerance,
+/// `tol_at` at its largest leaf crossing, widened by 1% against rounding. A lane whose interval misses
+/// `(tmin, tmax)` has no boundary there: the merge would find none.
+#[inline]
+pub(crate) fn lanes_with_boundaries_x8(prog: &[Instr], cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8) -> u32 {
+    let (inf, ninf) = (f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY));
+    // Largest |crossing| of the lane's non-empty leaf intervals (capped as `tol_at` caps it).
+    let mut big = f32x8::ZERO;
+    for c in cross {
+        for iv in 0..2 {
+            let (t0, t1) = (f32x8::from(c[2 * iv]), f32x8::from(c[2 * iv + 1]));
+            let ok = t0.simd_lt(t1);
+            big = big.max(ok.select(t0.abs().max(t1.abs()), f32x8::ZERO));
+        }
+    }
+    let tol = (base + f32x8::splat(COINCIDENT_EPS) * big.min(f32x8::splat(1e30))) * f32x8::splat(1.01);
+    let mut st = [(inf, ninf); HULL_STACK];
+    let mut sp = 0;
+    for ins in prog {
+        match *ins {
+            Instr::Leaf(k) => {
+                if sp == HULL_STACK {
+                    return u32::MAX;
+                }
+                let c = &cross[k as usize];
+                let (mut lo, mut hi) = (inf, ninf);
+                for iv in 0..2 {
+                    let (t0, t1) = (f32x8::from(c[2 * iv]), f32x8::from(c[2 * iv + 1]));
+                    let ok = t0.simd_lt(t1);
+                    lo = lo.min(ok.select(t0, inf));
+                    hi = hi.max(ok.select(t1, ninf));
+                }
+                st[sp] = (lo, hi);
+                sp += 1;
+            }
+            Instr::Op(op) => {
+                if sp < 2 {
+                    return u32::MAX;
+                }
+                sp -= 1;
+                let ((la, ha), (lb, hb)) = (st[sp - 1], st[sp]);
+                let (lo, hi) = match op {
+                    Op::Union => (la.min(lb), ha.max(hb)),
+                    Op::Intersection => (la.max(lb) - tol, ha.min(hb) + tol),
+                    Op::Difference => (la - tol, ha + tol),
+                };
+                // Canonical empty, so that a union with it keeps the other operand's interval.
+                let empty = lo.simd_gt(hi);
+                st[sp - 1] = (empty.select(inf, lo), empty.select(ninf, hi));
+            }
+        }
+    }
+    if sp != 1 {
+        return u32::MAX;
+    }
+    let (lo, hi) = st[0];
+    // Some event may lie in (tmin, tmax): lo < tmax and hi > tmin (false for the empty interval).
+    (lo.simd_lt(tmax) & hi.simd_gt(tmin)).to_bitmask()
+}
+
 /// The merge of [`eval_lane`]: the solid's interval list for `(tmin, tmax)` left in `arena.evs`. False for
 /// a malformed program.
 #[inline(always)]
@@ -264,6 +337,79 @@ fn merge_lane(job: &LaneJob, arena: &mut CsgArena) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The 8-lane pre-test never drops a lane whose merge has a boundary in `(tmin, tmax)`: random postfix
+    /// programs (1 to 7 leaves, every operator, nested both ways) over crossings drawn from a small set of
+    /// values (so that crossings coincide, within and across the tolerance), with empty, inverted, infinite
+    /// and NaN intervals, against `eval_lane` and `for_each_boundary` on every lane it drops.
+    #[test]
+    fn pretest_keeps_every_lane_with_a_boundary() {
+        let mut f = crate::sample::hash::test_uniforms(0x4a11_b0d5);
+        let values =
+            [-3.0f32, -1e-6, 0.0, 0.5, 1.0, 1.0 + 2e-6, 1.0 + 3e-5, 2.0, 2.0 - 1e-6, 4.0, 1e31, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        let pick = |f: &mut dyn FnMut() -> f32| values[((f() * values.len() as f32) as usize).min(values.len() - 1)];
+        let mut arena = CsgArena::new();
+        let (mut dropped, mut kept, mut with_boundary) = (0, 0, 0);
+        for case in 0..20000 {
+            let n = 1 + case % 7;
+            // A random postfix program: leaves pushed in order, an operator whenever two lists wait and
+            // a coin says so (or the leaves ran out).
+            let mut prog = Vec::new();
+            let (mut pushed, mut depth) = (0, 0);
+            while pushed < n || depth > 1 {
+                if pushed < n && (depth < 2 || f() < 0.5) {
+                    prog.push(Instr::Leaf(pushed as u32));
+                    pushed += 1;
+                    depth += 1;
+                } else {
+                    prog.push(Instr::Op([Op::Union, Op::Intersection, Op::Difference][(f() * 3.0) as usize % 3]));
+                    depth -= 1;
+                }
+            }
+            let mut cross = vec![[[0.0f32; 8]; 4]; n];
+            for c in cross.iter_mut() {
+                for iv in 0..2 {
+                    let (lower, upper) = c.split_at_mut(2 * iv + 1);
+                    for (x0, x1) in lower[2 * iv].iter_mut().zip(upper[0].iter_mut()) {
+                        let (mut t0, mut t1) = (pick(&mut f), pick(&mut f));
+                        // Mostly ordered intervals; the second often empty (NaN).
+                        if f() < 0.8 && t0 > t1 {
+                            (t0, t1) = (t1, t0);
+                        }
+                        if iv == 1 && f() < 0.4 {
+                            (t0, t1) = (f32::NAN, f32::NAN);
+                        }
+                        (*x0, *x1) = (t0, t1);
+                    }
+                }
+            }
+            let tmin: [f32; 8] = std::array::from_fn(|_| if f() < 0.5 { 0.0 } else { pick(&mut f).max(-5.0) });
+            let tmax: [f32; 8] = std::array::from_fn(|l| if f() < 0.3 { f32::INFINITY } else { tmin[l] + 0.1 + 3.0 * f() });
+            let base: [f32; 8] = std::array::from_fn(|_| [1e-5f32, 1e-3, 0.0][(f() * 3.0) as usize % 3]);
+            arena.cross = cross.clone();
+            let mask = lanes_with_boundaries_x8(&prog, &cross, f32x8::from(tmin), f32x8::from(tmax), f32x8::from(base));
+            for lane in 0..8 {
+                if !(tmax[lane] > tmin[lane]) {
+                    continue;
+                }
+                let job = LaneJob { prog: &prog, leaf_start: 0, lane, tmin: tmin[lane], tmax: tmax[lane], base: base[lane] };
+                let first = eval_lane(&job, &mut arena);
+                let mut all = 0;
+                for_each_boundary(&job, &mut arena, |_| all += 1);
+                with_boundary += first.is_some() as usize;
+                if mask & (1 << lane) == 0 {
+                    assert!(first.is_none() && all == 0, "case {case} lane {lane}: dropped a lane with a boundary ({first:?}): {prog:?}");
+                    dropped += 1;
+                } else {
+                    kept += 1;
+                }
+            }
+        }
+        assert!(
+            dropped > 20_000 && kept > 20_000 && with_boundary > 10_000,
+            "{dropped} dropped, {kept} kept, {with_boundary} with a boundary"
+        );
+    }
 
     /// The sweep ends on crossings no ray should produce but arithmetic can: a NaN crossing, and -inf
     /// with an infinite tolerance (whose group end is NaN). Each merge runs on its own thread and must
