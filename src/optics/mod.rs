@@ -47,5 +47,5 @@ pub use lambert::{onb, sample_hemisphere_cos, sample_hemisphere_cos_pdf, sample_
 pub use microfacet::{
     eval_ggx_reflect, ggx_d, ggx_g1, ggx_g2, sample_ggx_reflect, sample_ggx_reflect_pdf, sample_ggx_reflect_weight, GGX_ALPHA_MIN,
 };
-pub use refract::{fresnel_refract_x8, reflect, reflect_x8, refract};
+pub use refract::{fresnel_dielectric_x8, fresnel_refract_x8, reflect, reflect_x8, refract};
 pub use spectrum::{cie_xyz_fit, wavelength_to_rgb, xyz_to_linear_srgb};

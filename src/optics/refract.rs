@@ -51,6 +51,30 @@ fn cos_t_sq_x8(c: f32x8, eta: f32x8) -> f32x8 {
     eta.simd_le(one).select(lo, hi)
 }
 
+/// [`fresnel_dielectric`](super::fresnel_dielectric) in 8 lanes, bit-identical to it (same operations,
+/// same fused multiply-adds; both branches of `cos_t_sq` computed and selected).
+#[inline(always)]
+pub fn fresnel_dielectric_x8(cos_i: f32x8, eta: f32x8) -> f32x8 {
+    fresnel_parts_x8(cos_i, eta).0
+}
+
+/// The reflectance of [`fresnel_dielectric_x8`], the clamped cosine `c` and `cos_t^2` (for the refracted
+/// direction).
+#[inline(always)]
+fn fresnel_parts_x8(cos_i: f32x8, eta: f32x8) -> (f32x8, f32x8, f32x8) {
+    let (zero, one) = (f32x8::ZERO, f32x8::ONE);
+    // clamp01: NaN and negatives to 0 (the sign of a zero cosine changes no result below).
+    let c = cos_i.simd_gt(zero).select(cos_i, zero);
+    let c = c.simd_lt(one).select(c, one);
+    let ct2 = cos_t_sq_x8(c, eta);
+    let ok = ct2.simd_gt(zero);
+    let ct = ct2.sqrt();
+    let e = eta.simd_gt(f32x8::splat(f32::MIN_POSITIVE)).select(eta, f32x8::splat(f32::MIN_POSITIVE));
+    let rs = (e * c - ct) / (e * c + ct);
+    let rp = (c - e * ct) / (c + e * ct);
+    (ok.select(f32x8::splat(0.5) * (rs * rs + rp * rp), one), c, ct2)
+}
+
 /// The exact Fresnel reflectance and the refracted direction of 8 lanes at once: lane by lane,
 /// `fresnel_dielectric(clamp(wo . n, 0, 1), eta)` and `refract(wo, n, eta)`, bit-identical to them
 /// (same operations, same fused multiply-adds). Returns `(reflectance, refracted, tir)`: under total
@@ -59,18 +83,9 @@ fn cos_t_sq_x8(c: f32x8, eta: f32x8) -> f32x8 {
 #[inline(always)]
 pub fn fresnel_refract_x8(wo: Vec3x8, n: Vec3x8, eta: f32x8) -> (f32x8, Vec3x8, f32x8) {
     let (zero, one) = (f32x8::ZERO, f32x8::ONE);
-    let dot = wo.dot_unfused(n);
-    // clamp01: NaN and negatives to 0 (the sign of a zero cosine changes no result below).
-    let c = dot.simd_gt(zero).select(dot, zero);
-    let c = c.simd_lt(one).select(c, one);
-    let ct2 = cos_t_sq_x8(c, eta);
+    let (fres, c, ct2) = fresnel_parts_x8(wo.dot_unfused(n), eta);
     let ok = ct2.simd_gt(zero);
     let ct = ct2.sqrt();
-    // fresnel_dielectric.
-    let e = eta.simd_gt(f32x8::splat(f32::MIN_POSITIVE)).select(eta, f32x8::splat(f32::MIN_POSITIVE));
-    let rs = (e * c - ct) / (e * c + ct);
-    let rp = (c - e * ct) / (c + e * ct);
-    let fres = ok.select(f32x8::splat(0.5) * (rs * rs + rp * rp), one);
     // refract: eta == 1 passes straight through; else Snell, renormalised (falling back to -n).
     let matched = eta.simd_eq(one);
     let s = eta.mul_add(c, -ct);
@@ -91,6 +106,33 @@ pub fn fresnel_refract_x8(wo: Vec3x8, n: Vec3x8, eta: f32x8) -> (f32x8, Vec3x8, 
 mod tests {
     use super::*;
     use crate::optics::fresnel_dielectric;
+
+    /// `fresnel_dielectric_x8` equals `fresnel_dielectric` bit for bit on any cosine (negative, above 1,
+    /// zero, NaN) and index ratio (around 1, both sides of glass, extreme, total internal reflection).
+    #[test]
+    fn fresnel_x8_equals_scalar() {
+        let mut f = crate::sample::hash::test_uniforms(0xf2e5_3e11);
+        let etas = [1.0, 0.999_999, 1.000_001, 1.0 / 1.5, 1.5, 2.42, 1.0 / 2.42, 1e-3, 40.0, f32::MIN_POSITIVE];
+        let mut tir = 0;
+        for round in 0..2000 {
+            let cos: [f32; 8] = std::array::from_fn(|l| match (round + l) % 9 {
+                0 => 0.0,
+                1 => 1.0,
+                2 => f32::NAN,
+                3 => -f(),
+                4 => 1.0 + f(),
+                _ => f(),
+            });
+            let eta: [f32; 8] = std::array::from_fn(|l| etas[(round * 3 + l) % etas.len()]);
+            let got = fresnel_dielectric_x8(f32x8::from(cos), f32x8::from(eta)).to_array();
+            for l in 0..8 {
+                let want = fresnel_dielectric(cos[l], eta[l]);
+                assert_eq!(got[l].to_bits(), want.to_bits(), "cos {} eta {}: {} vs {want}", cos[l], eta[l], got[l]);
+                tir += (want == 1.0) as usize;
+            }
+        }
+        assert!(tir > 500, "{tir} lanes at reflectance 1");
+    }
 
     /// The 8-lane kernels equal their scalar twins bit for bit: random unit directions and normals
     /// (grazing, normal and back-facing included), eta around 1 (0.999999 .. 1.000001, exactly 1),
