@@ -17,7 +17,7 @@ use crate::csg::{first_hit_x8, CsgArena};
 use crate::light::{sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Profile, Scene, Shape};
-use crate::simd::{f32x8, gather8, load8, store8, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x8, gather8, load8, store8, u32x8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
 
 /// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
@@ -49,7 +49,9 @@ struct Rays8 {
     tmax: f32,
     time: f32x8,
     contrib: Vec3x8,
-    path: [u32; LANES],
+    /// One vector (stored whole by `append`; as lanes written one by one, its reload stalled on
+    /// store-to-load forwarding).
+    path: u32x8,
 }
 
 impl Batch {
@@ -81,11 +83,12 @@ impl Batch {
             }
             store8(&mut self.time, k, r.time);
             self.tmax[k..k + LANES].fill(r.tmax);
-            self.path[k..k + LANES].copy_from_slice(&r.path);
+            self.path[k..k + LANES].copy_from_slice(&r.path.to_array());
             self.len += LANES;
             return;
         }
         let a = vs.map(|v| v.to_array());
+        let path = r.path.to_array();
         let mut bits = lanes;
         let mut k = k;
         while bits != 0 {
@@ -98,7 +101,7 @@ impl Batch {
             }
             self.time[k] = a[6][l];
             self.tmax[k] = r.tmax;
-            self.path[k] = r.path[l];
+            self.path[k] = path[l];
             k += 1;
         }
         self.len = k;
@@ -193,7 +196,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
         let time = f(&nee.time);
-        let path = gather8(&nee.path, m == LANES, base, |l| base + l.min(m - 1));
+        let path = u32x8::from(gather8(&nee.path, m == LANES, base, |l| base + l.min(m - 1)));
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
