@@ -768,7 +768,7 @@ fn entry_distances_beyond_the_f32_range_are_entered() {
 
 // ---------------------------------------------------------------- the shade stage's 8-lane geometry
 
-/// Lambert hits are shaded 8 at a time (`lambert_x8`: sphere and plane geometry in 8 lanes, other shapes
+/// Lambert hits are shaded 8 at a time (`lambert_x8`: sphere and flat (plane, quad, disk) geometry in 8 lanes, other shapes
 /// one by one, in one chunk): every next-event request's shading point, facing normal and shadow-ray
 /// origin must equal, bit for bit, what the scalar `surface_hit` gives for that hit. Mixed shapes (planes,
 /// spheres, rotated boxes, quads, disks, CSG solids), back faces (rays from inside spheres), origins
@@ -779,7 +779,7 @@ fn lambert_geometry_in_8_lanes_equals_surface_hit() {
     use strata::wavefront::shade::{shade, surface_hit, ShadeOut};
     use strata::wavefront::{NeeQueue, PathTable};
     let mut rng = Rand::new(91);
-    let (mut checked, mut back, mut planes, mut spheres) = (0usize, 0usize, 0usize, 0usize);
+    let (mut checked, mut back, mut planes, mut quads_disks, mut spheres) = (0usize, 0usize, 0usize, 0usize, 0usize);
     for (s, motion, csg) in [(1.0f32, false, true), (1e4, false, false), (1e-4, true, true), (1.0, true, false)] {
         let scene = stage_scene(&mut rng, 200, s, motion, csg);
         let profile = Profile::builtin("bench");
@@ -806,6 +806,7 @@ fn lambert_geometry_in_8_lanes_equals_surface_hit() {
                 back += !h.front as usize;
                 match scene.prims[hits.prim[i] as usize].shape {
                     strata::scene::Shape::Plane(_) => planes += 1,
+                    strata::scene::Shape::Quad(_) | strata::scene::Shape::Disk(_) => quads_disks += 1,
                     strata::scene::Shape::Sphere { .. } => spheres += 1,
                     _ => {}
                 }
@@ -813,7 +814,7 @@ fn lambert_geometry_in_8_lanes_equals_surface_hit() {
         }
     }
     assert!(
-        checked > 5000 && back > 200 && planes > 500 && spheres > 1000,
-        "{checked} hits ({back} back faces, {planes} planes, {spheres} spheres)"
+        checked > 5000 && back > 200 && planes > 500 && quads_disks > 300 && spheres > 1000,
+        "{checked} hits ({back} back faces, {planes} planes, {quads_disks} quads and disks, {spheres} spheres)"
     );
 }

@@ -450,10 +450,17 @@ impl Ctx<'_> {
                     sr[l] = radius;
                     prim.material
                 }
-                Shape::Plane(pl) => {
-                    // Planes (the other common case) in 8 lanes below too; the outward normal here.
+                Shape::Plane(_) | Shape::Quad(_) | Shape::Disk(_) => {
+                    // Flat prims (planes, quads, disks: the other common case) in 8 lanes below too;
+                    // their outward normal here.
+                    let normal = match &prim.shape {
+                        Shape::Plane(pl) => pl.normal,
+                        Shape::Quad(q) => q.normal(),
+                        Shape::Disk(d) => d.normal,
+                        _ => unreachable!(),
+                    };
                     pla |= 1 << l;
-                    for (row, c) in nf.iter_mut().zip(pl.normal.to_array()) {
+                    for (row, c) in nf.iter_mut().zip(normal.to_array()) {
                         row[l] = c;
                     }
                     prim.material
@@ -505,8 +512,8 @@ impl Ctx<'_> {
         // o + t d, as `surface_hit` computes it (unfused).
         let naive = o + d.scale(v(&rt));
         if pla != 0 {
-            // `surface_hit` of planes, 8 lanes, the same operations: the point o + t d, whose error
-            // scales with the origin's largest coordinate, and the plane's normal turned to face the ray.
+            // `surface_hit` of flat prims, 8 lanes, the same operations: the point o + t d, whose error
+            // scales with the origin's largest coordinate, and the normal turned to face the ray.
             let n = v3(&nf);
             let front = d.dot_unfused(n).simd_lt(f32x8::ZERO);
             let n_facing = Vec3x8::select(front, n, Vec3x8::new(-n.x, -n.y, -n.z));
