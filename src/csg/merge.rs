@@ -239,22 +239,17 @@ const HULL_STACK: usize = 8;
 /// intersection's `[max L - tol, min H + tol]` (the result changes only inside both operands, up to the
 /// group that contains the change: its first crossing may precede the operand's own by the tolerance,
 /// and the emitted crossing may follow the group's start by as much); a difference's `[L_a - tol, H_a +
-/// tol]` (only where `a` is inside); `L > H` means no event. `tol` is the lane's largest group tolerance,
-/// `tol_at` at its largest leaf crossing, widened by 1% against rounding. A lane whose interval misses
+/// tol]` (only where `a` is inside); `L > H` means no event. `tol` is the largest group tolerance the
+/// operator can use, `tol_at` at the largest crossing of the leaves pushed so far, widened by 1% against
+/// rounding. A lane whose interval misses
 /// `(tmin, tmax)` has no boundary there: the merge would find none.
 #[inline]
 pub(crate) fn lanes_with_boundaries_x8(prog: &[Instr], cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8) -> u32 {
     let (inf, ninf) = (f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY));
-    // Largest |crossing| of the lane's non-empty leaf intervals (capped as `tol_at` caps it).
+    let eps = f32x8::splat(COINCIDENT_EPS);
+    // Largest |crossing| of the non-empty intervals of the leaves pushed so far: an operator's groups are
+    // made of its operands' crossings, all from leaves already pushed.
     let mut big = f32x8::ZERO;
-    for c in cross {
-        for iv in 0..2 {
-            let (t0, t1) = (f32x8::from(c[2 * iv]), f32x8::from(c[2 * iv + 1]));
-            let ok = t0.simd_lt(t1);
-            big = big.max(ok.select(t0.abs().max(t1.abs()), f32x8::ZERO));
-        }
-    }
-    let tol = (base + f32x8::splat(COINCIDENT_EPS) * big.min(f32x8::splat(1e30))) * f32x8::splat(1.01);
     let mut st = [(inf, ninf); HULL_STACK];
     let mut sp = 0;
     for ins in prog {
@@ -270,6 +265,7 @@ pub(crate) fn lanes_with_boundaries_x8(prog: &[Instr], cross: &[[[f32; 8]; 4]], 
                     let ok = t0.simd_lt(t1);
                     lo = lo.min(ok.select(t0, inf));
                     hi = hi.max(ok.select(t1, ninf));
+                    big = big.max(ok.select(t0.abs().max(t1.abs()), f32x8::ZERO));
                 }
                 st[sp] = (lo, hi);
                 sp += 1;
@@ -280,6 +276,7 @@ pub(crate) fn lanes_with_boundaries_x8(prog: &[Instr], cross: &[[[f32; 8]; 4]], 
                 }
                 sp -= 1;
                 let ((la, ha), (lb, hb)) = (st[sp - 1], st[sp]);
+                let tol = (base + eps * big.min(f32x8::splat(1e30))) * f32x8::splat(1.01);
                 let (lo, hi) = match op {
                     Op::Union => (la.min(lb), ha.max(hb)),
                     Op::Intersection => (la.max(lb) - tol, ha.min(hb) + tol),
