@@ -307,13 +307,14 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, paths: &mut PathTable
         } else {
             [Vec3::ONE; LANES]
         };
-        for (l, t) in tr.iter().enumerate().take(lanes) {
-            if bits & (1 << l) == 0 {
-                let q = j * LANES + l;
-                let c = Vec3::new(pk.contrib[0][q], pk.contrib[1][q], pk.contrib[2][q]);
-                let c = if through & (1 << l) != 0 { c * *t } else { c };
-                paths.add(pk.path[q], c);
-            }
+        // Unoccluded lanes credit their paths, in lane order (times their transmittance where walked).
+        let mut credit = !bits & ((1u32 << lanes) - 1);
+        while credit != 0 {
+            let l = credit.trailing_zeros() as usize;
+            credit &= credit - 1;
+            let q = j * LANES + l;
+            let c = Vec3::new(pk.contrib[0][q], pk.contrib[1][q], pk.contrib[2][q]);
+            paths.add(pk.path[q], if through & (1 << l) != 0 { c * tr[l] } else { c });
         }
     }
     pk.len = 0;
