@@ -152,6 +152,46 @@ fn first_hit_matches_reference() {
     assert!(fd_fail * 200 <= hits, "{fd_fail} finite-difference failures");
 }
 
+/// `lanes_may_cross_x8` (the 8-lane pre-test alone, which the shadow stage uses for solids that shadow rays
+/// walk through) keeps every lane on which `first_hit_x8` finds a boundary, and `crossings_x8` visits no
+/// lane outside it: random solids of depth 3, rays through and around their bounds, random `(tmin, tmax)`.
+#[test]
+fn lanes_may_cross_keep_every_lane_with_a_boundary() {
+    let mut r = R::new(71);
+    let mut arena = CsgArena::new();
+    let (mut kept, mut dropped, mut with_hit) = (0usize, 0usize, 0usize);
+    for _ in 0..200 {
+        let mut csg = Csg::new();
+        let s = csg.add_solid(&r.tree(3)).unwrap();
+        let (lo, hi) = csg.bounds(s);
+        if lo.cmpgt(hi).any() {
+            continue;
+        }
+        for _ in 0..30 {
+            let rays: [TestRay; 8] = std::array::from_fn(|_| {
+                let (o, d) = r.ray(lo, hi);
+                let tmin = if r.f() < 0.6 { 0.0 } else { r.range(-1.0, 2.0) as f32 };
+                let tmax = if r.f() < 0.5 { f32::INFINITY } else { tmin + r.range(0.01, 3.0) as f32 };
+                (o, d, tmin, tmax)
+            });
+            let (packet, tmin8) = ray8(&rays);
+            let may = lanes_may_cross_x8(&csg, s, &packet, tmin8, &mut arena);
+            let mut out = [None; 8];
+            first_hit_x8(&csg, s, &packet, tmin8, &mut arena, &mut out);
+            let mut visited = 0u32;
+            crossings_x8(&csg, s, &packet, tmin8, &mut arena, |l, _| visited |= 1 << l);
+            for (l, h) in out.iter().enumerate() {
+                assert!(h.is_none() || may & (1 << l) != 0, "lane {l} has a boundary {h:?} but was dropped: {:?}", rays[l]);
+                with_hit += h.is_some() as usize;
+                kept += (may >> l & 1) as usize;
+                dropped += (rays[l].3 > rays[l].2 && may & (1 << l) == 0) as usize;
+            }
+            assert_eq!(visited & !may, 0, "crossings outside the kept lanes");
+        }
+    }
+    assert!(with_hit > 5000 && dropped > 10_000 && kept > with_hit, "{with_hit} hits, {kept} kept, {dropped} dropped");
+}
+
 // ---------------------------------------------------------------------------------------------------------
 // Coincident surfaces
 // ---------------------------------------------------------------------------------------------------------

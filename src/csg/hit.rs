@@ -68,6 +68,22 @@ pub fn crossings_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
     each_lane_x8(csg, solid, ray, tmin, arena, |job, arena| for_each_boundary(job, arena, |h| visit(job.lane, h)));
 }
 
+/// The active lanes (`tmax > tmin`) whose merge may have a boundary in `(tmin, tmax)`, by the 8-lane
+/// pre-test alone (no merge): a superset of the lanes [`first_hit_x8`] gives a hit. For a caller that only
+/// needs to know which lanes may cross the solid (the shadow stage, for a solid every surface of which
+/// shadow rays walk through: the walk finds the crossings, or none).
+pub fn lanes_may_cross_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena) -> u32 {
+    let Some(s) = csg.solids.get(solid as usize) else {
+        return 0;
+    };
+    let mask = ray.tmax.simd_gt(tmin).to_bitmask();
+    if mask == 0 {
+        return 0;
+    }
+    let base = prepare_x8(csg, s, ray, arena);
+    mask & lanes_with_boundaries_x8(csg.program(s), &arena.cross[..s.leaf_count as usize], tmin, ray.tmax, f32x8::from(base))
+}
+
 /// The crossing table of a packet against one solid, then `f` for each active lane (`tmax > tmin`).
 #[inline(always)]
 fn each_lane_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, mut f: impl FnMut(&LaneJob, &mut CsgArena)) {

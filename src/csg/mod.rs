@@ -48,7 +48,7 @@ pub mod quartic;
 pub mod reference;
 pub mod solid;
 
-pub use hit::{crossings_x8, first_hit, first_hit_x8, CsgHit};
+pub use hit::{crossings_x8, first_hit, first_hit_x8, lanes_may_cross_x8, CsgHit};
 pub use merge::{CsgArena, COINCIDENT_EPS};
 pub use program::{Csg, CsgError, CsgTree, Op, MAX_DEPTH};
 pub use reference::intervals_f64;

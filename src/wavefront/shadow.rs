@@ -13,7 +13,7 @@ use super::queues::{NeeQueue, PathTable};
 use super::transmit::{any_passable, passes, transmittance_x8, Walk};
 use crate::accel::GROUP;
 use crate::accel::{intersect_aabb_x8, PacketRay};
-use crate::csg::{first_hit_x8, CsgArena};
+use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
 use crate::light::{sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Profile, Scene, Shape};
@@ -381,6 +381,12 @@ pub fn occlusion_group(
                 }
                 let local = in_prim_frame(ray, prim.motion, time);
                 let masked = Ray8 { tmax: mask.select(ray.tmax, f32x8::splat(-1.0)), ..local };
+                if walk && scene.csg.solid_leaves(solid).all(|l| passes(scene, profile, scene.csg.leaf(l).material)) {
+                    // Every surface lets shadow rays through: the solid occludes no lane, and the walk finds
+                    // the crossings of the lanes that may have some (none at all: transmittance 1 exactly).
+                    touched[j] |= lanes_may_cross_x8(&scene.csg, solid, &masked, zero, arena);
+                    return none;
+                }
                 let mut out = [None; LANES];
                 first_hit_x8(&scene.csg, solid, &masked, zero, arena, &mut out);
                 let mut hit = [0.0f32; LANES];
