@@ -85,67 +85,51 @@ fn first_hit_matches_reference() {
     let mut arena = CsgArena::new();
     let mut iv = Vec::new();
     let (mut rays_done, mut hits, mut slivers, mut fd_fail, mut inside_starts) = (0, 0, 0, 0, 0);
-    for _ in 0..300 {
-        let mut csg = Csg::new();
-        let s = csg.add_solid(&r.tree(3)).unwrap();
-        let (lo, hi) = csg.bounds(s);
-        if lo.cmpgt(hi).any() {
-            continue;
-        }
-        for _ in 0..40 {
-            let rays: [TestRay; 8] = std::array::from_fn(|_| {
-                let (o, d) = r.ray(lo, hi);
-                let tmin = if r.f() < 0.6 { 0.0 } else { r.range(-1.0, 2.0) as f32 };
-                let tmax = if r.f() < 0.7 { f32::INFINITY } else { tmin + r.range(0.1, 5.0) as f32 };
-                (o, d, tmin, tmax)
-            });
-            let (packet, tmin8) = ray8(&rays);
-            let mut out = [None; 8];
-            first_hit_x8(&csg, s, &packet, tmin8, &mut arena, &mut out);
-            for (i, &(o, d, tmin, tmax)) in rays.iter().enumerate() {
-                rays_done += 1;
-                inside_starts += usize::from(csg.inside(s, o));
-                let fast = first_hit(&csg, s, o, d, tmin, tmax, &mut arena);
-                assert_eq!(fast, out[i], "scalar and x8 differ");
-                intervals_f64(&csg, s, dv(o), dv(d), &mut iv);
-                let bs = boundaries(&iv);
-                let want = bs.iter().find(|b| b.0 > tmin as f64 && b.0 < tmax as f64);
-                let w = d.length() as f64;
-                let tol = |t: f64| 1e-4 * (t.abs() + scale(o, d));
-                // Length (world) of the reference piece (interval or gap) that ends or starts at boundary k.
-                let piece = |k: usize| {
-                    let prev = if k > 0 { bs[k].0 - bs[k - 1].0 } else { f64::INFINITY };
-                    let next = if k + 1 < bs.len() { bs[k + 1].0 - bs[k].0 } else { f64::INFINITY };
-                    prev.min(next) * w
-                };
-                let agree = match (fast, want) {
-                    (None, None) => true,
-                    (Some(h), Some(&(t, e))) => h.entering == e && (h.t as f64 - t).abs() <= tol(t),
-                    _ => false,
-                };
-                if !agree {
-                    // A sliver: the first reference boundary is (or the fast one sits in) a tiny piece.
-                    let k = bs.iter().position(|b| b.0 > tmin as f64 && b.0 < tmax as f64);
-                    let tiny = k.is_some_and(|k| piece(k) < 1e-3)
-                        || fast
-                            .is_some_and(|h| bs.iter().enumerate().any(|(j, b)| (b.0 - h.t as f64).abs() <= tol(b.0) && piece(j) < 1e-3));
-                    assert!(tiny, "o={o} d={d} tmin={tmin} tmax={tmax}: fast {fast:?} vs reference {iv:?}");
-                    slivers += 1;
+    r.packets(300, 40, 0.7, (0.1, 5.0), |csg, s, rays, packet, tmin8| {
+        let mut out = [None; 8];
+        first_hit_x8(csg, s, packet, tmin8, &mut arena, &mut out);
+        for (i, &(o, d, tmin, tmax)) in rays.iter().enumerate() {
+            rays_done += 1;
+            inside_starts += usize::from(csg.inside(s, o));
+            let fast = first_hit(csg, s, o, d, tmin, tmax, &mut arena);
+            assert_eq!(fast, out[i], "scalar and x8 differ");
+            intervals_f64(csg, s, dv(o), dv(d), &mut iv);
+            let bs = boundaries(&iv);
+            let want = bs.iter().find(|b| b.0 > tmin as f64 && b.0 < tmax as f64);
+            let w = d.length() as f64;
+            let tol = |t: f64| 1e-4 * (t.abs() + scale(o, d));
+            // Length (world) of the reference piece (interval or gap) that ends or starts at boundary k.
+            let piece = |k: usize| {
+                let prev = if k > 0 { bs[k].0 - bs[k - 1].0 } else { f64::INFINITY };
+                let next = if k + 1 < bs.len() { bs[k + 1].0 - bs[k].0 } else { f64::INFINITY };
+                prev.min(next) * w
+            };
+            let agree = match (fast, want) {
+                (None, None) => true,
+                (Some(h), Some(&(t, e))) => h.entering == e && (h.t as f64 - t).abs() <= tol(t),
+                _ => false,
+            };
+            if !agree {
+                // A sliver: the first reference boundary is (or the fast one sits in) a tiny piece.
+                let k = bs.iter().position(|b| b.0 > tmin as f64 && b.0 < tmax as f64);
+                let tiny = k.is_some_and(|k| piece(k) < 1e-3)
+                    || fast.is_some_and(|h| bs.iter().enumerate().any(|(j, b)| (b.0 - h.t as f64).abs() <= tol(b.0) && piece(j) < 1e-3));
+                assert!(tiny, "o={o} d={d} tmin={tmin} tmax={tmax}: fast {fast:?} vs reference {iv:?}");
+                slivers += 1;
+            }
+            if let Some(h) = fast {
+                hits += 1;
+                let p = o + d * h.t;
+                let n = csg.hit_normal(&h, p);
+                let cos = n.dot(d.normalize());
+                if cos.abs() > 0.05 {
+                    assert_eq!(cos < 0.0, h.entering, "normal vs entering: {h:?} n={n} o={o} d={d}");
                 }
-                if let Some(h) = fast {
-                    hits += 1;
-                    let p = o + d * h.t;
-                    let n = csg.hit_normal(&h, p);
-                    let cos = n.dot(d.normalize());
-                    if cos.abs() > 0.05 {
-                        assert_eq!(cos < 0.0, h.entering, "normal vs entering: {h:?} n={n} o={o} d={d}");
-                    }
-                    let delta = 1e-3;
-                    fd_fail += usize::from(!csg.inside(s, p - n * delta) || csg.inside(s, p + n * delta));
-                }
+                let delta = 1e-3;
+                fd_fail += usize::from(!csg.inside(s, p - n * delta) || csg.inside(s, p + n * delta));
             }
         }
-    }
+    });
     println!("first_hit: {rays_done} rays, {hits} hits, {inside_starts} inside starts, {slivers} slivers, {fd_fail} fd failures");
     assert!(hits > 20_000 && inside_starts > 4_000, "{hits} hits, {inside_starts} inside starts");
     assert!(slivers * 1000 <= rays_done, "{slivers} slivers");
@@ -160,35 +144,20 @@ fn lanes_may_cross_keep_every_lane_with_a_boundary() {
     let mut r = R::new(71);
     let mut arena = CsgArena::new();
     let (mut kept, mut dropped, mut with_hit) = (0usize, 0usize, 0usize);
-    for _ in 0..200 {
-        let mut csg = Csg::new();
-        let s = csg.add_solid(&r.tree(3)).unwrap();
-        let (lo, hi) = csg.bounds(s);
-        if lo.cmpgt(hi).any() {
-            continue;
+    r.packets(200, 30, 0.5, (0.01, 3.0), |csg, s, rays, packet, tmin8| {
+        let may = lanes_may_cross_x8(csg, s, packet, tmin8, &mut arena);
+        let mut out = [None; 8];
+        first_hit_x8(csg, s, packet, tmin8, &mut arena, &mut out);
+        let mut visited = 0u32;
+        crossings_x8(csg, s, packet, tmin8, &mut arena, |l, _| visited |= 1 << l);
+        for (l, h) in out.iter().enumerate() {
+            assert!(h.is_none() || may & (1 << l) != 0, "lane {l} has a boundary {h:?} but was dropped: {:?}", rays[l]);
+            with_hit += h.is_some() as usize;
+            kept += (may >> l & 1) as usize;
+            dropped += (rays[l].3 > rays[l].2 && may & (1 << l) == 0) as usize;
         }
-        for _ in 0..30 {
-            let rays: [TestRay; 8] = std::array::from_fn(|_| {
-                let (o, d) = r.ray(lo, hi);
-                let tmin = if r.f() < 0.6 { 0.0 } else { r.range(-1.0, 2.0) as f32 };
-                let tmax = if r.f() < 0.5 { f32::INFINITY } else { tmin + r.range(0.01, 3.0) as f32 };
-                (o, d, tmin, tmax)
-            });
-            let (packet, tmin8) = ray8(&rays);
-            let may = lanes_may_cross_x8(&csg, s, &packet, tmin8, &mut arena);
-            let mut out = [None; 8];
-            first_hit_x8(&csg, s, &packet, tmin8, &mut arena, &mut out);
-            let mut visited = 0u32;
-            crossings_x8(&csg, s, &packet, tmin8, &mut arena, |l, _| visited |= 1 << l);
-            for (l, h) in out.iter().enumerate() {
-                assert!(h.is_none() || may & (1 << l) != 0, "lane {l} has a boundary {h:?} but was dropped: {:?}", rays[l]);
-                with_hit += h.is_some() as usize;
-                kept += (may >> l & 1) as usize;
-                dropped += (rays[l].3 > rays[l].2 && may & (1 << l) == 0) as usize;
-            }
-            assert_eq!(visited & !may, 0, "crossings outside the kept lanes");
-        }
-    }
+        assert_eq!(visited & !may, 0, "crossings outside the kept lanes");
+    });
     assert!(with_hit > 5000 && dropped > 10_000 && kept > with_hit, "{with_hit} hits, {kept} kept, {dropped} dropped");
 }
 

@@ -116,6 +116,37 @@ impl R {
         }
         CsgTree::Node { op, children }
     }
+    /// `solids` random solids of depth 3 (those with empty bounds skipped) and `packets` packets of 8 rays
+    /// each ([`R::ray`]; `tmin` 0 for 60% of the rays, else in [-1, 2]; `tmax` infinite with probability
+    /// `p_inf`, else `tmin` plus a length in `len`): `f(csg, solid, rays, packet, tmin)` for each packet.
+    pub fn packets(
+        &mut self,
+        solids: usize,
+        packets: usize,
+        p_inf: f64,
+        len: (f64, f64),
+        mut f: impl FnMut(&Csg, u32, &[TestRay; 8], &Ray8, f32x8),
+    ) {
+        for _ in 0..solids {
+            let mut csg = Csg::new();
+            let s = csg.add_solid(&self.tree(3)).unwrap();
+            let (lo, hi) = csg.bounds(s);
+            if lo.cmpgt(hi).any() {
+                continue;
+            }
+            for _ in 0..packets {
+                let rays: [TestRay; 8] = std::array::from_fn(|_| {
+                    let (o, d) = self.ray(lo, hi);
+                    let tmin = if self.f() < 0.6 { 0.0 } else { self.range(-1.0, 2.0) as f32 };
+                    let tmax = if self.f() < p_inf { f32::INFINITY } else { tmin + self.range(len.0, len.1) as f32 };
+                    (o, d, tmin, tmax)
+                });
+                let (packet, tmin8) = ray8(&rays);
+                f(&csg, s, &rays, &packet, tmin8);
+            }
+        }
+    }
+
     /// A ray for a solid with bounds (lo, hi): half from outside aimed at the bounds, half from inside
     /// the bounds; direction length in [0.5, 2].
     pub fn ray(&mut self, lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
