@@ -73,31 +73,31 @@ pub fn crossings_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
 /// needs to know which lanes may cross the solid (the shadow stage, for a solid every surface of which
 /// shadow rays walk through: the walk finds the crossings, or none).
 pub fn lanes_may_cross_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena) -> u32 {
-    let Some(s) = csg.solids.get(solid as usize) else {
-        return 0;
-    };
+    prepare_lanes_x8(csg, solid, ray, tmin, arena).map_or(0, |(_, _, mask)| mask)
+}
+
+/// The solid, the crossing table of a packet and each lane's tolerance base ([`prepare_x8`]), and the
+/// active lanes (`tmax > tmin`) whose merge may have a boundary in `(tmin, tmax)` (the 8-lane pre-test:
+/// the others skip the merge). `None` for an unknown solid or no active lane.
+#[inline(always)]
+fn prepare_lanes_x8<'a>(csg: &'a Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena) -> Option<(&'a Solid, [f32; 8], u32)> {
+    let s = csg.solids.get(solid as usize)?;
     let mask = ray.tmax.simd_gt(tmin).to_bitmask();
     if mask == 0 {
-        return 0;
+        return None;
     }
     let base = prepare_x8(csg, s, ray, arena);
-    mask & lanes_with_boundaries_x8(csg.program(s), &arena.cross[..s.leaf_count as usize], tmin, ray.tmax, f32x8::from(base))
+    let may = lanes_with_boundaries_x8(csg.program(s), &arena.cross[..s.leaf_count as usize], tmin, ray.tmax, f32x8::from(base));
+    Some((s, base, mask & may))
 }
 
 /// The crossing table of a packet against one solid, then `f` for each active lane (`tmax > tmin`).
 #[inline(always)]
 fn each_lane_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, mut f: impl FnMut(&LaneJob, &mut CsgArena)) {
-    let Some(s) = csg.solids.get(solid as usize) else {
+    let Some((s, base, mask)) = prepare_lanes_x8(csg, solid, ray, tmin, arena) else {
         return;
     };
-    let mask = ray.tmax.simd_gt(tmin).to_bitmask();
-    if mask == 0 {
-        return;
-    }
-    let base = prepare_x8(csg, s, ray, arena);
     let prog = csg.program(s);
-    // Lanes whose merge cannot have a boundary in (tmin, tmax) skip it.
-    let mask = mask & lanes_with_boundaries_x8(prog, &arena.cross[..s.leaf_count as usize], tmin, ray.tmax, f32x8::from(base));
     let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
     for lane in 0..8 {
         if mask & (1 << lane) != 0 {

@@ -241,8 +241,7 @@ const HULL_STACK: usize = 8;
 /// and the emitted crossing may follow the group's start by as much); a difference's `[L_a - tol, H_a +
 /// tol]` (only where `a` is inside); `L > H` means no event. `tol` is the largest group tolerance the
 /// operator can use, `tol_at` at the largest crossing of the leaves pushed so far, widened by 1% against
-/// rounding. A lane whose interval misses
-/// `(tmin, tmax)` has no boundary there: the merge would find none.
+/// rounding. A lane whose interval misses `(tmin, tmax)` has no boundary there: the merge would find none.
 #[inline]
 pub(crate) fn lanes_with_boundaries_x8(prog: &[Instr], cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8) -> u32 {
     let (inf, ninf) = (f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY));
