@@ -132,18 +132,9 @@ pub fn sample_light_x8(light: &Light, p: Vec3x8, u: [f32x8; 2]) -> LightSample8 
             let weight = Vec3x8::new(f32x8::splat(intensity.x) / d2, f32x8::splat(intensity.y) / d2, f32x8::splat(intensity.z) / d2);
             LightSample8 { target: Vec3x8::splat(position), wi, weight, valid: d2.simd_gt(zero) }
         }
-        Light::Quad { quad, radiance } => {
-            let y = Vec3x8::splat(quad.u).scale(u[0]) + Vec3x8::splat(quad.origin);
-            let y = y + Vec3x8::splat(quad.v).scale(u[1]);
-            area_sample_x8(p, y, quad.normal(), quad.area(), radiance)
-        }
-        Light::Disk { disk, radiance } => {
-            let [a, b] = sample_disk_concentric_x8(u);
-            let (t, s) = crate::optics::onb(disk.normal);
-            let r = f32x8::splat(disk.radius);
-            let off = Vec3x8::splat(t).scale(a) + Vec3x8::splat(s).scale(b);
-            let y = Vec3x8::splat(disk.center) + off.scale(r);
-            area_sample_x8(p, y, disk.normal, std::f32::consts::PI * disk.radius * disk.radius, radiance)
+        Light::Quad { .. } | Light::Disk { .. } => {
+            let (y, target) = light_points_x8(light, u).expect("an area light");
+            sample_light_at_x8(light, p, y, target)
         }
         Light::Sphere { .. } => {
             let (pa, u0, u1) = (p.rows(), u[0].to_array(), u[1].to_array());
@@ -168,9 +159,44 @@ pub fn sample_light_x8(light: &Light, p: Vec3x8, u: [f32x8; 2]) -> LightSample8 
     }
 }
 
-/// Eight lanes of `area_sample` (bit-identical to it).
+/// The points of a quad or disk light that [`sample_light_x8`] samples for the uniform points `u`, and
+/// their shadow-ray targets (offset off the light towards its emitting side); `None` for other lights.
+/// They depend on `u` only: a grid's points are the same for every receiver (the shadow stage computes
+/// them once and calls [`sample_light_at_x8`]).
+#[inline]
+pub fn light_points_x8(light: &Light, u: [f32x8; 2]) -> Option<(Vec3x8, Vec3x8)> {
+    let (y, n) = match *light {
+        Light::Quad { quad, .. } => {
+            let y = Vec3x8::splat(quad.u).scale(u[0]) + Vec3x8::splat(quad.origin);
+            (y + Vec3x8::splat(quad.v).scale(u[1]), quad.normal())
+        }
+        Light::Disk { disk, .. } => {
+            let [a, b] = sample_disk_concentric_x8(u);
+            let (t, s) = crate::optics::onb(disk.normal);
+            let r = f32x8::splat(disk.radius);
+            let off = Vec3x8::splat(t).scale(a) + Vec3x8::splat(s).scale(b);
+            (Vec3x8::splat(disk.center) + off.scale(r), disk.normal)
+        }
+        _ => return None,
+    };
+    Some((y, offset_ray_origin_scaled_x8(y, Vec3x8::splat(n), f32x8::ZERO)))
+}
+
+/// [`sample_light_x8`] of a quad or disk light from its points `y` and targets ([`light_points_x8`]).
 #[inline(always)]
-fn area_sample_x8(p: Vec3x8, y: Vec3x8, n_light: Vec3, area: f32, radiance: Vec3) -> LightSample8 {
+pub fn sample_light_at_x8(light: &Light, p: Vec3x8, y: Vec3x8, target: Vec3x8) -> LightSample8 {
+    match *light {
+        Light::Quad { quad, radiance } => area_sample_x8(p, y, target, quad.normal(), quad.area(), radiance),
+        Light::Disk { disk, radiance } => {
+            area_sample_x8(p, y, target, disk.normal, std::f32::consts::PI * disk.radius * disk.radius, radiance)
+        }
+        _ => unreachable!("an area light with points"),
+    }
+}
+
+/// Eight lanes of `area_sample` (bit-identical to it), the target already offset off the light.
+#[inline(always)]
+fn area_sample_x8(p: Vec3x8, y: Vec3x8, target: Vec3x8, n_light: Vec3, area: f32, radiance: Vec3) -> LightSample8 {
     let v = y - p;
     let d2 = v.dot_unfused(v);
     let s = d2.sqrt();
@@ -179,7 +205,6 @@ fn area_sample_x8(p: Vec3x8, y: Vec3x8, n_light: Vec3, area: f32, radiance: Vec3
     // `d2 > 0` is false for NaN too (the scalar's `is_nan() || <= 0`).
     let valid = d2.simd_gt(f32x8::ZERO) & cos_l.simd_gt(f32x8::ZERO);
     let g = cos_l * f32x8::splat(area) / d2;
-    let target = offset_ray_origin_scaled_x8(y, Vec3x8::splat(n_light), f32x8::ZERO);
     LightSample8 { target, wi, weight: Vec3x8::splat(radiance).scale(g), valid }
 }
 

@@ -14,7 +14,7 @@ use super::transmit::{any_passable, passes, transmittance_x8, Walk};
 use crate::accel::GROUP;
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
-use crate::light::{sample_light_x8, samples_for};
+use crate::light::{light_points_x8, sample_light_at_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Profile, Scene, Shape};
 use crate::simd::{f32x8, gather8, load8, store8, u32x8, Ray8, Vec3x8, LANES};
@@ -165,6 +165,9 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     } else {
         Vec::new()
     };
+    // So are the light points of those samples and their shadow-ray targets, per area light.
+    let grid_points: Vec<Vec<(Vec3x8, Vec3x8)>> =
+        scene.lights.iter().map(|light| grid.iter().map_while(|&u| light_points_x8(light, u)).collect()).collect();
     let walk = any_passable(scene, profile);
     let light_key = |i: usize, li: usize| light_key(seed, nee, across, i, li);
     let mut keys = LightKeys { keys: [0; KEY_CACHE], cached: None };
@@ -235,12 +238,17 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let permuted = across && !point;
                 let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
                 // A point light's one sample is the centre of its (unused) sample square.
-                let u = match (point, grid.get(j as usize)) {
-                    (true, _) => [f32x8::splat(0.5); 2],
-                    (false, Some(&u)) => u,
-                    (false, None) => area.sample_x8_call(&keys_li, &index, permuted),
+                let ls = match grid_points[li].get(j as usize) {
+                    Some(&(y, target)) => sample_light_at_x8(light, p, y, target),
+                    None => {
+                        let u = match (point, grid.get(j as usize)) {
+                            (true, _) => [f32x8::splat(0.5); 2],
+                            (false, Some(&u)) => u,
+                            (false, None) => area.sample_x8_call(&keys_li, &index, permuted),
+                        };
+                        sample_light_x8(light, p, u)
+                    }
                 };
-                let ls = sample_light_x8(light, p, u);
                 let cos = n.dot_unfused(ls.wi);
                 let c = (w * ls.weight).scale(cos / ns_lanes);
                 let lit = ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO);
