@@ -36,7 +36,11 @@ struct Batch {
     tmax: [f32; BATCH],
     time: [f32; BATCH],
     contrib: [[f32; BATCH]; 3],
-    path: [u32; BATCH],
+    /// Index of the request (in the NEE queue) each ray serves.
+    req: [u32; BATCH],
+    /// Per packet: the first of the 8 consecutive requests its lanes serve when it was appended whole
+    /// (lane `l` = request `whole + l`), else [`NOT_WHOLE`].
+    whole: [u32; GROUP],
     len: usize,
     /// Scratch of the walks through glass (made on the first walk).
     walk: Option<Box<Walk>>,
@@ -49,10 +53,12 @@ struct Rays8 {
     tmax: f32,
     time: f32x8,
     contrib: Vec3x8,
-    /// One vector (stored whole by `append`; as lanes written one by one, its reload stalled on
-    /// store-to-load forwarding).
-    path: u32x8,
+    /// Request index per lane: `base + lane`.
+    req: u32x8,
 }
+
+/// [`Batch::whole`] of a packet appended lane by lane.
+const NOT_WHOLE: u32 = u32::MAX;
 
 impl Batch {
     fn new() -> Box<Batch> {
@@ -62,7 +68,8 @@ impl Batch {
             tmax: [-1.0; BATCH],
             time: [0.0; BATCH],
             contrib: [[0.0; BATCH]; 3],
-            path: [0; BATCH],
+            req: [0; BATCH],
+            whole: [NOT_WHOLE; GROUP],
             len: 0,
             walk: None,
         })
@@ -83,14 +90,19 @@ impl Batch {
             }
             store8(&mut self.time, k, r.time);
             self.tmax[k..k + LANES].fill(r.tmax);
-            self.path[k..k + LANES].copy_from_slice(&r.path.to_array());
+            let req = r.req.to_array();
+            self.req[k..k + LANES].copy_from_slice(&req);
+            self.whole[k / LANES] = req[0];
             self.len += LANES;
             return;
         }
         let a = vs.map(|v| v.to_array());
-        let path = r.path.to_array();
+        let req = r.req.to_array();
         let mut bits = lanes;
         let mut k = k;
+        // The (at most two) packets these lanes land in are not whole.
+        self.whole[k / LANES] = NOT_WHOLE;
+        self.whole[(k + lanes.count_ones() as usize - 1) / LANES] = NOT_WHOLE;
         while bits != 0 {
             let l = bits.trailing_zeros() as usize;
             bits &= bits - 1;
@@ -101,7 +113,7 @@ impl Batch {
             }
             self.time[k] = a[6][l];
             self.tmax[k] = r.tmax;
-            self.path[k] = path[l];
+            self.req[k] = req[l];
             k += 1;
         }
         self.len = k;
@@ -173,23 +185,14 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     let mut keys = LightKeys { keys: [0; KEY_CACHE], cached: None };
     // Whether any light draws samples (needs stream keys).
     let keyed = scene.lights.iter().any(|l| !l.is_point());
-    // Requests are taken up to 8 at a time: one lane each, every light sample of the chunk computed as
-    // one 8-lane light sample. A chunk holds at most one request per path (under split branching a
-    // path has several per bounce): a path's contributions then arrive request by request, and within
-    // a request by light, then sample, as one request at a time would add them. (With two requests of
-    // a path in one chunk their contributions would interleave, and since which requests share a chunk
-    // depends on the tile, so would the rounding of the path's sum.)
+    // Requests are taken 8 at a time: one lane each, every light sample of the chunk computed as one
+    // 8-lane light sample. Each request sums its unoccluded contributions by light, then sample, from
+    // zero (`Credit`), and the sums go to the paths in request order at the end: a path's radiance
+    // then does not depend on which requests share a chunk or a batch (that depends on the tile).
+    let mut credit = Credit::new(nee.len());
     let mut base = 0;
     while base < nee.len() {
-        let mut m = (nee.len() - base).min(LANES);
-        // Requests usually arrive with increasing path ids (no repeat possible: 7 comparisons); else the
-        // chunk ends before the first repeated path.
-        let ids = &nee.path[base..base + m];
-        if !ids.windows(2).all(|w| w[0] < w[1]) {
-            if let Some(l) = (1..m).find(|&l| ids[..l].contains(&ids[l])) {
-                m = l;
-            }
-        }
+        let m = (nee.len() - base).min(LANES);
         let live = (1u32 << m) - 1;
         // Lanes past `m` repeat the last request (masked off by `live`).
         let f = |v: &Vec<f32>| f32x8::from(gather8(v, m == LANES, base, |l| base + l.min(m - 1)));
@@ -199,7 +202,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
         let time = f(&nee.time);
-        let path = u32x8::from(gather8(&nee.path, m == LANES, base, |l| base + l.min(m - 1)));
+        let req = u32x8::from(std::array::from_fn(|l| (base + l.min(m - 1)) as u32));
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
@@ -257,26 +260,82 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     continue;
                 }
                 if pk.len + LANES > BATCH {
-                    traced += flush(scene, profile, &mut pk, paths, arena, walk);
+                    traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
                 }
-                pk.append(&Rays8 { o, d: ls.target - o, tmax: end, time, contrib: c, path }, lanes);
+                pk.append(&Rays8 { o, d: ls.target - o, tmax: end, time, contrib: c, req }, lanes);
                 if pk.len == BATCH {
-                    traced += flush(scene, profile, &mut pk, paths, arena, walk);
+                    traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
                 }
             }
         }
         base += m;
     }
     if pk.len > 0 {
-        traced += flush(scene, profile, &mut pk, paths, arena, walk);
+        traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
     }
+    credit.to_paths(nee, paths);
     traced
+}
+
+/// Per request of the NEE queue, the sum of its unoccluded shadow rays' contributions (channels apart:
+/// a whole packet's 8 consecutive requests are one vector).
+struct Credit {
+    c: [Vec<f32>; 3],
+}
+
+impl Credit {
+    fn new(n: usize) -> Self {
+        // Padded to whole packets: a whole packet's vector never reaches past the end.
+        let len = n.next_multiple_of(LANES);
+        Credit { c: [vec![0.0; len], vec![0.0; len], vec![0.0; len]] }
+    }
+
+    /// Add packet `j` of the batch: `keep` = its lanes that pass (unoccluded), `through` the walked
+    /// ones among them with their transmittance `tr`.
+    #[inline(always)]
+    fn add_packet(&mut self, pk: &Batch, j: usize, keep: u32, through: u32, tr: &[Vec3; LANES]) {
+        let q0 = j * LANES;
+        let base = pk.whole[j];
+        if base != NOT_WHOLE {
+            // Lanes = requests base..base + 8: one vector per channel, occluded lanes adding exactly 0.
+            let keep_v = u32x8::from(std::array::from_fn(|l| 0u32.wrapping_sub((keep >> l) & 1)));
+            let keep_f: f32x8 = bytemuck::cast(keep_v);
+            let b = base as usize;
+            for (a, acc) in self.c.iter_mut().enumerate() {
+                let mut v = load8(&pk.contrib[a], q0);
+                if through != 0 {
+                    v *= f32x8::from(std::array::from_fn(|l| if through & (1 << l) != 0 { tr[l][a] } else { 1.0 }));
+                }
+                let sum = load8(acc, b) + (v & keep_f);
+                store8(acc, b, sum);
+            }
+            return;
+        }
+        let mut bits = keep;
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let q = q0 + l;
+            let r = pk.req[q] as usize;
+            let t = if through & (1 << l) != 0 { tr[l] } else { Vec3::ONE };
+            for (a, acc) in self.c.iter_mut().enumerate() {
+                acc[r] += pk.contrib[a][q] * t[a];
+            }
+        }
+    }
+
+    /// Each request's sum to its path, in request order.
+    fn to_paths(&self, nee: &NeeQueue, paths: &mut PathTable) {
+        for (i, &p) in nee.path.iter().enumerate() {
+            paths.add(p, Vec3::new(self.c[0][i], self.c[1][i], self.c[2][i]));
+        }
+    }
 }
 
 /// Trace the batch's shadow rays (any hit, as one traversal group) and credit the unoccluded ones, times
 /// their transmittance where they met dielectrics they walk through. Returns rays traced (walk segments
 /// included).
-fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, paths: &mut PathTable, arena: &mut CsgArena, walk: bool) -> u64 {
+fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, credit: &mut Credit, arena: &mut CsgArena, walk: bool) -> u64 {
     let n = pk.len;
     pk.tmax[n..].fill(-1.0);
     let k = n.div_ceil(LANES);
@@ -315,15 +374,8 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, paths: &mut PathTable
         } else {
             [Vec3::ONE; LANES]
         };
-        // Unoccluded lanes credit their paths, in lane order (times their transmittance where walked).
-        let mut credit = !bits & ((1u32 << lanes) - 1);
-        while credit != 0 {
-            let l = credit.trailing_zeros() as usize;
-            credit &= credit - 1;
-            let q = j * LANES + l;
-            let c = Vec3::new(pk.contrib[0][q], pk.contrib[1][q], pk.contrib[2][q]);
-            paths.add(pk.path[q], if through & (1 << l) != 0 { c * tr[l] } else { c });
-        }
+        // Unoccluded lanes credit their requests (times their transmittance where walked).
+        credit.add_packet(pk, j, !bits & ((1u32 << lanes) - 1), through, &tr);
     }
     pk.len = 0;
     n as u64 + walked
