@@ -52,7 +52,12 @@ pub struct RenderStats {
 pub struct RayCounts {
     pub camera: u64,
     pub secondary: u64,
+    /// Shadow rays traced.
     pub shadow: u64,
+    /// Shadow rays whose light samples the light-cone test found clear: credited without tracing, not
+    /// counted in `shadow` or `total` (nor in rays/s).
+    pub shadow_cleared: u64,
+    /// Rays traced: camera + secondary + shadow.
     pub total: u64,
 }
 
@@ -258,7 +263,13 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
     let (c, times) = totals.into_inner().unwrap();
     let film = film.into_inner().unwrap();
     let completed: Vec<bool> = flags.into_iter().map(|f| f.into_inner()).collect();
-    let rays = RayCounts { camera: c.camera_rays, secondary: c.secondary_rays, shadow: c.shadow_rays, total: c.total_rays() };
+    let rays = RayCounts {
+        camera: c.camera_rays,
+        secondary: c.secondary_rays,
+        shadow: c.shadow_rays,
+        shadow_cleared: c.shadow_cleared,
+        total: c.total_rays(),
+    };
     let stats = RenderStats {
         width: scene.width,
         height: scene.height,

@@ -309,3 +309,29 @@ fn light_keys_do_not_depend_on_how_requests_share_a_chunk() {
     let lum: Vec<f32> = reference.to_rgb().iter().map(|c| c.x + c.y + c.z).collect();
     assert!(lum.iter().all(|&l| l.is_finite()) && lum.iter().any(|&l| l > 0.0), "the image is black");
 }
+
+/// With 16 light samples the shadow stage's light-cone test credits the shading points that see a
+/// light through empty space untraced, the others are traced: a request's lights can go either way
+/// (the quad light cleared, the point light traced, or the reverse). Its verdict is each point's own,
+/// so the image must not depend on which points share a chunk: tiles 16, 5 and 3, one and two threads,
+/// and a split sample range give the same image; and the test did clear some rays.
+#[test]
+fn light_cone_test_does_not_depend_on_tiles() {
+    let text = scene_text();
+    let scene = parse_scene(Path::new("showcase.toml"), &text).unwrap();
+    let mut profile = profile();
+    (profile.spp, profile.light_samples) = (3, 16);
+    let run = |threads: usize, tile: u32, samples: std::ops::Range<u32>| {
+        let mut job = RenderJob::new(&scene, Settings { profile: profile.clone(), seed: 11 });
+        (job.threads, job.tile, job.samples) = (threads, tile, samples);
+        render_into(&job, Film::new(scene.width, scene.height))
+    };
+    let (reference, stats) = run(1, 16, 0..3);
+    assert!(stats.rays.shadow_cleared > 0 && stats.rays.shadow > 0, "cleared {} traced {}", stats.rays.shadow_cleared, stats.rays.shadow);
+    for (threads, tile) in [(2, 16), (1, 5), (2, 3)] {
+        assert!(run(threads, tile, 0..3).0 == reference, "{threads} threads, tile {tile}: the image differs");
+    }
+    let mut merged = run(2, 5, 0..1).0;
+    merged.merge(&run(1, 3, 1..3).0);
+    assert!(merged == reference, "sample ranges 0..1 + 1..3 differ from 0..3");
+}

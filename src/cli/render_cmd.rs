@@ -339,6 +339,9 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
         mega(s.rays.shadow),
         mega(s.rays.total)
     );
+    if s.rays.shadow_cleared > 0 {
+        wl!("  shadow rays cleared untraced by the light-cone test: {}", mega(s.rays.shadow_cleared));
+    }
     wl!("  time: {:.3} s wall, {:.2} M rays/s", s.seconds, s.rays_per_second / 1e6);
     let t = &s.stage_seconds;
     wl!(

@@ -6,6 +6,7 @@
 //! ```
 
 pub mod accumulate;
+pub mod cone;
 pub mod csg_merge;
 pub mod generate;
 pub mod intersect;
@@ -43,6 +44,8 @@ pub struct Counters {
     pub camera_rays: u64,
     pub secondary_rays: u64,
     pub shadow_rays: u64,
+    /// Shadow rays the light-cone test found clear: credited, not traced (not in `shadow_rays`).
+    pub shadow_cleared: u64,
     /// Rays that entered the csg_merge stage (ray x solid candidates).
     pub csg_candidates: u64,
     pub nonfinite_samples: u64,
@@ -54,6 +57,7 @@ impl Counters {
         self.camera_rays += o.camera_rays;
         self.secondary_rays += o.secondary_rays;
         self.shadow_rays += o.shadow_rays;
+        self.shadow_cleared += o.shadow_cleared;
         self.csg_candidates += o.csg_candidates;
         self.nonfinite_samples += o.nonfinite_samples;
         self.samples += o.samples;

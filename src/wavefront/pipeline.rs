@@ -67,7 +67,9 @@ pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut
             timed!(times.csg_merge, csg_merge(scene, cur, csg, hits, csg_arena));
         }
         timed!(times.shade, shade(scene, profile, seed, cur, hits, order, ShadeOut { paths, next, nee }));
-        counters.shadow_rays += timed!(times.shadow, shadow(scene, profile, seed, nee, paths, csg_arena));
+        let (traced, cleared) = timed!(times.shadow, shadow(scene, profile, seed, nee, paths, csg_arena));
+        counters.shadow_rays += traced;
+        counters.shadow_cleared += cleared;
         counters.secondary_rays += next.len() as u64;
     }
     rays[0].clear();

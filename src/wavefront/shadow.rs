@@ -7,6 +7,7 @@
 //! non-physical transmissive shadows: lanes whose any-hit test met only such dielectrics are then walked
 //! through them for their transmittance (`transmit.rs`).
 
+use super::cone::LightCone;
 use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
@@ -160,9 +161,15 @@ impl LightKeys {
     }
 }
 
-pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> u64 {
+/// Light samples per request from which a light's shadow rays are first put to the light-cone test
+/// (`cone.rs`): one test per 8 requests costs about one packet's traversal.
+const CONE_MIN_SAMPLES: u32 = 8;
+
+/// Shadow rays traced and shadow rays the light-cone test found clear (credited untraced).
+pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> (u64, u64) {
     let mut pk = Batch::new();
     let mut traced = 0u64;
+    let mut cleared = 0u64;
     // Jittered and Sobol light samples form one stratified set over all of a pixel's camera samples
     // (index = sample x light_samples + j, strata permuted per stream, as a padded sampler does): with
     // 1 light sample and 64 pixel samples the light is still covered by 64 strata. Grid keeps its meaning
@@ -181,6 +188,11 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     let grid_points: Vec<Vec<(Vec3x8, Vec3x8)>> =
         scene.lights.iter().map(|light| grid.iter().map_while(|&u| light_points_x8(light, u)).collect()).collect();
     let walk = any_passable(scene, profile);
+    let cones: Vec<Option<LightCone>> = scene
+        .lights
+        .iter()
+        .map(|light| (samples_for(light, profile.light_samples) >= CONE_MIN_SAMPLES).then(|| LightCone::new(scene, light)).flatten())
+        .collect();
     let light_key = |i: usize, li: usize| light_key(seed, nee, across, i, li);
     let mut keys = LightKeys { keys: [0; KEY_CACHE], cached: None };
     // Whether any light draws samples (needs stream keys).
@@ -189,7 +201,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     // 8-lane light sample. Each request sums its unoccluded contributions by light, then sample, from
     // zero (`Credit`), and the sums go to the paths in request order at the end: a path's radiance
     // then does not depend on which requests share a chunk or a batch (that depends on the tile).
-    let mut credit = Credit::new(nee.len());
+    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some));
     let mut base = 0;
     while base < nee.len() {
         let m = (nee.len() - base).min(LANES);
@@ -234,6 +246,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             };
             let end = if point { 1.0 } else { SHADOW_END };
             let ns_lanes = f32x8::splat(ns as f32);
+            // Lanes whose every shadow ray towards this light is clear: credited untraced.
+            let clear = cones[li].as_ref().map_or(0, |c| c.clear_lanes(scene, o, live));
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
             for j in 0..ns {
                 // Across: sample index = camera sample x ns + j of the pixel's set. Else all ns samples
@@ -256,6 +270,11 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let c = (w * ls.weight).scale(cos / ns_lanes);
                 let lit = ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO);
                 let lanes = lit.to_bitmask() & live;
+                if lanes & clear != 0 {
+                    credit.add_clear(base, lanes & clear, c);
+                    cleared += (lanes & clear).count_ones() as u64;
+                }
+                let lanes = lanes & !clear;
                 if lanes == 0 {
                     continue;
                 }
@@ -274,20 +293,37 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
     }
     credit.to_paths(nee, paths);
-    traced
+    (traced, cleared)
 }
 
 /// Per request of the NEE queue, the sum of its unoccluded shadow rays' contributions (channels apart:
 /// a whole packet's 8 consecutive requests are one vector).
+/// Rays the light-cone test cleared are summed apart (a request's lights are each either cleared or
+/// traced, and traced ones arrive later, at the flush: one sum would take them in an order that depends
+/// on the batch).
 struct Credit {
     c: [Vec<f32>; 3],
+    clear: [Vec<f32>; 3],
 }
 
 impl Credit {
-    fn new(n: usize) -> Self {
+    /// For `n` requests; `cone`: whether any light takes the light-cone test (else no clear sums).
+    fn new(n: usize, cone: bool) -> Self {
         // Padded to whole packets: a whole packet's vector never reaches past the end.
         let len = n.next_multiple_of(LANES);
-        Credit { c: [vec![0.0; len], vec![0.0; len], vec![0.0; len]] }
+        let z = |len: usize| [vec![0.0; len], vec![0.0; len], vec![0.0; len]];
+        Credit { c: z(len), clear: z(if cone { len } else { 0 }) }
+    }
+
+    /// Add the contributions `c` of the chunk's `lanes` (lane `l` = request `base + l`), cleared by
+    /// the light-cone test.
+    #[inline(always)]
+    fn add_clear(&mut self, base: usize, lanes: u32, c: Vec3x8) {
+        let keep: f32x8 = bytemuck::cast(u32x8::from(std::array::from_fn(|l| 0u32.wrapping_sub((lanes >> l) & 1))));
+        for (acc, v) in self.clear.iter_mut().zip([c.x, c.y, c.z]) {
+            let sum = load8(acc, base) + (v & keep);
+            store8(acc, base, sum);
+        }
     }
 
     /// Add packet `j` of the batch: `keep` = its lanes that pass (unoccluded), `through` the walked
@@ -328,6 +364,11 @@ impl Credit {
     fn to_paths(&self, nee: &NeeQueue, paths: &mut PathTable) {
         for (i, &p) in nee.path.iter().enumerate() {
             paths.add(p, Vec3::new(self.c[0][i], self.c[1][i], self.c[2][i]));
+        }
+        if !self.clear[0].is_empty() {
+            for (i, &p) in nee.path.iter().enumerate() {
+                paths.add(p, Vec3::new(self.clear[0][i], self.clear[1][i], self.clear[2][i]));
+            }
         }
     }
 }
