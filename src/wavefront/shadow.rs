@@ -165,6 +165,12 @@ impl LightKeys {
 /// (`cone.rs`): one test per 8 requests costs about one packet's traversal.
 const CONE_MIN_SAMPLES: u32 = 8;
 
+/// The lanes set in `bits` as an `f32x8` mask (all ones where set).
+#[inline(always)]
+fn lane_mask(bits: u32) -> f32x8 {
+    bytemuck::cast(u32x8::from(std::array::from_fn(|l| 0u32.wrapping_sub((bits >> l) & 1))))
+}
+
 /// Shadow rays traced and shadow rays the light-cone test found clear (credited untraced).
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> (u64, u64) {
     let mut pk = Batch::new();
@@ -249,6 +255,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             // Lanes whose every shadow ray towards this light is clear: credited untraced.
             let clear = cones[li].as_ref().map_or(0, |c| c.clear_lanes(scene, o, live));
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
+            // The cleared lanes' contributions of this light, summed over its samples in registers.
+            let mut cleared_sum = Vec3x8::splat(Vec3::ZERO);
             for j in 0..ns {
                 // Across: sample index = camera sample x ns + j of the pixel's set. Else all ns samples
                 // serve this one shading point: strata need no permutation.
@@ -271,7 +279,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let lit = ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO);
                 let lanes = lit.to_bitmask() & live;
                 if lanes & clear != 0 {
-                    credit.add_clear(base, lanes & clear, c);
+                    let keep = lane_mask(lanes & clear);
+                    cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
                     cleared += (lanes & clear).count_ones() as u64;
                 }
                 let lanes = lanes & !clear;
@@ -285,6 +294,9 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 if pk.len == BATCH {
                     traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
                 }
+            }
+            if clear != 0 {
+                credit.add_clear(base, cleared_sum);
             }
         }
         base += m;
@@ -315,13 +327,12 @@ impl Credit {
         Credit { c: z(len), clear: z(if cone { len } else { 0 }) }
     }
 
-    /// Add the contributions `c` of the chunk's `lanes` (lane `l` = request `base + l`), cleared by
-    /// the light-cone test.
+    /// Add the sums `c` of a chunk's contributions cleared by the light-cone test (lane `l` = request
+    /// `base + l`; 0 in lanes without any).
     #[inline(always)]
-    fn add_clear(&mut self, base: usize, lanes: u32, c: Vec3x8) {
-        let keep: f32x8 = bytemuck::cast(u32x8::from(std::array::from_fn(|l| 0u32.wrapping_sub((lanes >> l) & 1))));
+    fn add_clear(&mut self, base: usize, c: Vec3x8) {
         for (acc, v) in self.clear.iter_mut().zip([c.x, c.y, c.z]) {
-            let sum = load8(acc, base) + (v & keep);
+            let sum = load8(acc, base) + v;
             store8(acc, base, sum);
         }
     }
@@ -334,8 +345,7 @@ impl Credit {
         let base = pk.whole[j];
         if base != NOT_WHOLE {
             // Lanes = requests base..base + 8: one vector per channel, occluded lanes adding exactly 0.
-            let keep_v = u32x8::from(std::array::from_fn(|l| 0u32.wrapping_sub((keep >> l) & 1)));
-            let keep_f: f32x8 = bytemuck::cast(keep_v);
+            let keep_f = lane_mask(keep);
             let b = base as usize;
             for (a, acc) in self.c.iter_mut().enumerate() {
                 let mut v = load8(&pk.contrib[a], q0);
