@@ -178,3 +178,67 @@ fn degenerate_origins_are_not_cleared() {
     assert_eq!(clear & 0b0000_1110, 0, "lanes below the floor, above the light or NaN cleared: {clear:08b}");
     assert_eq!(clear & 0b1100_0000, 0b1100_0000, "open lanes not cleared: {clear:08b}");
 }
+
+/// Lanes whose cones meet one glass sphere only: `single_sphere_x8` gives, bit for bit, what the any-hit
+/// traversal and the walk through glass give their rays (unoccluded; transmittance 1 where a ray misses
+/// the sphere, the pair's Fresnel product where it enters and leaves it), for every target on the light;
+/// rays that cross the sphere once are left to the traversal.
+#[test]
+fn single_sphere_lanes_match_the_traversal_and_the_walk() {
+    use strata::wavefront::transmit::{pair_sphere, single_sphere_x8, transmittance_x8, Walk};
+    let mut r = R(Xoshiro256PlusPlus::seed_from_u64(0x5_9e7e));
+    let mut profile = Profile::builtin("bench");
+    profile.transmissive_shadows = true;
+    let mut arena = CsgArena::new();
+    let mut walk = Walk::new();
+    let (mut crossed, mut missed) = (0usize, 0usize);
+    for case in 0..240 {
+        let k = [1e-3f32, 1.0, 37.0, 1e4][case % 4];
+        let text = scene(&mut r, k, case % 3);
+        let scene = parse_scene(Path::new("cone.toml"), &text).unwrap();
+        let light = scene.lights[0];
+        let cone = LightCone::new(&scene, &light).unwrap();
+        for _ in 0..8 {
+            let os: [Vec3; LANES] = std::array::from_fn(|_| origin(&mut r, &scene, k));
+            let o = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| os[l][a])));
+            let v = cone.verdict(&scene, o, 0xff);
+            assert_eq!(v.clear & v.single, 0);
+            let lanes =
+                (0..LANES).filter(|&l| v.single & (1 << l) != 0 && pair_sphere(&scene, &profile, v.prim[l])).fold(0u32, |m, l| m | 1 << l);
+            if lanes == 0 {
+                continue;
+            }
+            let (ts, end) = targets(&mut r, &light);
+            for &t in &ts {
+                let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| t[a] - os[l][a])));
+                let tmax = f32x8::from(std::array::from_fn(|l| if lanes & (1 << l) != 0 { end } else { -1.0 }));
+                let ray = Ray8::new(o, d, tmax);
+                let (done, tr) = single_sphere_x8(&scene, &profile, &v.prim, &ray, lanes);
+                let (occ, touched) = occlusion_x8(&scene, &profile, &ray, None, &mut arena, true);
+                assert_eq!(occ.to_bitmask() & done, 0, "case {case}: a single-sphere lane is occluded");
+                let rows = |v: Vec3x8| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
+                let (walked, _) = transmittance_x8(
+                    &scene,
+                    &profile,
+                    &rows(o),
+                    &rows(d),
+                    &tmax.to_array(),
+                    &[0.0; LANES],
+                    touched & done,
+                    &mut arena,
+                    &mut walk,
+                );
+                for l in (0..LANES).filter(|&l| done & (1 << l) != 0) {
+                    let want = if touched & (1 << l) != 0 { walked[l] } else { Vec3::ONE };
+                    assert_eq!(tr[l].to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "case {case} lane {l}");
+                    if touched & (1 << l) != 0 {
+                        crossed += 1;
+                    } else {
+                        missed += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(crossed > 200 && missed > 200, "{crossed} rays through a sphere, {missed} past it");
+}

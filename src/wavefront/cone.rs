@@ -29,7 +29,7 @@
 
 use crate::accel::MAX_DEPTH;
 use crate::scene::{Light, Scene, Shape};
-use crate::simd::{f32x8, Vec3x8};
+use crate::simd::{f32x8, Vec3x8, LANES};
 use glam::Vec3;
 
 /// Relative widening of boxes and of the direction box (of the scale of the scene, light and origins).
@@ -98,6 +98,13 @@ impl LightCone {
     /// The lanes (bits, among `lanes`) whose shadow rays from origin `o` towards this light's targets
     /// meet no prim's box and no unbounded prim: every such ray is unoccluded and crosses nothing.
     pub fn clear_lanes(&self, scene: &Scene, o: Vec3x8, lanes: u32) -> u32 {
+        self.verdict(scene, o, lanes).clear
+    }
+
+    /// [`LightCone::clear_lanes`], and the lanes whose cones meet exactly one bounded prim's box (and no
+    /// unbounded prim), with that prim: their shadow rays can cross no other surface.
+    pub fn verdict(&self, scene: &Scene, o: Vec3x8, lanes: u32) -> Verdict {
+        let none = Verdict { clear: 0, single: 0, prim: [0; LANES] };
         let splat = f32x8::splat;
         let ao = o.x.abs().max(o.y.abs()).max(o.z.abs());
         let s = ao + splat(self.scale);
@@ -108,12 +115,12 @@ impl LightCone {
         let finite = ao.simd_lt(f32x8::splat(f32::INFINITY)).to_bitmask();
         let mut clear = lanes & finite;
         if clear == 0 {
-            return 0;
+            return none;
         }
         for &pid in &scene.unbounded {
             clear &= self.plane_clear(scene, pid, o, s);
             if clear == 0 {
-                return 0;
+                return none;
             }
         }
         let one = f32x8::ONE;
@@ -129,15 +136,17 @@ impl LightCone {
         };
         let bvh = &scene.bvh;
         if bvh.nodes.is_empty() {
-            return clear;
+            return Verdict { clear, ..none };
         }
-        // Lanes still clear whose cones reach a node; a leaf's prims' boxes decide.
+        // Lanes that met one prim's box so far (and which); lanes that met more.
+        let (mut one, mut prim) = (0u32, [0u32; LANES]);
+        // Lanes still clear or single whose cones reach a node; a leaf's prims' boxes decide.
         let mut stack = [(0u32, 0u32); MAX_DEPTH];
         let mut sp = 0;
         let (mut node, mut live) = (0usize, clear);
         loop {
             let n = &bvh.nodes[node];
-            live &= clear & cone.reaches(Vec3::from_array(n.min), Vec3::from_array(n.max));
+            live &= (clear | one) & cone.reaches(Vec3::from_array(n.min), Vec3::from_array(n.max));
             if live != 0 {
                 let count = n.count() as usize;
                 if count == 0 {
@@ -155,14 +164,21 @@ impl LightCone {
                             hit &= !front;
                         }
                     }
+                    // A lane's first prim makes it single; a second one, neither.
+                    let mut first = hit & clear;
+                    one = (one & !hit) | first;
                     clear &= !hit;
+                    while first != 0 {
+                        prim[first.trailing_zeros() as usize] = pid;
+                        first &= first - 1;
+                    }
                 }
-                if clear == 0 {
-                    return 0;
+                if clear | one == 0 {
+                    return none;
                 }
             }
             if sp == 0 {
-                return clear;
+                return Verdict { clear, single: one, prim };
             }
             sp -= 1;
             (node, live) = (stack[sp].0 as usize, stack[sp].1);
@@ -200,6 +216,16 @@ impl LightCone {
         let away = (num.simd_lt(zero) & den_lo.simd_gt(zero)) | (num.simd_gt(zero) & den_hi.simd_lt(zero));
         away.to_bitmask()
     }
+}
+
+/// What [`LightCone::verdict`] found for 8 shading points.
+#[derive(Clone, Copy, Debug)]
+pub struct Verdict {
+    /// Lanes whose shadow rays towards the light meet nothing.
+    pub clear: u32,
+    /// Lanes whose shadow rays can meet only `prim[l]` (a bounded prim).
+    pub single: u32,
+    pub prim: [u32; LANES],
 }
 
 /// Eight cones: origins, direction boxes and their inverses, and the box widening.

@@ -11,7 +11,7 @@ use super::cone::LightCone;
 use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
-use super::transmit::{any_passable, passes, transmittance_x8, Walk};
+use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, Walk};
 use crate::accel::GROUP;
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
@@ -252,8 +252,17 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             };
             let end = if point { 1.0 } else { SHADOW_END };
             let ns_lanes = f32x8::splat(ns as f32);
-            // Lanes whose every shadow ray towards this light is clear: credited untraced.
-            let clear = cones[li].as_ref().map_or(0, |c| c.clear_lanes(scene, o, live));
+            // Lanes whose every shadow ray towards this light is clear: credited untraced. Lanes whose rays
+            // can meet only one glass sphere they walk through: tested against that sphere alone.
+            let verdict = cones[li].as_ref().map(|c| c.verdict(scene, o, live));
+            let clear = verdict.map_or(0, |v| v.clear);
+            let (single, sphere_of) = match verdict {
+                Some(v) if walk && v.single != 0 => {
+                    let ok = (0..LANES).filter(|&l| v.single & (1 << l) != 0 && pair_sphere(scene, profile, v.prim[l]));
+                    (ok.fold(0u32, |m, l| m | (1 << l)), v.prim)
+                }
+                _ => (0, [0; LANES]),
+            };
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
             // The cleared lanes' contributions of this light, summed over its samples in registers.
             let mut cleared_sum = Vec3x8::splat(Vec3::ZERO);
@@ -283,7 +292,19 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
                     cleared += (lanes & clear).count_ones() as u64;
                 }
-                let lanes = lanes & !clear;
+                let mut lanes = lanes & !clear;
+                if lanes & single != 0 {
+                    let d = ls.target - o;
+                    let tmax = f32x8::from(std::array::from_fn(|l| if lanes & single & (1 << l) != 0 { end } else { -1.0 }));
+                    let (done, tr) = single_sphere_x8(scene, profile, &sphere_of, &Ray8::new(o, d, tmax), lanes & single);
+                    if done != 0 {
+                        let keep = lane_mask(done);
+                        let t = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| tr[l][a])));
+                        cleared_sum = cleared_sum + Vec3x8::new((c.x * t.x) & keep, (c.y * t.y) & keep, (c.z * t.z) & keep);
+                        traced += done.count_ones() as u64;
+                        lanes &= !done;
+                    }
+                }
                 if lanes == 0 {
                     continue;
                 }
@@ -295,7 +316,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
                 }
             }
-            if clear != 0 {
+            if clear | single != 0 {
                 credit.add_clear(base, cleared_sum);
             }
         }

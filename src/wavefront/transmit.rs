@@ -217,22 +217,85 @@ fn sphere_pair_lanes(scene: &Scene, profile: &Profile, cr: &Walk, lanes: u32) ->
 /// exact Fresnel reflectance in 8 lanes, and [`replay_one_medium`]'s products in its order; absorption,
 /// whose `exp` has no 8-lane twin, lane by lane).
 fn sphere_pairs_x8(scene: &Scene, profile: &Profile, cr: &Walk, ray: &Ray8, time: &[f32; LANES], pairs: u32, tr: &mut [Vec3; LANES]) {
-    let (zero, one) = (f32x8::ZERO, f32x8::ONE);
-    // Per lane: the sphere's centre at the lane's time and the medium's index (other lanes: any sphere).
+    // Other lanes: any pair lane's sphere.
     let l0 = pairs.trailing_zeros() as usize;
     let lane_of = |l: usize| if pairs & (1 << l) != 0 { l } else { l0 };
+    let prims = std::array::from_fn(|l| cr.raw[lane_of(l)][0].prim);
+    let t = [std::array::from_fn(|l| cr.raw[lane_of(l)][0].t), std::array::from_fn(|l| cr.raw[lane_of(l)][1].t)];
+    pair_transmittance_x8(scene, profile, &prims, t, ray, time, pairs, tr);
+}
+
+/// Shadow rays that can meet no surface but one sphere `prims[l]` (the light-cone test's verdict) of a
+/// dielectric they walk through ([`pair_sphere`]): per lane of `lanes`, the transmittance of the ray,
+/// exactly as the traversal and the walk would give it (1 where it misses the sphere; the pair's
+/// [`sphere_pairs_x8`] where it enters and leaves it within the segment). Lanes that cross the sphere
+/// once (a segment starting or ending inside it) are left out of the returned mask: they are traced.
+pub fn single_sphere_x8(scene: &Scene, profile: &Profile, prims: &[u32; LANES], ray: &Ray8, lanes: u32) -> (u32, [Vec3; LANES]) {
+    let mut tr = [Vec3::ONE; LANES];
+    let (mut pairs, mut done) = (0u32, 0u32);
+    let mut t = [[0.0f32; LANES]; 2];
+    let active = ray.tmax.simd_gt(f32x8::ZERO).to_bitmask();
+    let mut todo = lanes;
+    // Lanes usually share their sphere: one interval per distinct sphere.
+    while todo != 0 {
+        let pid = prims[todo.trailing_zeros() as usize];
+        let same = todo & (0..LANES).filter(|&l| prims[l] == pid).fold(0, |m, l| m | (1 << l));
+        todo &= !same;
+        let Shape::Sphere { center, radius } = scene.prims[pid as usize].shape else { continue };
+        // As the walk collects a sphere's crossings (`collect`).
+        let (near, far) = sphere_interval_x8(center, radius, ray);
+        let inside = |t: f32x8| (t.simd_gt(f32x8::ZERO) & t.simd_lt(ray.tmax)).to_bitmask() & active;
+        let (nb, fb) = (inside(near), inside(far));
+        pairs |= same & nb & fb;
+        done |= same & !(nb | fb);
+        let (n, f) = (near.to_array(), far.to_array());
+        for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
+            (t[0][l], t[1][l]) = (n[l], f[l]);
+        }
+    }
+    if pairs != 0 {
+        let l0 = pairs.trailing_zeros() as usize;
+        let prims = std::array::from_fn(|l| if pairs & (1 << l) != 0 { prims[l] } else { prims[l0] });
+        let t = t.map(|row| std::array::from_fn(|l| if pairs & (1 << l) != 0 { row[l] } else { row[l0] }));
+        pair_transmittance_x8(scene, profile, &prims, t, ray, &[0.0; LANES], pairs, &mut tr);
+    }
+    (pairs | done, tr)
+}
+
+/// Whether a sphere's crossings are replayed by [`pair_transmittance_x8`]: a static sphere of a
+/// dielectric that shadow rays walk through, neither thin nor Schlick ([`sphere_pair_lanes`]'s test).
+pub fn pair_sphere(scene: &Scene, profile: &Profile, pid: u32) -> bool {
+    let prim = &scene.prims[pid as usize];
+    matches!(prim.shape, Shape::Sphere { .. })
+        && prim.motion == Vec3::ZERO
+        && passes(scene, profile, prim.material)
+        && medium::dielectric(scene, prim.material).is_some_and(|d| !d.thin && !d.schlick)
+}
+
+/// The transmittance of entry-exit pairs `t` of spheres `prims` (every lane a valid sphere; the `pairs`
+/// lanes are written), in 8 lanes (see [`sphere_pairs_x8`]).
+#[allow(clippy::too_many_arguments)]
+fn pair_transmittance_x8(
+    scene: &Scene,
+    profile: &Profile,
+    prims: &[u32; LANES],
+    t: [[f32; LANES]; 2],
+    ray: &Ray8,
+    time: &[f32; LANES],
+    pairs: u32,
+    tr: &mut [Vec3; LANES],
+) {
+    let (zero, one) = (f32x8::ZERO, f32x8::ONE);
+    // Per lane: the sphere's centre at the lane's time and the medium's index.
     let mut rows = [[0.0f32; LANES]; 6];
     let mut ior = [1.0f32; LANES];
-    let mut t = [[0.0f32; LANES]; 2];
     for l in 0..LANES {
-        let k = lane_of(l);
-        let prim = &scene.prims[cr.raw[k][0].prim as usize];
-        let Shape::Sphere { center, .. } = prim.shape else { unreachable!("sphere_pair_lanes checked the shape") };
+        let prim = &scene.prims[prims[l] as usize];
+        let Shape::Sphere { center, .. } = prim.shape else { unreachable!("the callers checked the shape") };
         for a in 0..3 {
             (rows[a][l], rows[3 + a][l]) = (center[a], prim.motion[a]);
         }
         ior[l] = medium::dielectric(scene, prim.material).map_or(1.0, |d| d.ior.nominal());
-        (t[0][l], t[1][l]) = (cr.raw[k][0].t, cr.raw[k][1].t);
     }
     let f = |a: &[f32; LANES]| f32x8::from(*a);
     let tm = f(time);
@@ -268,7 +331,7 @@ fn sphere_pairs_x8(scene: &Scene, profile: &Profile, cr: &Walk, ray: &Ray8, time
             tr[l] = Vec3::ZERO;
             continue;
         }
-        let d = medium::dielectric(scene, scene.prims[cr.raw[l][0].prim as usize].material).expect("a dielectric");
+        let d = medium::dielectric(scene, scene.prims[prims[l] as usize].material).expect("a dielectric");
         let mut v = Vec3::ONE * f0[l];
         if d.sigma_a != Vec3::ZERO {
             v *= beer_lambert(d.sigma_a, s1[l] - s0[l]);
