@@ -15,9 +15,9 @@ use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, trans
 use crate::accel::GROUP;
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
-use crate::light::{light_points_x8, sample_light_at_x8, sample_light_x8, samples_for};
+use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
-use crate::scene::{Profile, Scene, Shape};
+use crate::scene::{Light, Profile, Scene, Shape};
 use crate::simd::{f32x8, gather8, load8, store8, u32x8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
 
@@ -193,6 +193,19 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     // So are the light points of those samples and their shadow-ray targets, per area light.
     let grid_points: Vec<Vec<(Vec3x8, Vec3x8)>> =
         scene.lights.iter().map(|light| grid.iter().map_while(|&u| light_points_x8(light, u)).collect()).collect();
+    // For those grid lights: the light's unit normal and radiance x area / samples.
+    let grid_light: Vec<(Vec3, Vec3)> = scene
+        .lights
+        .iter()
+        .map(|light| match *light {
+            Light::Quad { quad, radiance } => (quad.normal(), radiance * (quad.area() / samples_for(light, profile.light_samples) as f32)),
+            Light::Disk { disk, radiance } => (
+                disk.normal,
+                radiance * (std::f32::consts::PI * disk.radius * disk.radius / samples_for(light, profile.light_samples) as f32),
+            ),
+            _ => (Vec3::ZERO, Vec3::ZERO),
+        })
+        .collect();
     let walk = any_passable(scene, profile);
     let cones: Vec<Option<LightCone>> = scene
         .lights
@@ -272,20 +285,30 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let permuted = across && !point;
                 let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
                 // A point light's one sample is the centre of its (unused) sample square.
-                let ls = match grid_points[li].get(j as usize) {
-                    Some(&(y, target)) => sample_light_at_x8(light, p, y, target),
+                let (target, c, lit) = match grid_points[li].get(j as usize) {
+                    Some(&(y, target)) => {
+                        // A grid's point `y`: the contribution w L A cos_l cos / (d^2 ns) with both cosines
+                        // from the unnormalised direction (no square root, two divisions).
+                        let (nl, la) = grid_light[li];
+                        let v = y - p;
+                        let d2 = v.dot_unfused(v);
+                        let (cl, cr) = (-Vec3x8::splat(nl).dot_unfused(v), n.dot_unfused(v));
+                        let c = (w * Vec3x8::splat(la)).scale(cl * cr / d2 / d2);
+                        let zero = f32x8::ZERO;
+                        (target, c, d2.simd_gt(zero) & cl.simd_gt(zero) & cr.simd_gt(zero) & c.x.max(c.y).max(c.z).simd_gt(zero))
+                    }
                     None => {
                         let u = match (point, grid.get(j as usize)) {
                             (true, _) => [f32x8::splat(0.5); 2],
                             (false, Some(&u)) => u,
                             (false, None) => area.sample_x8_call(&keys_li, &index, permuted),
                         };
-                        sample_light_x8(light, p, u)
+                        let ls = sample_light_x8(light, p, u);
+                        let cos = n.dot_unfused(ls.wi);
+                        let c = (w * ls.weight).scale(cos / ns_lanes);
+                        (ls.target, c, ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO))
                     }
                 };
-                let cos = n.dot_unfused(ls.wi);
-                let c = (w * ls.weight).scale(cos / ns_lanes);
-                let lit = ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO);
                 let lanes = lit.to_bitmask() & live;
                 if lanes & clear != 0 {
                     let keep = lane_mask(lanes & clear);
@@ -294,7 +317,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 }
                 let mut lanes = lanes & !clear;
                 if lanes & single != 0 {
-                    let d = ls.target - o;
+                    let d = target - o;
                     let tmax = f32x8::from(std::array::from_fn(|l| if lanes & single & (1 << l) != 0 { end } else { -1.0 }));
                     let (done, tr) = single_sphere_x8(scene, profile, &sphere_of, &Ray8::new(o, d, tmax), lanes & single);
                     if done != 0 {
@@ -311,7 +334,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 if pk.len + LANES > BATCH {
                     traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
                 }
-                pk.append(&Rays8 { o, d: ls.target - o, tmax: end, time, contrib: c, req }, lanes);
+                pk.append(&Rays8 { o, d: target - o, tmax: end, time, contrib: c, req }, lanes);
                 if pk.len == BATCH {
                     traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
                 }
