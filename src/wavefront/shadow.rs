@@ -193,8 +193,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
     // So are the light points of those samples and their shadow-ray targets, per area light.
     let grid_points: Vec<Vec<(Vec3x8, Vec3x8)>> =
         scene.lights.iter().map(|light| grid.iter().map_while(|&u| light_points_x8(light, u)).collect()).collect();
-    // For those grid lights: the light's unit normal and radiance x area / samples.
-    let grid_light: Vec<(Vec3, Vec3)> = scene
+    // Per quad or disk light: its unit normal and radiance x area / samples.
+    let flat_light: Vec<(Vec3, Vec3)> = scene
         .lights
         .iter()
         .map(|light| match *light {
@@ -285,28 +285,35 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let permuted = across && !point;
                 let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
                 // A point light's one sample is the centre of its (unused) sample square.
+                // A quad or disk light's point `y` (and target): the contribution w L A cos_l cos / (d^2 ns)
+                // with both cosines from the unnormalised direction (no square root, two divisions).
+                let area_point = |y: Vec3x8, target: Vec3x8| {
+                    let (nl, la) = flat_light[li];
+                    let v = y - p;
+                    let d2 = v.dot_unfused(v);
+                    let (cl, cr) = (-Vec3x8::splat(nl).dot_unfused(v), n.dot_unfused(v));
+                    let c = (w * Vec3x8::splat(la)).scale(cl * cr / d2 / d2);
+                    let zero = f32x8::ZERO;
+                    (target, c, d2.simd_gt(zero) & cl.simd_gt(zero) & cr.simd_gt(zero) & c.x.max(c.y).max(c.z).simd_gt(zero))
+                };
                 let (target, c, lit) = match grid_points[li].get(j as usize) {
-                    Some(&(y, target)) => {
-                        // A grid's point `y`: the contribution w L A cos_l cos / (d^2 ns) with both cosines
-                        // from the unnormalised direction (no square root, two divisions).
-                        let (nl, la) = grid_light[li];
-                        let v = y - p;
-                        let d2 = v.dot_unfused(v);
-                        let (cl, cr) = (-Vec3x8::splat(nl).dot_unfused(v), n.dot_unfused(v));
-                        let c = (w * Vec3x8::splat(la)).scale(cl * cr / d2 / d2);
-                        let zero = f32x8::ZERO;
-                        (target, c, d2.simd_gt(zero) & cl.simd_gt(zero) & cr.simd_gt(zero) & c.x.max(c.y).max(c.z).simd_gt(zero))
-                    }
+                    Some(&(y, target)) => area_point(y, target),
                     None => {
                         let u = match (point, grid.get(j as usize)) {
                             (true, _) => [f32x8::splat(0.5); 2],
                             (false, Some(&u)) => u,
                             (false, None) => area.sample_x8_call(&keys_li, &index, permuted),
                         };
-                        let ls = sample_light_x8(light, p, u);
-                        let cos = n.dot_unfused(ls.wi);
-                        let c = (w * ls.weight).scale(cos / ns_lanes);
-                        (ls.target, c, ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO))
+                        match light_points_x8(light, u) {
+                            Some((y, target)) => area_point(y, target),
+                            None => {
+                                // Point and sphere lights.
+                                let ls = sample_light_x8(light, p, u);
+                                let cos = n.dot_unfused(ls.wi);
+                                let c = (w * ls.weight).scale(cos / ns_lanes);
+                                (ls.target, c, ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO))
+                            }
+                        }
                     }
                 };
                 let lanes = lit.to_bitmask() & live;
