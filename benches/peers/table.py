@@ -69,8 +69,11 @@ def main():
         s_time = read(os.path.join(out, f"{case}.strata.time"))
         s_time = json.loads(s_time) if s_time else {}
         strata = {"seconds": s["seconds"], "rays": s["rays"]["total"], "wall": s_time.get("wall"), "cpu": s_time.get("cpu")}
+        cleared = s["rays"].get("shadow_cleared", 0)
         rows.append((title, "Strata", strata, f"own counters: camera {s['rays']['camera'] / 1e6:.2f}M, "
-                     f"secondary {s['rays']['secondary'] / 1e6:.2f}M, shadow {s['rays']['shadow'] / 1e6:.2f}M"))
+                     f"secondary {s['rays']['secondary'] / 1e6:.2f}M, shadow {s['rays']['shadow'] / 1e6:.2f}M"
+                     + (f" traced (+ {cleared / 1e6:.2f}M light samples the light-cone test found clear, credited "
+                        "untraced and not counted)" if cleared else "")))
         p_time = read(os.path.join(out, f"{case}.{peer}.time"))
         p_wall = json.loads(p_time)["wall"] if p_time else None
         if peer == "pov":
