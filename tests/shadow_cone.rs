@@ -242,3 +242,50 @@ fn single_sphere_lanes_match_the_traversal_and_the_walk() {
     }
     assert!(crossed > 200 && missed > 200, "{crossed} rays through a sphere, {missed} past it");
 }
+
+/// Lanes whose cones meet one opaque prim only (a sphere, a box, the CSG part, the light's own quad seen
+/// from behind): the any-hit test of that prim alone (`shadow::prim_occlusion`) decides every ray as
+/// the traversal of the whole scene does.
+#[test]
+fn single_opaque_prim_lanes_match_the_traversal() {
+    use strata::wavefront::shadow::prim_occlusion;
+    let mut r = R(Xoshiro256PlusPlus::seed_from_u64(0x0_9a9e));
+    let mut profile = Profile::builtin("bench");
+    profile.transmissive_shadows = true;
+    let mut arena = CsgArena::new();
+    let (mut occluded, mut open) = (0usize, 0usize);
+    for case in 0..240 {
+        let k = [1e-3f32, 1.0, 37.0, 1e4][case % 4];
+        let text = scene(&mut r, k, case % 3);
+        let scene = parse_scene(Path::new("cone.toml"), &text).unwrap();
+        let light = scene.lights[0];
+        let cone = LightCone::new(&scene, &light).unwrap();
+        for _ in 0..8 {
+            let os: [Vec3; LANES] = std::array::from_fn(|_| origin(&mut r, &scene, k));
+            let o = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| os[l][a])));
+            let v = cone.verdict(&scene, o, 0xff);
+            let (ts, end) = targets(&mut r, &light);
+            for l in (0..LANES).filter(|&l| v.single & (1 << l) != 0) {
+                let pid = v.prim[l];
+                let opaque = match scene.prims[pid as usize].shape {
+                    strata::scene::Shape::Csg { .. } => true, // the test scene's CSG part is diffuse
+                    _ => !matches!(scene.materials[scene.prims[pid as usize].material as usize], strata::scene::Material::Dielectric(_)),
+                };
+                if !opaque {
+                    continue;
+                }
+                for c in ts.chunks(LANES) {
+                    let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|i| c[i % c.len()][a] - os[l][a])));
+                    let ray = Ray8::new(Vec3x8::splat(os[l]), d, f32x8::splat(end));
+                    let mut touched = 0;
+                    let alone = prim_occlusion(&scene, &profile, pid, &ray, None, &mut arena, true, &mut touched).to_bitmask();
+                    let (all, all_touched) = occlusion_x8(&scene, &profile, &ray, None, &mut arena, true);
+                    assert_eq!((alone, touched), (all.to_bitmask(), all_touched), "case {case} lane {l} prim {pid}");
+                    occluded += alone.count_ones() as usize;
+                    open += (!alone & 0xff).count_ones() as usize;
+                }
+            }
+        }
+    }
+    assert!(occluded > 500 && open > 500, "{occluded} rays occluded, {open} open");
+}

@@ -269,12 +269,15 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             // can meet only one glass sphere they walk through: tested against that sphere alone.
             let verdict = cones[li].as_ref().map(|c| c.verdict(scene, o, live));
             let clear = verdict.map_or(0, |v| v.clear);
-            let (single, sphere_of) = match verdict {
-                Some(v) if walk && v.single != 0 => {
-                    let ok = (0..LANES).filter(|&l| v.single & (1 << l) != 0 && pair_sphere(scene, profile, v.prim[l]));
-                    (ok.fold(0u32, |m, l| m | (1 << l)), v.prim)
+            // Lanes whose rays can meet one opaque prim only: tested against it alone.
+            let (single, opaque, sphere_of) = match verdict {
+                Some(v) if v.single != 0 => {
+                    let bits = |f: &dyn Fn(u32) -> bool| {
+                        (0..LANES).filter(|&l| v.single & (1 << l) != 0 && f(v.prim[l])).fold(0u32, |m, l| m | (1 << l))
+                    };
+                    (bits(&|pid| walk && pair_sphere(scene, profile, pid)), bits(&|pid| opaque_prim(scene, profile, pid)), v.prim)
                 }
-                _ => (0, [0; LANES]),
+                _ => (0, 0, [0; LANES]),
             };
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
             // The cleared lanes' contributions of this light, summed over its samples in registers.
@@ -335,6 +338,20 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                         lanes &= !done;
                     }
                 }
+                let mut todo = lanes & opaque;
+                while todo != 0 {
+                    let pid = sphere_of[todo.trailing_zeros() as usize];
+                    let same = todo & (0..LANES).filter(|&l| sphere_of[l] == pid).fold(0u32, |m, l| m | (1 << l));
+                    todo &= !same;
+                    let tmax = f32x8::from(std::array::from_fn(|l| if same & (1 << l) != 0 { end } else { -1.0 }));
+                    let mut touched = 0;
+                    let occ = prim_occlusion(scene, profile, pid, &Ray8::new(o, target - o, tmax), None, arena, walk, &mut touched);
+                    debug_assert_eq!(touched, 0, "an opaque prim lets no ray through");
+                    let keep = lane_mask(same & !occ.to_bitmask());
+                    cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
+                    traced += same.count_ones() as u64;
+                    lanes &= !same;
+                }
                 if lanes == 0 {
                     continue;
                 }
@@ -346,7 +363,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
                 }
             }
-            if clear | single != 0 {
+            if clear | single | opaque != 0 {
                 credit.add_clear(base, cleared_sum);
             }
         }
@@ -483,6 +500,15 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, credit: &mut Credit, 
     n as u64 + walked
 }
 
+/// Whether every surface of a prim stops shadow rays (a CSG solid: every leaf's).
+fn opaque_prim(scene: &Scene, profile: &Profile, pid: u32) -> bool {
+    let prim = &scene.prims[pid as usize];
+    match prim.shape {
+        Shape::Csg { solid } => scene.csg.solid_leaves(solid).all(|l| blocks(scene, profile, scene.csg.leaf(l).material)),
+        _ => blocks(scene, profile, prim.material),
+    }
+}
+
 /// Whether a primitive stops shadow rays (else the shadow ray walks through it: `transmit.rs`).
 #[inline(always)]
 fn blocks(scene: &Scene, profile: &Profile, material: u32) -> bool {
@@ -530,54 +556,71 @@ pub fn occlusion_group(
         rays[j].tmax = occ[j].select(f32x8::splat(-1.0), rays[j].tmax);
     }
     let from_bvh = scene.bvh.traverse_any_group(rays, |bi, j, ray| {
-        let pid = scene.bounded[bi as usize];
-        let prim = &scene.prims[pid as usize];
-        let time = times[j];
-        match prim.shape {
-            Shape::Csg { solid } => {
-                // Lanes that reach the solid's bounds are solved together by the 8-lane interval merge.
-                let b = &scene.bounds[pid as usize];
-                let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(ray), ray.tmax);
-                if mask.to_bitmask() == 0 {
-                    return none;
-                }
-                let local = in_prim_frame(ray, prim.motion, time);
-                let masked = Ray8 { tmax: mask.select(ray.tmax, f32x8::splat(-1.0)), ..local };
-                if walk && scene.csg.solid_leaves(solid).all(|l| passes(scene, profile, scene.csg.leaf(l).material)) {
-                    // Every surface lets shadow rays through: the solid occludes no lane, and the walk finds
-                    // the crossings of the lanes that may have some (none at all: transmittance 1 exactly).
-                    touched[j] |= lanes_may_cross_x8(&scene.csg, solid, &masked, zero, arena);
-                    return none;
-                }
-                let mut out = [None; LANES];
-                first_hit_x8(&scene.csg, solid, &masked, zero, arena, &mut out);
-                let mut hit = [0.0f32; LANES];
-                for (l, h) in out.iter().enumerate() {
-                    if let Some(h) = h {
-                        if blocks(scene, profile, scene.csg.leaf(h.leaf).material) {
-                            hit[l] = f32::from_bits(u32::MAX);
-                        } else {
-                            // A first boundary that lets the ray through: the walk sees the rest of the solid.
-                            touched[j] |= 1 << l;
-                        }
-                    }
-                }
-                f32x8::from(hit)
-            }
-            _ => {
-                let t = || prim_t_at_x8(prim, ray, time);
-                if !blocks(scene, profile, prim.material) {
-                    if walk {
-                        touched[j] |= t().simd_lt(ray.tmax).to_bitmask();
-                    }
-                    return none;
-                }
-                t().simd_lt(ray.tmax)
-            }
-        }
+        prim_occlusion(scene, profile, scene.bounded[bi as usize], ray, times[j], arena, walk, &mut touched[j])
     });
     for j in 0..k {
         occ[j] |= from_bvh[j];
     }
     (occ, touched)
+}
+
+/// Any-hit test of 8 shadow rays against one prim (the traversal's leaf callback): the occluded lanes,
+/// and into `touched` the lanes that met a surface they walk through.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn prim_occlusion(
+    scene: &Scene,
+    profile: &Profile,
+    pid: u32,
+    ray: &Ray8,
+    time: Option<f32x8>,
+    arena: &mut CsgArena,
+    walk: bool,
+    touched: &mut u32,
+) -> f32x8 {
+    let zero = f32x8::ZERO;
+    let none = zero.simd_gt(f32x8::ONE); // all false
+    let prim = &scene.prims[pid as usize];
+    match prim.shape {
+        Shape::Csg { solid } => {
+            // Lanes that reach the solid's bounds are solved together by the 8-lane interval merge.
+            let b = &scene.bounds[pid as usize];
+            let (_, mask) = intersect_aabb_x8(b.min, b.max, &PacketRay::new(ray), ray.tmax);
+            if mask.to_bitmask() == 0 {
+                return none;
+            }
+            let local = in_prim_frame(ray, prim.motion, time);
+            let masked = Ray8 { tmax: mask.select(ray.tmax, f32x8::splat(-1.0)), ..local };
+            if walk && scene.csg.solid_leaves(solid).all(|l| passes(scene, profile, scene.csg.leaf(l).material)) {
+                // Every surface lets shadow rays through: the solid occludes no lane, and the walk finds
+                // the crossings of the lanes that may have some (none at all: transmittance 1 exactly).
+                *touched |= lanes_may_cross_x8(&scene.csg, solid, &masked, zero, arena);
+                return none;
+            }
+            let mut out = [None; LANES];
+            first_hit_x8(&scene.csg, solid, &masked, zero, arena, &mut out);
+            let mut hit = [0.0f32; LANES];
+            for (l, h) in out.iter().enumerate() {
+                if let Some(h) = h {
+                    if blocks(scene, profile, scene.csg.leaf(h.leaf).material) {
+                        hit[l] = f32::from_bits(u32::MAX);
+                    } else {
+                        // A first boundary that lets the ray through: the walk sees the rest of the solid.
+                        *touched |= 1 << l;
+                    }
+                }
+            }
+            f32x8::from(hit)
+        }
+        _ => {
+            let t = || prim_t_at_x8(prim, ray, time);
+            if !blocks(scene, profile, prim.material) {
+                if walk {
+                    *touched |= t().simd_lt(ray.tmax).to_bitmask();
+                }
+                return none;
+            }
+            t().simd_lt(ray.tmax)
+        }
+    }
 }
