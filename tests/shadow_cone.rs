@@ -12,7 +12,7 @@ use strata::csg::CsgArena;
 use strata::geometry::offset_ray_origin;
 use strata::scene::{parse_scene, Light, Profile, Scene};
 use strata::simd::{f32x8, Ray8, Vec3x8, LANES};
-use strata::wavefront::cone::LightCone;
+use strata::wavefront::cone::{LightCone, Verdict};
 use strata::wavefront::shadow::occlusion_x8;
 
 struct R(Xoshiro256PlusPlus);
@@ -117,40 +117,68 @@ fn origin(r: &mut R, scene: &Scene, k: f32) -> Vec3 {
     }
 }
 
-#[test]
-fn lanes_the_cone_test_clears_are_clear_for_every_target() {
-    let mut r = R(Xoshiro256PlusPlus::seed_from_u64(0xc0_7e5));
-    let mut profile = Profile::builtin("bench");
-    profile.transmissive_shadows = true; // glass is walked through: a touched lane would show
-    let mut arena = CsgArena::new();
-    let (mut cleared, mut lanes_tested) = (0usize, 0usize);
-    for case in 0..120 {
+/// One random chunk: its scene (case `case`, scale `k`), light, 8 origins (also as rows) and the cone
+/// test's verdict on them.
+struct Chunk<'a> {
+    case: usize,
+    k: f32,
+    scene: &'a Scene,
+    light: Light,
+    os: [Vec3; LANES],
+    o: Vec3x8,
+    v: Verdict,
+}
+
+/// `per_case` random chunks in each of `cases` random scenes (cycling through the scales and the three
+/// light kinds), handed to `f` with the random source.
+fn chunks(seed: u64, cases: usize, per_case: usize, mut f: impl FnMut(&Chunk, &mut R)) {
+    let mut r = R(Xoshiro256PlusPlus::seed_from_u64(seed));
+    for case in 0..cases {
         let k = [1e-3f32, 1.0, 37.0, 1e4][case % 4];
         let text = scene(&mut r, k, case % 3);
         let scene = parse_scene(Path::new("cone.toml"), &text).unwrap();
         let light = scene.lights[0];
         let cone = LightCone::new(&scene, &light).expect("the test applies to quad, disk and point lights");
-        for _ in 0..6 {
+        for _ in 0..per_case {
             let os: [Vec3; LANES] = std::array::from_fn(|_| origin(&mut r, &scene, k));
             let o = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| os[l][a])));
-            let clear = cone.clear_lanes(&scene, o, 0xff);
-            lanes_tested += LANES;
-            let (ts, end) = targets(&mut r, &light);
-            for l in (0..LANES).filter(|&l| clear & (1 << l) != 0) {
-                cleared += 1;
-                for c in ts.chunks(LANES) {
-                    let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|i| c[i % c.len()][a] - os[l][a])));
-                    let ray = Ray8::new(Vec3x8::splat(os[l]), d, f32x8::splat(end));
-                    let (occ, touched) = occlusion_x8(&scene, &profile, &ray, None, &mut arena, true);
-                    assert!(
-                        occ.to_bitmask() == 0 && touched == 0,
-                        "case {case} (scale {k}): lane {l} from {:?} cleared, but a ray is occluded or touches glass",
-                        os[l]
-                    );
-                }
-            }
+            let v = cone.verdict(&scene, o, 0xff);
+            f(&Chunk { case, k, scene: &scene, light, os, o, v }, &mut r);
         }
     }
+}
+
+/// A shadow ray from `o` to each of `ts` (lanes past the end repeat the first targets).
+fn rays_to(o: Vec3, ts: &[Vec3], end: f32) -> impl Iterator<Item = Ray8> + '_ {
+    ts.chunks(LANES).map(move |c| {
+        let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|i| c[i % c.len()][a] - o[a])));
+        Ray8::new(Vec3x8::splat(o), d, f32x8::splat(end))
+    })
+}
+
+#[test]
+fn lanes_the_cone_test_clears_are_clear_for_every_target() {
+    let mut profile = Profile::builtin("bench");
+    profile.transmissive_shadows = true; // glass is walked through: a touched lane would show
+    let mut arena = CsgArena::new();
+    let (mut cleared, mut lanes_tested) = (0usize, 0usize);
+    chunks(0xc0_7e5, 120, 6, |ch, r| {
+        lanes_tested += LANES;
+        let (ts, end) = targets(r, &ch.light);
+        for l in (0..LANES).filter(|&l| ch.v.clear & (1 << l) != 0) {
+            cleared += 1;
+            for ray in rays_to(ch.os[l], &ts, end) {
+                let (occ, touched) = occlusion_x8(ch.scene, &profile, &ray, None, &mut arena, true);
+                assert!(
+                    occ.to_bitmask() == 0 && touched == 0,
+                    "case {} (scale {}): lane {l} from {:?} cleared, but a ray is occluded or touches glass",
+                    ch.case,
+                    ch.k,
+                    ch.os[l]
+                );
+            }
+        }
+    });
     // Neither vacuous nor trivial: the test clears a share of the lanes and keeps the rest.
     assert!(cleared > lanes_tested / 10 && cleared < lanes_tested * 9 / 10, "{cleared} of {lanes_tested} lanes cleared");
 }
@@ -174,7 +202,7 @@ fn degenerate_origins_are_not_cleared() {
         Vec3::new(-20.0, 0.5, -20.0),
     ];
     let o = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| os[l][a])));
-    let clear = cone.clear_lanes(&scene, o, 0xff);
+    let clear = cone.verdict(&scene, o, 0xff).clear;
     assert_eq!(clear & 0b0000_1110, 0, "lanes below the floor, above the light or NaN cleared: {clear:08b}");
     assert_eq!(clear & 0b1100_0000, 0b1100_0000, "open lanes not cleared: {clear:08b}");
 }
@@ -186,60 +214,50 @@ fn degenerate_origins_are_not_cleared() {
 #[test]
 fn single_sphere_lanes_match_the_traversal_and_the_walk() {
     use strata::wavefront::transmit::{pair_sphere, single_sphere_x8, transmittance_x8, Walk};
-    let mut r = R(Xoshiro256PlusPlus::seed_from_u64(0x5_9e7e));
     let mut profile = Profile::builtin("bench");
     profile.transmissive_shadows = true;
     let mut arena = CsgArena::new();
     let mut walk = Walk::new();
     let (mut crossed, mut missed) = (0usize, 0usize);
-    for case in 0..240 {
-        let k = [1e-3f32, 1.0, 37.0, 1e4][case % 4];
-        let text = scene(&mut r, k, case % 3);
-        let scene = parse_scene(Path::new("cone.toml"), &text).unwrap();
-        let light = scene.lights[0];
-        let cone = LightCone::new(&scene, &light).unwrap();
-        for _ in 0..8 {
-            let os: [Vec3; LANES] = std::array::from_fn(|_| origin(&mut r, &scene, k));
-            let o = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| os[l][a])));
-            let v = cone.verdict(&scene, o, 0xff);
-            assert_eq!(v.clear & v.single, 0);
-            let lanes =
-                (0..LANES).filter(|&l| v.single & (1 << l) != 0 && pair_sphere(&scene, &profile, v.prim[l])).fold(0u32, |m, l| m | 1 << l);
-            if lanes == 0 {
-                continue;
-            }
-            let (ts, end) = targets(&mut r, &light);
-            for &t in &ts {
-                let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| t[a] - os[l][a])));
-                let tmax = f32x8::from(std::array::from_fn(|l| if lanes & (1 << l) != 0 { end } else { -1.0 }));
-                let ray = Ray8::new(o, d, tmax);
-                let (done, tr) = single_sphere_x8(&scene, &profile, &v.prim, &ray, lanes);
-                let (occ, touched) = occlusion_x8(&scene, &profile, &ray, None, &mut arena, true);
-                assert_eq!(occ.to_bitmask() & done, 0, "case {case}: a single-sphere lane is occluded");
-                let rows = |v: Vec3x8| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
-                let (walked, _) = transmittance_x8(
-                    &scene,
-                    &profile,
-                    &rows(o),
-                    &rows(d),
-                    &tmax.to_array(),
-                    &[0.0; LANES],
-                    touched & done,
-                    &mut arena,
-                    &mut walk,
-                );
-                for l in (0..LANES).filter(|&l| done & (1 << l) != 0) {
-                    let want = if touched & (1 << l) != 0 { walked[l] } else { Vec3::ONE };
-                    assert_eq!(tr[l].to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "case {case} lane {l}");
-                    if touched & (1 << l) != 0 {
-                        crossed += 1;
-                    } else {
-                        missed += 1;
-                    }
+    chunks(0x5_9e7e, 240, 8, |ch, r| {
+        let (scene, v, o) = (ch.scene, &ch.v, ch.o);
+        assert_eq!(v.clear & v.single, 0);
+        let lanes =
+            (0..LANES).filter(|&l| v.single & (1 << l) != 0 && pair_sphere(scene, &profile, v.prim[l])).fold(0u32, |m, l| m | 1 << l);
+        if lanes == 0 {
+            return;
+        }
+        let (ts, end) = targets(r, &ch.light);
+        for &t in &ts {
+            let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| t[a] - ch.os[l][a])));
+            let tmax = f32x8::from(std::array::from_fn(|l| if lanes & (1 << l) != 0 { end } else { -1.0 }));
+            let ray = Ray8::new(o, d, tmax);
+            let (done, tr) = single_sphere_x8(scene, &profile, &v.prim, &ray, lanes);
+            let (occ, touched) = occlusion_x8(scene, &profile, &ray, None, &mut arena, true);
+            assert_eq!(occ.to_bitmask() & done, 0, "case {}: a single-sphere lane is occluded", ch.case);
+            let rows = |v: Vec3x8| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
+            let (walked, _) = transmittance_x8(
+                scene,
+                &profile,
+                &rows(o),
+                &rows(d),
+                &tmax.to_array(),
+                &[0.0; LANES],
+                touched & done,
+                &mut arena,
+                &mut walk,
+            );
+            for l in (0..LANES).filter(|&l| done & (1 << l) != 0) {
+                let want = if touched & (1 << l) != 0 { walked[l] } else { Vec3::ONE };
+                assert_eq!(tr[l].to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "case {} lane {l}", ch.case);
+                if touched & (1 << l) != 0 {
+                    crossed += 1;
+                } else {
+                    missed += 1;
                 }
             }
         }
-    }
+    });
     assert!(crossed > 200 && missed > 200, "{crossed} rays through a sphere, {missed} past it");
 }
 
@@ -249,43 +267,31 @@ fn single_sphere_lanes_match_the_traversal_and_the_walk() {
 #[test]
 fn single_opaque_prim_lanes_match_the_traversal() {
     use strata::wavefront::shadow::prim_occlusion;
-    let mut r = R(Xoshiro256PlusPlus::seed_from_u64(0x0_9a9e));
     let mut profile = Profile::builtin("bench");
     profile.transmissive_shadows = true;
     let mut arena = CsgArena::new();
     let (mut occluded, mut open) = (0usize, 0usize);
-    for case in 0..240 {
-        let k = [1e-3f32, 1.0, 37.0, 1e4][case % 4];
-        let text = scene(&mut r, k, case % 3);
-        let scene = parse_scene(Path::new("cone.toml"), &text).unwrap();
-        let light = scene.lights[0];
-        let cone = LightCone::new(&scene, &light).unwrap();
-        for _ in 0..8 {
-            let os: [Vec3; LANES] = std::array::from_fn(|_| origin(&mut r, &scene, k));
-            let o = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| os[l][a])));
-            let v = cone.verdict(&scene, o, 0xff);
-            let (ts, end) = targets(&mut r, &light);
-            for l in (0..LANES).filter(|&l| v.single & (1 << l) != 0) {
-                let pid = v.prim[l];
-                let opaque = match scene.prims[pid as usize].shape {
-                    strata::scene::Shape::Csg { .. } => true, // the test scene's CSG part is diffuse
-                    _ => !matches!(scene.materials[scene.prims[pid as usize].material as usize], strata::scene::Material::Dielectric(_)),
-                };
-                if !opaque {
-                    continue;
-                }
-                for c in ts.chunks(LANES) {
-                    let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|i| c[i % c.len()][a] - os[l][a])));
-                    let ray = Ray8::new(Vec3x8::splat(os[l]), d, f32x8::splat(end));
-                    let mut touched = 0;
-                    let alone = prim_occlusion(&scene, &profile, pid, &ray, None, &mut arena, true, &mut touched).to_bitmask();
-                    let (all, all_touched) = occlusion_x8(&scene, &profile, &ray, None, &mut arena, true);
-                    assert_eq!((alone, touched), (all.to_bitmask(), all_touched), "case {case} lane {l} prim {pid}");
-                    occluded += alone.count_ones() as usize;
-                    open += (!alone & 0xff).count_ones() as usize;
-                }
+    chunks(0x0_9a9e, 240, 8, |ch, r| {
+        let (scene, v) = (ch.scene, &ch.v);
+        let (ts, end) = targets(r, &ch.light);
+        for l in (0..LANES).filter(|&l| v.single & (1 << l) != 0) {
+            let pid = v.prim[l];
+            let opaque = match scene.prims[pid as usize].shape {
+                strata::scene::Shape::Csg { .. } => true, // the test scene's CSG part is diffuse
+                _ => !matches!(scene.materials[scene.prims[pid as usize].material as usize], strata::scene::Material::Dielectric(_)),
+            };
+            if !opaque {
+                continue;
+            }
+            for ray in rays_to(ch.os[l], &ts, end) {
+                let mut touched = 0;
+                let alone = prim_occlusion(scene, &profile, pid, &ray, None, &mut arena, true, &mut touched).to_bitmask();
+                let (all, all_touched) = occlusion_x8(scene, &profile, &ray, None, &mut arena, true);
+                assert_eq!((alone, touched), (all.to_bitmask(), all_touched), "case {} lane {l} prim {pid}", ch.case);
+                occluded += alone.count_ones() as usize;
+                open += (!alone & 0xff).count_ones() as usize;
             }
         }
-    }
+    });
     assert!(occluded > 500 && open > 500, "{occluded} rays occluded, {open} open");
 }

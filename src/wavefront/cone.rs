@@ -96,13 +96,9 @@ impl LightCone {
     }
 
     /// The lanes (bits, among `lanes`) whose shadow rays from origin `o` towards this light's targets
-    /// meet no prim's box and no unbounded prim: every such ray is unoccluded and crosses nothing.
-    pub fn clear_lanes(&self, scene: &Scene, o: Vec3x8, lanes: u32) -> u32 {
-        self.verdict(scene, o, lanes).clear
-    }
-
-    /// [`LightCone::clear_lanes`], and the lanes whose cones meet exactly one bounded prim's box (and no
-    /// unbounded prim), with that prim: their shadow rays can cross no other surface.
+    /// meet no prim's box and no unbounded prim (every such ray is unoccluded and crosses nothing), and
+    /// the lanes whose cones meet exactly one bounded prim's box (and no unbounded prim), with that prim:
+    /// their shadow rays can cross no other surface.
     pub fn verdict(&self, scene: &Scene, o: Vec3x8, lanes: u32) -> Verdict {
         let none = Verdict { clear: 0, single: 0, prim: [0; LANES] };
         let splat = f32x8::splat;
