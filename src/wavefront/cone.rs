@@ -25,7 +25,10 @@
 //! scene's scale, the direction box by `1e-5` of the scale, and a lane culled only when its entry
 //! bound exceeds its exit bound by `1e-4` (in units of the segment, `t` in `[0, 1]`). A lane the test
 //! declares clear has, for every sample, exactly the result the traversal would give: unoccluded,
-//! untouched (`tests/` holds it to the traversal over random scenes and scales).
+//! untouched (`tests/shadow_cone.rs` holds it to the traversal over random scenes and scales).
+//!
+//! The same walk also reports the lanes whose cones meet exactly one prim's box (and that prim): their
+//! rays can meet no other surface, so the shadow stage tests them against that prim alone.
 
 use crate::accel::MAX_DEPTH;
 use crate::scene::{Light, Scene, Shape};
@@ -134,7 +137,8 @@ impl LightCone {
         if bvh.nodes.is_empty() {
             return Verdict { clear, ..none };
         }
-        // Lanes that met one prim's box so far (and which); lanes that met more.
+        // Lanes that met exactly one prim's box so far, and which (a lane that meets a second one leaves
+        // both `clear` and `one`).
         let (mut one, mut prim) = (0u32, [0u32; LANES]);
         // Lanes still clear or single whose cones reach a node; a leaf's prims' boxes decide.
         let mut stack = [(0u32, 0u32); MAX_DEPTH];

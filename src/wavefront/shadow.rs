@@ -266,11 +266,11 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             let end = if point { 1.0 } else { SHADOW_END };
             let ns_lanes = f32x8::splat(ns as f32);
             // Lanes whose every shadow ray towards this light is clear: credited untraced. Lanes whose rays
-            // can meet only one glass sphere they walk through: tested against that sphere alone.
+            // can meet only one glass sphere they walk through (`glass`), or one opaque prim (`opaque`):
+            // tested against that prim (`prim_of`) alone.
             let verdict = cones[li].as_ref().map(|c| c.verdict(scene, o, live));
             let clear = verdict.map_or(0, |v| v.clear);
-            // Lanes whose rays can meet one opaque prim only: tested against it alone.
-            let (single, opaque, sphere_of) = match verdict {
+            let (glass, opaque, prim_of) = match verdict {
                 Some(v) if v.single != 0 => {
                     let bits = |f: &dyn Fn(u32) -> bool| {
                         (0..LANES).filter(|&l| v.single & (1 << l) != 0 && f(v.prim[l])).fold(0u32, |m, l| m | (1 << l))
@@ -326,10 +326,11 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     cleared += (lanes & clear).count_ones() as u64;
                 }
                 let mut lanes = lanes & !clear;
-                if lanes & single != 0 {
+                if lanes & glass != 0 {
                     let d = target - o;
-                    let tmax = f32x8::from(std::array::from_fn(|l| if lanes & single & (1 << l) != 0 { end } else { -1.0 }));
-                    let (done, tr) = single_sphere_x8(scene, profile, &sphere_of, &Ray8::new(o, d, tmax), lanes & single);
+                    let tmax = f32x8::from(std::array::from_fn(|l| if lanes & glass & (1 << l) != 0 { end } else { -1.0 }));
+                    // Rays crossing the sphere once (not `done`) go on to the batch.
+                    let (done, tr) = single_sphere_x8(scene, profile, &prim_of, &Ray8::new(o, d, tmax), lanes & glass);
                     if done != 0 {
                         let keep = lane_mask(done);
                         let t = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| tr[l][a])));
@@ -340,8 +341,8 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 }
                 let mut todo = lanes & opaque;
                 while todo != 0 {
-                    let pid = sphere_of[todo.trailing_zeros() as usize];
-                    let same = todo & (0..LANES).filter(|&l| sphere_of[l] == pid).fold(0u32, |m, l| m | (1 << l));
+                    let pid = prim_of[todo.trailing_zeros() as usize];
+                    let same = todo & (0..LANES).filter(|&l| prim_of[l] == pid).fold(0u32, |m, l| m | (1 << l));
                     todo &= !same;
                     let tmax = f32x8::from(std::array::from_fn(|l| if same & (1 << l) != 0 { end } else { -1.0 }));
                     let mut touched = 0;
@@ -363,7 +364,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
                 }
             }
-            if clear | single | opaque != 0 {
+            if clear | glass | opaque != 0 {
                 credit.add_clear(base, cleared_sum);
             }
         }
@@ -377,10 +378,11 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
 }
 
 /// Per request of the NEE queue, the sum of its unoccluded shadow rays' contributions (channels apart:
-/// a whole packet's 8 consecutive requests are one vector).
-/// Rays the light-cone test cleared are summed apart (a request's lights are each either cleared or
-/// traced, and traced ones arrive later, at the flush: one sum would take them in an order that depends
-/// on the batch).
+/// a whole packet's 8 consecutive requests are one vector). The samples decided in the chunk loop
+/// (cleared by the light-cone test, or tested against their single prim) are summed apart from the
+/// traced ones: which samples are which depends only on the request's own geometry, but the traced
+/// ones arrive later, at a flush whose timing depends on the batch, so one sum would take the two
+/// kinds in an order that depends on the tile.
 struct Credit {
     c: [Vec<f32>; 3],
     clear: [Vec<f32>; 3],

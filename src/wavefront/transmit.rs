@@ -27,7 +27,7 @@ use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::csg::{crossings_x8, CsgArena};
 use crate::geometry::{ellipsoid_interval_x8, obox_interval_x8, sphere_interval_x8};
 use crate::optics::{beer_lambert, fresnel_dielectric, fresnel_dielectric_x8, fresnel_schlick};
-use crate::scene::{Material, Profile, Scene, Shape};
+use crate::scene::{Material, Prim, Profile, Scene, Shape};
 use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
 use glam::{Mat3, Vec3};
 
@@ -201,11 +201,7 @@ fn sphere_pair_lanes(scene: &Scene, profile: &Profile, cr: &Walk, lanes: u32) ->
         if cr.count[l] != 2 || r0.prim != r1.prim || r0.side != SIDE_ENTRY || r1.side != SIDE_EXIT || !(r0.t <= r1.t) {
             continue;
         }
-        let prim = &scene.prims[r0.prim as usize];
-        if !matches!(prim.shape, Shape::Sphere { .. }) || !passes(scene, profile, prim.material) {
-            continue;
-        }
-        if medium::dielectric(scene, prim.material).is_some_and(|d| !d.thin && !d.schlick) {
+        if paired_sphere(scene, profile, &scene.prims[r0.prim as usize]) {
             out |= 1 << l;
         }
     }
@@ -262,12 +258,16 @@ pub fn single_sphere_x8(scene: &Scene, profile: &Profile, prims: &[u32; LANES], 
     (pairs | done, tr)
 }
 
-/// Whether a sphere's crossings are replayed by [`pair_transmittance_x8`]: a static sphere of a
-/// dielectric that shadow rays walk through, neither thin nor Schlick ([`sphere_pair_lanes`]'s test).
+/// Whether prim `pid` is a static sphere whose crossings [`single_sphere_x8`] replays.
 pub fn pair_sphere(scene: &Scene, profile: &Profile, pid: u32) -> bool {
     let prim = &scene.prims[pid as usize];
+    prim.motion == Vec3::ZERO && paired_sphere(scene, profile, prim)
+}
+
+/// Whether a prim's entry-exit pairs are replayed by [`pair_transmittance_x8`]: a sphere of a dielectric
+/// that shadow rays walk through, neither thin nor Schlick.
+fn paired_sphere(scene: &Scene, profile: &Profile, prim: &Prim) -> bool {
     matches!(prim.shape, Shape::Sphere { .. })
-        && prim.motion == Vec3::ZERO
         && passes(scene, profile, prim.material)
         && medium::dielectric(scene, prim.material).is_some_and(|d| !d.thin && !d.schlick)
 }
