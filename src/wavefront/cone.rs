@@ -122,9 +122,7 @@ impl LightCone {
                 return none;
             }
         }
-        let one = f32x8::ONE;
-        let inv = |v: Vec3x8| Vec3x8::new(one / v.x, one / v.y, one / v.z);
-        let cone = Cone { o, dlo, dhi, ilo: inv(dlo), ihi: inv(dhi), pad };
+        let cone = Cone::new(o, dlo, dhi, pad);
         // The light's own prim is skipped by lanes clearly in front of it.
         let skip_own = match self.own {
             Some((pid, n, p)) => {
@@ -158,7 +156,9 @@ impl LightCone {
                 let first = n.left_first as usize;
                 for &bi in &bvh.indices[first..first + count] {
                     let pid = scene.bounded[bi as usize];
-                    let mut hit = cone.reaches(scene.bounds[pid as usize].min, scene.bounds[pid as usize].max) & live;
+                    // A one-prim leaf's box is its prim's (taking it as met is conservative anyway).
+                    let b = &scene.bounds[pid as usize];
+                    let mut hit = if count == 1 { live } else { cone.reaches(b.min, b.max) & live };
                     if let Some((own, front)) = skip_own {
                         if own == pid {
                             hit &= !front;
@@ -228,47 +228,75 @@ pub struct Verdict {
     pub prim: [u32; LANES],
 }
 
-/// Eight cones: origins, direction boxes and their inverses, and the box widening.
+/// Eight cones, per axis: the origins widened by `pad` either way (for the boxes' far and near
+/// planes), the direction intervals' signs and the inverses the bounds multiply by.
 struct Cone {
-    o: Vec3x8,
-    dlo: Vec3x8,
-    dhi: Vec3x8,
-    ilo: Vec3x8,
-    ihi: Vec3x8,
-    pad: f32x8,
+    axes: [ConeAxis; 3],
+}
+
+#[derive(Clone, Copy)]
+struct ConeAxis {
+    /// `o + pad`, `o - pad`: `b0 - (o + pad)` and `b1 - (o - pad)` are the box widened by `pad`.
+    op: f32x8,
+    om: f32x8,
+    /// Every direction positive (`dlo > 0`), every one negative (`dhi < 0`).
+    pos: f32x8,
+    neg: f32x8,
+    /// Entry from below: `1 / dhi` where some direction is positive, else `+inf` (no entry).
+    enter_below: f32x8,
+    /// Entry from above: `1 / dlo` where some direction is negative, else `-inf` (no entry: the
+    /// distance to the box is negative, so the product is `+inf`).
+    enter_above: f32x8,
+    ilo: f32x8,
+    ihi: f32x8,
 }
 
 impl Cone {
+    fn new(o: Vec3x8, dlo: Vec3x8, dhi: Vec3x8, pad: f32x8) -> Self {
+        let (zero, inf, one) = (f32x8::ZERO, f32x8::splat(f32::INFINITY), f32x8::ONE);
+        let axis = |o: f32x8, dlo: f32x8, dhi: f32x8| {
+            let (ilo, ihi) = (one / dlo, one / dhi);
+            ConeAxis {
+                op: o + pad,
+                om: o - pad,
+                pos: dlo.simd_gt(zero),
+                neg: dhi.simd_lt(zero),
+                enter_below: dhi.simd_gt(zero).select(ihi, inf),
+                enter_above: dlo.simd_lt(zero).select(ilo, -inf),
+                ilo,
+                ihi,
+            }
+        };
+        Cone { axes: [axis(o.x, dlo.x, dhi.x), axis(o.y, dlo.y, dhi.y), axis(o.z, dlo.z, dhi.z)] }
+    }
+
     /// Lanes whose cone may meet the box `[min, max]` (widened) within `t` in `[0, 1]`.
     #[inline(always)]
     fn reaches(&self, min: Vec3, max: Vec3) -> u32 {
-        let (tx0, tx1) = self.axis(self.o.x, self.dlo.x, self.dhi.x, self.ilo.x, self.ihi.x, min.x, max.x);
-        let (ty0, ty1) = self.axis(self.o.y, self.dlo.y, self.dhi.y, self.ilo.y, self.ihi.y, min.y, max.y);
-        let (tz0, tz1) = self.axis(self.o.z, self.dlo.z, self.dhi.z, self.ilo.z, self.ihi.z, min.z, max.z);
+        let (tx0, tx1) = self.axes[0].bounds(min.x, max.x);
+        let (ty0, ty1) = self.axes[1].bounds(min.y, max.y);
+        let (tz0, tz1) = self.axes[2].bounds(min.z, max.z);
         let tn = tx0.fast_max(ty0).fast_max(tz0).fast_max(f32x8::ZERO);
         let tf = tx1.fast_min(ty1).fast_min(tz1).fast_min(f32x8::ONE);
         // Culled only past the slack; an infinite entry bound (no direction enters) culls.
         !(tn.simd_gt(tf + f32x8::splat(SLACK))).to_bitmask() & 0xff
     }
+}
 
+impl ConeAxis {
     /// The smallest entry and the largest exit distance over the lane's direction interval `[dlo, dhi]`
-    /// on one axis, for the slab `[b0, b1]` widened by `pad`.
+    /// on this axis, for the slab `[b0, b1]` widened by `pad`.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn axis(&self, o: f32x8, dlo: f32x8, dhi: f32x8, ilo: f32x8, ihi: f32x8, b0: f32, b1: f32) -> (f32x8, f32x8) {
-        let (zero, inf) = (f32x8::ZERO, f32x8::splat(f32::INFINITY));
-        let b0 = f32x8::splat(b0) - self.pad;
-        let b1 = f32x8::splat(b1) + self.pad;
-        let (below, above) = (o.simd_lt(b0), o.simd_gt(b1));
-        let (pos, neg) = (dlo.simd_gt(zero), dhi.simd_lt(zero));
+    fn bounds(&self, b0: f32, b1: f32) -> (f32x8, f32x8) {
+        let inf = f32x8::splat(f32::INFINITY);
+        let (d0, d1) = (f32x8::splat(b0) - self.op, f32x8::splat(b1) - self.om);
+        let (below, above) = (d0.simd_gt(f32x8::ZERO), d1.simd_lt(f32x8::ZERO));
         // Entry: from below only directions with d > 0 enter, first at the largest d; from above only
         // d < 0, first at the most negative d; inside, at once.
-        let in_below = dhi.simd_gt(zero).select((b0 - o) * ihi, inf);
-        let in_above = dlo.simd_lt(zero).select((b1 - o) * ilo, inf);
-        let tin = below.select(in_below, above.select(in_above, -inf));
+        let tin = below.select(d0 * self.enter_below, above.select(d1 * self.enter_above, -inf));
         // Exit: with every d > 0 through b1, last at the smallest d; every d < 0 through b0, last at
         // the d nearest 0; directions of both signs (or 0) may stay in the slab for ever.
-        let tout = pos.select((b1 - o) * ilo, neg.select((b0 - o) * ihi, inf));
+        let tout = self.pos.select(d1 * self.ilo, self.neg.select(d0 * self.ihi, inf));
         (tin, tout)
     }
 }
