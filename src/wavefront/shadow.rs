@@ -316,10 +316,20 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                             (false, Some(&u)) => u,
                             (false, None) => area.sample_x8_call(&keys_li, &index, permuted),
                         };
-                        match light_points_x8(light, u) {
-                            Some((y, target)) => area_point(y, target),
-                            None => {
-                                // Point and sphere lights.
+                        match (light_points_x8(light, u), light) {
+                            (Some((y, target)), _) => area_point(y, target),
+                            (None, &Light::Point { position, intensity }) => {
+                                // w I cos / d^2 with the cosine from the unnormalised direction: one
+                                // square root and one division (the light's one sample: no 1 / ns).
+                                let v = Vec3x8::splat(position) - p;
+                                let d2 = v.dot_unfused(v);
+                                let cr = n.dot_unfused(v);
+                                let c = (w * Vec3x8::splat(intensity)).scale(cr / (d2 * d2.sqrt()));
+                                let zero = f32x8::ZERO;
+                                (Vec3x8::splat(position), c, d2.simd_gt(zero) & cr.simd_gt(zero) & c.x.max(c.y).max(c.z).simd_gt(zero))
+                            }
+                            (None, _) => {
+                                // Sphere lights.
                                 let ls = sample_light_x8(light, p, u);
                                 let cos = n.dot_unfused(ls.wi);
                                 let c = (w * ls.weight).scale(cos / ns_lanes);
