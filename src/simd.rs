@@ -173,6 +173,20 @@ impl Ray8 {
 }
 
 /// Lane mask helpers: `wide` masks are all-ones / all-zeros lanes of the float type.
+/// The mask set in the lanes whose bit is set in `bits` (the inverse of `to_bitmask`).
+#[inline(always)]
+pub fn mask_from_bits(bits: u32) -> f32x8 {
+    let lane = i32x8::from([1, 2, 4, 8, 16, 32, 64, 128]);
+    bytemuck::cast((i32x8::splat(bits as i32) & lane).simd_eq(lane))
+}
+
+/// The lanes `l` (as bits) for which `f(l)` holds.
+#[inline(always)]
+pub fn lane_bits(f: impl Fn(usize) -> bool) -> u32 {
+    (0..LANES).filter(|&l| f(l)).fold(0, |m, l| m | (1 << l))
+}
+
+/// Whether any lane of mask `m` is set.
 #[inline(always)]
 pub fn any(m: f32x8) -> bool {
     m.any()
@@ -181,6 +195,15 @@ pub fn any(m: f32x8) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every 8-bit pattern survives bits -> mask -> bits, and `lane_bits` of its bit test gives it back.
+    #[test]
+    fn lane_masks_and_bits_round_trip() {
+        for b in 0u32..256 {
+            assert_eq!(mask_from_bits(b).to_bitmask(), b);
+            assert_eq!(lane_bits(|l| (b >> l) & 1 == 1), b);
+        }
+    }
 
     #[test]
     fn vec3x8_matches_glam() {

@@ -16,7 +16,7 @@ use crate::optics::{
 };
 use crate::sample::{hash_combine, random_f32, sample_2d, stream_key, Sampler2d};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture};
-use crate::simd::{f32x8, gather8, Vec3x8, LANES};
+use crate::simd::{f32x8, gather8, mask_from_bits, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
@@ -506,8 +506,6 @@ impl Ctx<'_> {
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
         let v3 = Vec3x8::from_rows;
-        let lanes_mask =
-            |bits: u32| f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| f32::from_bits(0u32.wrapping_sub((bits >> l) & 1))));
         let (o, d) = (v3(&ro), v3(&rd));
         // o + t d, as `surface_hit` computes it (unfused).
         let naive = o + d.scale(v(&rt));
@@ -517,7 +515,7 @@ impl Ctx<'_> {
             let n = v3(&nf);
             let front = d.dot_unfused(n).simd_lt(f32x8::ZERO);
             let n_facing = Vec3x8::select(front, n, Vec3x8::new(-n.x, -n.y, -n.z));
-            let mask = lanes_mask(pla);
+            let mask = mask_from_bits(pla);
             let (pv, nv) = (Vec3x8::select(mask, naive, v3(&p)), Vec3x8::select(mask, n_facing, n));
             (p, nf) = (pv.rows(), nv.rows());
             scale = mask.select(o.x.abs().max(o.y.abs().max(o.z.abs())), v(&scale)).to_array();
@@ -527,7 +525,7 @@ impl Ctx<'_> {
             let (ps, n, front) = sphere_hits_x8(naive, d, &sc, &sr);
             let neg = Vec3x8::new(-n.x, -n.y, -n.z);
             let n_facing = Vec3x8::select(front, n, neg);
-            let mask = lanes_mask(sph);
+            let mask = mask_from_bits(sph);
             let (pv, nv) = (Vec3x8::select(mask, ps, v3(&p)), Vec3x8::select(mask, n_facing, v3(&nf)));
             (p, nf) = (pv.rows(), nv.rows());
             scale = mask.select(f32x8::ZERO, v(&scale)).to_array();
@@ -538,7 +536,7 @@ impl Ctx<'_> {
             v3(&tex_a)
         } else {
             let eval = checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), v3(&p) - v3(&shift));
-            Vec3x8::select(lanes_mask(checker), eval, v3(&tex_a))
+            Vec3x8::select(mask_from_bits(checker), eval, v3(&tex_a))
         };
         let wv = v3(&thr) * albedo;
         let w = wv.rows();

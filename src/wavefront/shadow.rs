@@ -18,7 +18,7 @@ use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
-use crate::simd::{f32x8, gather8, load8, store8, u32x8, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x8, gather8, lane_bits, load8, mask_from_bits, store8, u32x8, Ray8, Vec3x8, LANES};
 use glam::Vec3;
 
 /// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
@@ -174,12 +174,6 @@ fn cone_min_samples(scene: &Scene) -> u32 {
     }
 }
 
-/// The lanes set in `bits` as an `f32x8` mask (all ones where set).
-#[inline(always)]
-fn lane_mask(bits: u32) -> f32x8 {
-    bytemuck::cast(u32x8::from(std::array::from_fn(|l| 0u32.wrapping_sub((bits >> l) & 1))))
-}
-
 /// Shadow rays traced and shadow rays the light-cone test found clear (credited untraced).
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> (u64, u64) {
     let mut pk = Batch::new();
@@ -281,10 +275,12 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
             let clear = verdict.map_or(0, |v| v.clear);
             let (glass, opaque, prim_of) = match verdict {
                 Some(v) if v.single != 0 => {
-                    let bits = |f: &dyn Fn(u32) -> bool| {
-                        (0..LANES).filter(|&l| v.single & (1 << l) != 0 && f(v.prim[l])).fold(0u32, |m, l| m | (1 << l))
-                    };
-                    (bits(&|pid| walk && pair_sphere(scene, profile, pid)), bits(&|pid| opaque_prim(scene, profile, pid)), v.prim)
+                    let single = |l: usize| v.single & (1 << l) != 0;
+                    (
+                        lane_bits(|l| single(l) && walk && pair_sphere(scene, profile, v.prim[l])),
+                        lane_bits(|l| single(l) && opaque_prim(scene, profile, v.prim[l])),
+                        v.prim,
+                    )
                 }
                 _ => (0, 0, [0; LANES]),
             };
@@ -340,18 +336,18 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 };
                 let lanes = lit.to_bitmask() & live;
                 if lanes & clear != 0 {
-                    let keep = lane_mask(lanes & clear);
+                    let keep = mask_from_bits(lanes & clear);
                     cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
                     cleared += (lanes & clear).count_ones() as u64;
                 }
                 let mut lanes = lanes & !clear;
                 if lanes & glass != 0 {
                     let d = target - o;
-                    let tmax = f32x8::from(std::array::from_fn(|l| if lanes & glass & (1 << l) != 0 { end } else { -1.0 }));
+                    let tmax = mask_from_bits(lanes & glass).select(f32x8::splat(end), f32x8::splat(-1.0));
                     // Rays crossing the sphere once (not `done`) go on to the batch.
                     let (done, tr) = single_sphere_x8(scene, profile, &prim_of, &Ray8::new(o, d, tmax), lanes & glass);
                     if done != 0 {
-                        let keep = lane_mask(done);
+                        let keep = mask_from_bits(done);
                         let t = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| tr[l][a])));
                         cleared_sum = cleared_sum + Vec3x8::new((c.x * t.x) & keep, (c.y * t.y) & keep, (c.z * t.z) & keep);
                         traced += done.count_ones() as u64;
@@ -361,13 +357,13 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                 let mut todo = lanes & opaque;
                 while todo != 0 {
                     let pid = prim_of[todo.trailing_zeros() as usize];
-                    let same = todo & (0..LANES).filter(|&l| prim_of[l] == pid).fold(0u32, |m, l| m | (1 << l));
+                    let same = todo & lane_bits(|l| prim_of[l] == pid);
                     todo &= !same;
-                    let tmax = f32x8::from(std::array::from_fn(|l| if same & (1 << l) != 0 { end } else { -1.0 }));
+                    let tmax = mask_from_bits(same).select(f32x8::splat(end), f32x8::splat(-1.0));
                     let mut touched = 0;
                     let occ = prim_occlusion(scene, profile, pid, &Ray8::new(o, target - o, tmax), None, arena, walk, &mut touched);
                     debug_assert_eq!(touched, 0, "an opaque prim lets no ray through");
-                    let keep = lane_mask(same & !occ.to_bitmask());
+                    let keep = mask_from_bits(same & !occ.to_bitmask());
                     cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
                     traced += same.count_ones() as u64;
                     lanes &= !same;
@@ -434,7 +430,7 @@ impl Credit {
         let base = pk.whole[j];
         if base != NOT_WHOLE {
             // Lanes = requests base..base + 8: one vector per channel, occluded lanes adding exactly 0.
-            let keep_f = lane_mask(keep);
+            let keep_f = mask_from_bits(keep);
             let b = base as usize;
             for (a, acc) in self.c.iter_mut().enumerate() {
                 let mut v = load8(&pk.contrib[a], q0);

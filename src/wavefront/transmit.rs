@@ -28,7 +28,7 @@ use crate::csg::{crossings_x8, CsgArena};
 use crate::geometry::{ellipsoid_interval_x8, obox_interval_x8, sphere_interval_x8};
 use crate::optics::{beer_lambert, fresnel_dielectric, fresnel_dielectric_x8, fresnel_schlick};
 use crate::scene::{Material, Prim, Profile, Scene, Shape};
-use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x8, lane_bits, Ray8, Vec3x8, LANES};
 use glam::{Mat3, Vec3};
 
 /// Surfaces recorded per shadow ray; a ray that crosses more is taken as blocked.
@@ -235,7 +235,7 @@ pub fn single_sphere_x8(scene: &Scene, profile: &Profile, prims: &[u32; LANES], 
     // Lanes usually share their sphere: one interval per distinct sphere.
     while todo != 0 {
         let pid = prims[todo.trailing_zeros() as usize];
-        let same = todo & (0..LANES).filter(|&l| prims[l] == pid).fold(0, |m, l| m | (1 << l));
+        let same = todo & lane_bits(|l| prims[l] == pid);
         todo &= !same;
         let Shape::Sphere { center, radius } = scene.prims[pid as usize].shape else { continue };
         // As the walk collects a sphere's crossings (`collect`).
