@@ -70,7 +70,8 @@ pub struct Bvh8Stack(pub(super) Vec<Entry>);
 
 impl Default for Bvh8Stack {
     fn default() -> Self {
-        Self(vec![Entry::default(); STACK])
+        // (WIDTH more: a branch-free push writes all of a node's slots past the top.)
+        Self(vec![Entry::default(); STACK + WIDTH])
     }
 }
 
@@ -280,6 +281,59 @@ impl Bvh8 {
                 }
             }
         }
+    }
+
+    /// Any-hit traversal of the lanes `lanes` of a packet, one ray at a time (for incoherent shadow
+    /// rays, whose lanes share few nodes): lane `l` as [`Bvh8::traverse_any_single`] would traverse
+    /// that ray, with the packet's slab constants. `leaf(l, first, count)` tests lane `l` against the
+    /// leaf's primitives `indices[first..first + count]` and returns whether one occludes it; the lane
+    /// stops at the first that does. Returns the occluded lanes.
+    pub fn occluded_lanes(&self, ray: &Ray8, lanes: u32, stack: &mut Bvh8Stack, mut leaf: impl FnMut(usize, usize, usize) -> bool) -> u32 {
+        if self.nodes.is_empty() {
+            return 0;
+        }
+        let ls = LaneSlabs::new(ray);
+        let tmax = ray.tmax.to_array();
+        let stack = &mut stack.0[..];
+        let mut occluded = 0;
+        let mut rest = lanes;
+        'lanes: while rest != 0 {
+            let l = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            if !(tmax[l] > 0.0) {
+                continue;
+            }
+            let (s, oct, tm) = (ls.lane(l), ls.oct[l], f32x8::splat(tmax[l]));
+            let mut sp = 0usize;
+            let mut node = 0usize;
+            loop {
+                let n = &self.nodes[node];
+                let (_, hit) = slab8_oct(oct, n, &s, tm);
+                // Any hit ends the lane, so the order of the children does not matter: all 8 slots are
+                // written and the hit ones kept, without a branch per child.
+                let hit = hit.to_bitmask();
+                for i in 0..WIDTH {
+                    stack[sp] = Entry { child: n.child[i], count: n.count[i], tn: 0.0, lanes: 1 };
+                    sp += ((hit >> i) & 1) as usize;
+                }
+                loop {
+                    if sp == 0 {
+                        continue 'lanes;
+                    }
+                    sp -= 1;
+                    let e = stack[sp];
+                    if e.count == 0 {
+                        node = e.child as usize;
+                        break;
+                    }
+                    if leaf(l, e.child as usize, e.count as usize) {
+                        occluded |= 1 << l;
+                        continue 'lanes;
+                    }
+                }
+            }
+        }
+        occluded
     }
 
     /// Closest-hit traversal of an 8-ray packet in which each lane tests a node's 8 children with one

@@ -52,6 +52,31 @@ pub fn intersect_sphere_moving_x8(center0: Vec3, velocity: Vec3, radius: f32, ra
 /// The two roots of the sphere kernel and the lanes that hit (None: no lane does).
 #[inline(always)]
 fn sphere_roots_x8(c: Vec3x8, radius: f32, ray: &Ray8) -> Option<(f32x8, f32x8, f32x8)> {
+    let k = SphereConsts::of(radius);
+    sphere_roots_lanes_x8(c, f32x8::splat(k.r2), f32x8::splat(k.r2_lo), f32x8::splat(k.graze), ray)
+}
+
+/// A sphere's radius terms as the kernel uses them: `r^2 = r2 + r2_lo` exactly, and the tangent
+/// rule's bound `-GRAZE r2` (one place computes them, so that spheres in lanes take the same bits).
+#[derive(Clone, Copy, Debug)]
+pub struct SphereConsts {
+    pub r2: f32,
+    pub r2_lo: f32,
+    pub graze: f32,
+}
+
+impl SphereConsts {
+    #[inline(always)]
+    pub fn of(radius: f32) -> Self {
+        let r2 = radius * radius;
+        SphereConsts { r2, r2_lo: radius.mul_add(radius, -r2), graze: -GRAZE * r2 }
+    }
+}
+
+/// [`sphere_roots_x8`] with a radius per lane (`r2`, `r2_lo`, `graze` of [`SphereConsts`]): lanes may
+/// be different spheres. Every operation is lane-wise, so a lane's result is the one-sphere kernel's.
+#[inline(always)]
+fn sphere_roots_lanes_x8(c: Vec3x8, r2v: f32x8, r2_lo: f32x8, graze: f32x8, ray: &Ray8) -> Option<(f32x8, f32x8, f32x8)> {
     let d = ray.d;
     // f = o - c = s + e exactly; s alone carries the rounding error eps |f| that would otherwise
     // dominate c0 near a large sphere.
@@ -68,20 +93,28 @@ fn sphere_roots_x8(c: Vec3x8, radius: f32, ray: &Ray8) -> Option<(f32x8, f32x8, 
     // component along d (the error of b/a) that adds only its square to |l|^2.
     let k = b * inv_a;
     let l = Vec3x8::new(k.mul_neg_add(d.x, sx) + ex, k.mul_neg_add(d.y, sy) + ey, k.mul_neg_add(d.z, sz) + ez);
-    let r2 = radius * radius;
-    let r2_lo = radius.mul_add(radius, -r2); // r^2 = r2 + r2_lo exactly
-    let r2v = f32x8::splat(r2);
     // disc = r^2 - |l|^2 = (b^2 - a c0) / a.
     let disc = l.x.mul_neg_add(l.x, l.y.mul_neg_add(l.y, l.z.mul_neg_add(l.z, r2v)));
-    let hit = disc.simd_ge(f32x8::splat(-GRAZE * r2));
+    let hit = disc.simd_ge(graze);
     if !hit.any() {
         // Every lane passes outside the sphere (the usual case for a packet at a sphere's silhouette
         // or a box corner): the accurate constant term and the roots are not needed.
         return None;
     }
-    let c0 = dist2_minus_r2_x8(s, e, r2v, f32x8::splat(r2_lo));
+    let c0 = dist2_minus_r2_x8(s, e, r2v, r2_lo);
     let (near, far) = roots_x8(a, inv_a, b, disc, c0);
     Some((near, far, hit))
+}
+
+/// Up to 8 static spheres (one per lane: centre `c`, radius terms of [`SphereConsts`]) against one
+/// ray held in every lane of `ray`: per lane, the nearest hit in `(0, tmax)` or MISS, bit for bit what
+/// [`intersect_sphere_x8`] gives that ray against that sphere.
+#[inline(always)]
+pub fn spheres_lanes_x8(c: Vec3x8, r2: f32x8, r2_lo: f32x8, graze: f32x8, ray: &Ray8) -> f32x8 {
+    match sphere_roots_lanes_x8(c, r2, r2_lo, graze, ray) {
+        Some((near, far, hit)) => finish_x8(nearest_x8(near, far), hit, ray),
+        None => f32x8::splat(MISS),
+    }
 }
 
 #[inline(always)]
@@ -218,6 +251,53 @@ pub fn refine_sphere_point_x8(c: &[[f32; 8]; 3], r: &[f32; 8], p: &[[f32; 8]; 3]
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Spheres in lanes against one ray give, lane by lane, the bits of the one-sphere kernel with the
+    /// ray in every lane: random rays and spheres at scales 1e-4 to 1e5, origins on and near the
+    /// surfaces, grazing rays, rays from inside, and inactive `tmax`.
+    #[test]
+    fn spheres_in_lanes_match_the_one_sphere_kernel() {
+        let mut f = crate::sample::hash::test_uniforms(0x51f3_0e5a_11ce_0001);
+        let (mut hits, mut checked) = (0, 0);
+        for round in 0..3000 {
+            let scale = [1e-4f32, 1.0, 1e3, 1e5][round % 4];
+            let v = |f: &mut dyn FnMut() -> f32| Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5);
+            let centres: [Vec3; 8] = std::array::from_fn(|_| v(&mut f) * scale * 10.0);
+            let radii: [f32; 8] = std::array::from_fn(|_| (0.01 + f()) * scale);
+            let mut o = v(&mut f) * scale * 20.0;
+            let mut d = v(&mut f).normalize_or(Vec3::X) * (0.1 + f() * 10.0);
+            match round % 5 {
+                // On the surface of sphere 0, leaving it.
+                0 => {
+                    let n = v(&mut f).normalize_or(Vec3::Y);
+                    o = centres[0] + n * radii[0];
+                    d = (n + v(&mut f)).normalize_or(n);
+                }
+                // Aimed at the silhouette of sphere 1 (grazing).
+                1 => {
+                    let side = d.any_orthonormal_vector() * radii[1] * (1.0 + (f() - 0.5) * 1e-6);
+                    o = centres[1] + side - d * scale * 5.0;
+                }
+                // Inside sphere 2.
+                2 => o = centres[2] + v(&mut f) * radii[2],
+                _ => {}
+            }
+            let tmax = [f32::INFINITY, scale * 30.0, -1.0][round % 3];
+            let ray = Ray8::new(Vec3x8::splat(o), Vec3x8::splat(d), f32x8::splat(tmax));
+            let k = radii.map(SphereConsts::of);
+            let c = Vec3x8::new(f32x8::from(centres.map(|c| c.x)), f32x8::from(centres.map(|c| c.y)), f32x8::from(centres.map(|c| c.z)));
+            let lanes =
+                spheres_lanes_x8(c, f32x8::from(k.map(|k| k.r2)), f32x8::from(k.map(|k| k.r2_lo)), f32x8::from(k.map(|k| k.graze)), &ray);
+            for l in 0..8 {
+                let one = intersect_sphere_x8(centres[l], radii[l], &ray).to_array()[0];
+                assert_eq!(lanes.to_array()[l].to_bits(), one.to_bits(), "round {round}, sphere {l}");
+                hits += (one != MISS) as u32;
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 24_000);
+        assert!(hits > 500, "only {hits} hits");
+    }
 
     /// The 8-lane re-projection equals the scalar one bit for bit: random points near spheres at
     /// scales 1e-4 to 1e5, points at the centre, far off the surface, and non-finite inputs.

@@ -170,6 +170,7 @@ impl Compiler<'_> {
         // collapse is linear in the node count, a few percent of the binary build.
         let bvh8 = Bvh8::from_bvh(&bvh, Collapse::Sah);
         let wide_incoherent = bvh.nodes.len() >= WIDE_MIN_NODES;
+        let leaf_spheres = super::leaf_spheres::LeafSpheres::new(&bvh, &bounded, &self.prims);
 
         let mut features = Features {
             csg: self.prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })),
@@ -213,6 +214,7 @@ impl Compiler<'_> {
             bvh,
             bvh8,
             wide_incoherent,
+            leaf_spheres,
             bounded,
             unbounded,
             csg: std::mem::replace(&mut self.csg, Csg::new()),

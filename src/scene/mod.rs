@@ -4,6 +4,7 @@
 pub mod compile;
 pub mod error;
 pub mod format;
+pub mod leaf_spheres;
 pub mod profile;
 
 pub use compile::{load_scene, parse_scene};
@@ -237,6 +238,8 @@ pub struct Scene {
     /// Whether incoherent queues take `bvh8`: `bvh` has at least `accel::WIDE_MIN_NODES` nodes (below,
     /// groups through the binary tree are faster for them).
     pub wide_incoherent: bool,
+    /// The leaves' static spheres as lanes, per slot of `bvh.indices` (single-ray shadow tests).
+    pub leaf_spheres: leaf_spheres::LeafSpheres,
     pub bounded: Vec<u32>,
     pub unbounded: Vec<u32>,
     pub csg: Csg,

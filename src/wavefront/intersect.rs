@@ -244,6 +244,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     cands.clear();
     let mut order = std::mem::take(&mut hits.order);
     let sorted = octant_order(rays, &mut order);
+    hits.scattered = sorted;
     if sorted && incoherent == Traversal::Wide && scene.wide_incoherent && !scene.bvh8.is_empty() {
         intersect_wide(scene, rays, &order, hits, cands);
         hits.order = order;

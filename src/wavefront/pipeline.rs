@@ -9,7 +9,7 @@ use super::csg_merge::csg_merge;
 use super::generate::{generate, Tile};
 use super::intersect::intersect;
 use super::shade::{shade, ShadeOut};
-use super::shadow::shadow;
+use super::shadow::shadow_with;
 use super::Wavefront;
 use crate::film::Film;
 use crate::scene::{Profile, Scene};
@@ -67,7 +67,9 @@ pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut
             timed!(times.csg_merge, csg_merge(scene, cur, csg, hits, csg_arena));
         }
         timed!(times.shade, shade(scene, profile, seed, cur, hits, order, ShadeOut { paths, next, nee }));
-        let (traced, cleared) = timed!(times.shadow, shadow(scene, profile, seed, nee, paths, csg_arena));
+        // Shading points scattered by incoherent bounces: their shadow rays share few BVH nodes.
+        let scattered = hits.scattered.then_some(&mut hits.wide_stack);
+        let (traced, cleared) = timed!(times.shadow, shadow_with(scene, profile, seed, nee, paths, csg_arena, scattered));
         counters.shadow_rays += traced;
         counters.shadow_cleared += cleared;
         counters.secondary_rays += next.len() as u64;

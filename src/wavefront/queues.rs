@@ -299,8 +299,11 @@ pub struct HitQueue {
     pub flip: Vec<bool>,
     /// Scratch of the intersect stage: ray indices partitioned by direction octant.
     pub order: Vec<u32>,
-    /// Scratch of the intersect stage: the wide BVH's traversal stack.
+    /// Scratch of the intersect stage: the wide BVH's traversal stack (the shadow stage's too).
     pub wide_stack: Bvh8Stack,
+    /// Set by the intersect stage: the rays' directions were incoherent (it sorted them by octant), so
+    /// the hit points are scattered (diffuse and glossy bounces), not a tile's coherent surface.
+    pub scattered: bool,
 }
 
 impl HitQueue {

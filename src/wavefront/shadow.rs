@@ -12,9 +12,10 @@ use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
 use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, Walk};
-use crate::accel::GROUP;
 use crate::accel::{intersect_aabb_x8, PacketRay};
+use crate::accel::{Bvh8Stack, GROUP};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
+use crate::geometry::spheres_lanes_x8;
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
@@ -176,6 +177,22 @@ fn cone_min_samples(scene: &Scene) -> u32 {
 
 /// Shadow rays traced and shadow rays the light-cone test found clear (credited untraced).
 pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths: &mut PathTable, arena: &mut CsgArena) -> (u64, u64) {
+    shadow_with(scene, profile, seed, nee, paths, arena, None)
+}
+
+/// [`shadow`]; `scattered` (a traversal stack): the shading points are scattered (hits of incoherent
+/// bounces), so that packets of their shadow rays share few nodes: scenes whose shadow rays walk
+/// through nothing then trace them one at a time ([`occlusion_single`]; in trees of at least
+/// `WIDE_MIN_NODES` nodes without CSG). Same result either way.
+pub fn shadow_with(
+    scene: &Scene,
+    profile: &Profile,
+    seed: u64,
+    nee: &NeeQueue,
+    paths: &mut PathTable,
+    arena: &mut CsgArena,
+    scattered: Option<&mut Bvh8Stack>,
+) -> (u64, u64) {
     let mut pk = Batch::new();
     let mut traced = 0u64;
     let mut cleared = 0u64;
@@ -210,6 +227,10 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         })
         .collect();
     let walk = any_passable(scene, profile);
+    // Only where it pays (measured): trees large enough that incoherent rays take the wide one in the
+    // intersect stage too (in small trees groups share the top levels), and no CSG solids (a lone ray
+    // would pay a whole 8-lane interval merge).
+    let mut single = scattered.filter(|_| !walk && scene.wide_incoherent && !scene.features.csg && !scene.bvh8.is_empty());
     let cones: Vec<Option<LightCone>> = scene
         .lights
         .iter()
@@ -372,11 +393,11 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
                     continue;
                 }
                 if pk.len + LANES > BATCH {
-                    traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
+                    traced += flush(scene, profile, &mut pk, &mut credit, arena, walk, single.as_deref_mut());
                 }
                 pk.append(&Rays8 { o, d: target - o, tmax: end, time, contrib: c, req }, lanes);
                 if pk.len == BATCH {
-                    traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
+                    traced += flush(scene, profile, &mut pk, &mut credit, arena, walk, single.as_deref_mut());
                 }
             }
             if clear | glass | opaque != 0 {
@@ -386,7 +407,7 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
         base += m;
     }
     if pk.len > 0 {
-        traced += flush(scene, profile, &mut pk, &mut credit, arena, walk);
+        traced += flush(scene, profile, &mut pk, &mut credit, arena, walk, single);
     }
     credit.to_paths(nee, paths);
     (traced, cleared)
@@ -468,10 +489,18 @@ impl Credit {
     }
 }
 
-/// Trace the batch's shadow rays (any hit, as one traversal group) and credit the unoccluded ones, times
-/// their transmittance where they met dielectrics they walk through. Returns rays traced (walk segments
-/// included).
-fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, credit: &mut Credit, arena: &mut CsgArena, walk: bool) -> u64 {
+/// Trace the batch's shadow rays (any hit, as one traversal group, or one ray at a time when `single`
+/// holds a stack: [`occlusion_single`]) and credit the unoccluded ones, times their transmittance where
+/// they met dielectrics they walk through. Returns rays traced (walk segments included).
+fn flush(
+    scene: &Scene,
+    profile: &Profile,
+    pk: &mut Batch,
+    credit: &mut Credit,
+    arena: &mut CsgArena,
+    walk: bool,
+    single: Option<&mut Bvh8Stack>,
+) -> u64 {
     let n = pk.len;
     pk.tmax[n..].fill(-1.0);
     let k = n.div_ceil(LANES);
@@ -484,7 +513,11 @@ fn flush(scene: &Scene, profile: &Profile, pk: &mut Batch, credit: &mut Credit, 
             times[j] = Some(load8(&pk.time, j * LANES));
         }
     }
-    let (occluded, touched) = occlusion_group(scene, profile, &mut rays[..k], &times, arena, walk);
+    let (occluded, touched) = if let Some(stack) = single {
+        (occlusion_single(scene, profile, &rays[..k], &times, arena, stack), [0; GROUP])
+    } else {
+        occlusion_group(scene, profile, &mut rays[..k], &times, arena, walk)
+    };
     let mut walked = 0;
     for j in 0..k {
         let lanes = (n - j * LANES).min(LANES);
@@ -579,6 +612,72 @@ pub fn occlusion_group(
         occ[j] |= from_bvh[j];
     }
     (occ, touched)
+}
+
+/// [`occlusion_group`] for scenes whose shadow rays walk through nothing (`!any_passable`), one ray at
+/// a time through the wide BVH (`Bvh8::occluded_lanes`): incoherent packets (shading points scattered
+/// by bounces) share few nodes and leaves, so a packet's leaf tests would mostly test lanes that never
+/// reach the leaf. A leaf's static spheres meet the ray in one 8-lane call (spheres in lanes,
+/// [`spheres_lanes_x8`], the same arithmetic per ray and sphere as the packet kernel), its other prims
+/// the packet test with the ray in every lane. The same occluded lanes as [`occlusion_group`].
+pub fn occlusion_single(
+    scene: &Scene,
+    profile: &Profile,
+    rays: &[Ray8],
+    times: &[Option<f32x8>],
+    arena: &mut CsgArena,
+    stack: &mut Bvh8Stack,
+) -> [f32x8; GROUP] {
+    let none = f32x8::ZERO.simd_gt(f32x8::ONE); // all false
+    let mut occ = [none; GROUP];
+    let ls = &scene.leaf_spheres;
+    let idx = &scene.bvh8.indices;
+    for (j, ray) in rays.iter().enumerate() {
+        let mut touched = 0;
+        for &pid in &scene.unbounded {
+            occ[j] |= prim_occlusion(scene, profile, pid, ray, times[j], arena, false, &mut touched);
+        }
+        let lanes = !occ[j].to_bitmask() & ray.tmax.simd_gt(f32x8::ZERO).to_bitmask();
+        let (o, d, tm) = (ray.o, ray.d, ray.tmax.to_array());
+        let time = times[j].map(|t| t.to_array());
+        // The ray of the lane being traversed, in all 8 lanes (rebuilt when the lane changes).
+        let mut cur = (usize::MAX, *ray);
+        let bits = scene.bvh8.occluded_lanes(ray, lanes, stack, |l, first, count| {
+            if cur.0 != l {
+                cur = (l, Ray8::new(Vec3x8::splat(o.lane(l)), Vec3x8::splat(d.lane(l)), f32x8::splat(tm[l])));
+            }
+            let one = &cur.1;
+            // Leaves of more than 8 prims (identical centroids) in chunks of 8 slots.
+            let end = first + count;
+            let mut first = first;
+            while first < end {
+                let n = (end - first).min(LANES);
+                let sph = ls.sphere_bits(first, n);
+                if sph != 0 {
+                    let c = Vec3x8::new(load8(&ls.cx, first), load8(&ls.cy, first), load8(&ls.cz, first));
+                    let t = spheres_lanes_x8(c, load8(&ls.r2, first), load8(&ls.r2_lo, first), load8(&ls.graze, first), one);
+                    if t.simd_lt(one.tmax).to_bitmask() & sph != 0 {
+                        return true;
+                    }
+                }
+                let mut rest = !sph & ((1u32 << n) - 1);
+                while rest != 0 {
+                    let k = rest.trailing_zeros() as usize;
+                    rest &= rest - 1;
+                    let pid = scene.bounded[idx[first + k] as usize];
+                    let t1 = time.map(|t| f32x8::splat(t[l]));
+                    if prim_occlusion(scene, profile, pid, one, t1, arena, false, &mut touched).to_bitmask() & 1 != 0 {
+                        return true;
+                    }
+                }
+                first += n;
+            }
+            false
+        });
+        debug_assert_eq!(touched, 0, "no surface lets shadow rays through");
+        occ[j] |= mask_from_bits(bits);
+    }
+    occ
 }
 
 /// Any-hit test of 8 shadow rays against one prim (the traversal's leaf callback): the occluded lanes,

@@ -1,0 +1,60 @@
+//! The static spheres of the BVH's leaves as lanes: per slot of `bvh.indices` (the order in which
+//! leaves list their primitives), the sphere's centre and radius terms, so that one ray meets a
+//! whole leaf's spheres in one 8-lane kernel call ([`crate::geometry::spheres_lanes_x8`]). Slots of
+//! other primitives (and of moving spheres) are flagged, and their leaves test those one by one.
+
+use super::{Prim, Shape};
+use crate::accel::Bvh;
+use crate::geometry::SphereConsts;
+use glam::Vec3;
+
+/// Sphere lanes of a BVH's leaf slots. Each row has 8 padding slots past the last, so an 8-lane load
+/// at any leaf's first slot stays inside.
+#[derive(Clone, Debug, Default)]
+pub struct LeafSpheres {
+    pub cx: Vec<f32>,
+    pub cy: Vec<f32>,
+    pub cz: Vec<f32>,
+    pub r2: Vec<f32>,
+    pub r2_lo: Vec<f32>,
+    pub graze: Vec<f32>,
+    /// Per slot: 1 when the slot is a static sphere (its lane above holds it), else 0.
+    pub sphere: Vec<u8>,
+}
+
+impl LeafSpheres {
+    /// From the BVH over `bounded` (prim ids of the tree's indices).
+    pub fn new(bvh: &Bvh, bounded: &[u32], prims: &[Prim]) -> Self {
+        let n = bvh.indices.len() + 8;
+        let mut s = LeafSpheres {
+            cx: vec![0.0; n],
+            cy: vec![0.0; n],
+            cz: vec![0.0; n],
+            r2: vec![0.0; n],
+            r2_lo: vec![0.0; n],
+            graze: vec![0.0; n],
+            sphere: vec![0; n],
+        };
+        for (k, &bi) in bvh.indices.iter().enumerate() {
+            let prim = &prims[bounded[bi as usize] as usize];
+            if let Shape::Sphere { center, radius } = prim.shape {
+                if prim.motion == Vec3::ZERO {
+                    let c = SphereConsts::of(radius);
+                    (s.cx[k], s.cy[k], s.cz[k]) = (center.x, center.y, center.z);
+                    (s.r2[k], s.r2_lo[k], s.graze[k], s.sphere[k]) = (c.r2, c.r2_lo, c.graze, 1);
+                }
+            }
+        }
+        s
+    }
+
+    /// Bits of the slots `first..first + count` (at most 8) that are static spheres.
+    #[inline(always)]
+    pub fn sphere_bits(&self, first: usize, count: usize) -> u32 {
+        let mut bits = 0;
+        for (l, &f) in self.sphere[first..first + count].iter().enumerate() {
+            bits |= (f as u32) << l;
+        }
+        bits
+    }
+}
