@@ -640,13 +640,14 @@ pub fn occlusion_single(
         let lanes = !occ[j].to_bitmask() & ray.tmax.simd_gt(f32x8::ZERO).to_bitmask();
         let (o, d, tm) = (ray.o, ray.d, ray.tmax.to_array());
         let time = times[j].map(|t| t.to_array());
-        // The ray of the lane being traversed, in all 8 lanes (rebuilt when the lane changes).
-        let mut cur = (usize::MAX, *ray);
         let bits = scene.bvh8.occluded_lanes(ray, lanes, stack, |l, first, count| {
-            if cur.0 != l {
-                cur = (l, Ray8::new(Vec3x8::splat(o.lane(l)), Vec3x8::splat(d.lane(l)), f32x8::splat(tm[l])));
-            }
-            let one = &cur.1;
+            // The lane's ray in all 8 lanes (its inverse direction as the packet computed it).
+            let one = &Ray8 {
+                o: Vec3x8::splat(o.lane(l)),
+                d: Vec3x8::splat(d.lane(l)),
+                inv_d: Vec3x8::splat(ray.inv_d.lane(l)),
+                tmax: f32x8::splat(tm[l]),
+            };
             // Leaves of more than 8 prims (identical centroids) in chunks of 8 slots.
             let end = first + count;
             let mut first = first;
