@@ -8,7 +8,7 @@ mod support;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rayon::prelude::*;
 use std::hint::black_box;
-use strata::accel::GROUP;
+use strata::accel::{Bvh8Stack, GROUP};
 use strata::csg::{intervals_f64, CsgArena};
 use strata::scene::{Profile, Scene, Shape};
 use strata::wavefront::csg_merge::csg_merge;
@@ -16,7 +16,7 @@ use strata::wavefront::generate::generate;
 use strata::wavefront::intersect::{intersect, intersect_with, prim_t_f64, Traversal, INCOHERENT};
 use strata::wavefront::queues::NONE;
 use strata::wavefront::shade::{shade, ShadeOut};
-use strata::wavefront::shadow::{occluded_x8, occlusion_group, shadow};
+use strata::wavefront::shadow::{occluded_x8, occlusion_group, occlusion_single, shadow};
 use strata::wavefront::{CsgCandidates, HitQueue, NeeQueue, PathTable, RayQueue};
 
 /// Nearest hit of one ray by the scalar f64 path (BVH f64 traversal + f64 kernels + planes).
@@ -167,6 +167,44 @@ fn secondary_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
         .collect()
 }
 
+/// Diffuse bounces: from every camera hit of `bench_spheres` (a sphere or the floor), a
+/// cosine-distributed direction about the surface normal (seeded), started off the surface along it
+/// as the shading stage starts them.
+fn bounce_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
+    use rand_core::{Rng, SeedableRng};
+    use strata::geometry::offset_ray_origin;
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+    let mut u = move || (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+    let (mut hits, mut cands) = (HitQueue::default(), CsgCandidates::default());
+    qs.iter()
+        .map(|q| {
+            intersect(scene, q, &mut hits, &mut cands);
+            let mut out = RayQueue::new(false, false);
+            for i in 0..q.len() {
+                if hits.prim[i] == NONE {
+                    continue;
+                }
+                let mut r = q.get(i);
+                let p = r.o + r.d * hits.t[i];
+                let n = match scene.prims[hits.prim[i] as usize].shape {
+                    Shape::Sphere { center, .. } => (p - center).normalize(),
+                    Shape::Plane(pl) => pl.normal,
+                    _ => continue,
+                };
+                let n = if n.dot(r.d) > 0.0 { -n } else { n };
+                let (a, b) = n.any_orthonormal_pair();
+                let (rad, phi) = (u().sqrt(), std::f32::consts::TAU * u());
+                let z = (1.0 - rad * rad).max(0.0).sqrt();
+                r.o = offset_ray_origin(p, n);
+                r.d = a * (rad * phi.cos()) + b * (rad * phi.sin()) + n * z;
+                out.push(&r);
+            }
+            out.pad();
+            out
+        })
+        .collect()
+}
+
 fn bench_intersect_secondary(c: &mut Criterion) {
     let pool = support::pool();
     let scene = support::scene("bench_spheres.toml");
@@ -309,7 +347,7 @@ struct ShadeWork {
     order: Vec<u32>,
 }
 
-/// Shadow rays from every camera hit to the scene's first light, packed 8 at a time.
+/// Shadow rays from every hit of the queues `qs` to the scene's first light, packed 8 at a time.
 fn shadow_packets(scene: &Scene, qs: &[RayQueue]) -> Vec<strata::simd::Ray8> {
     use strata::simd::{f32x8, Ray8, Vec3x8};
     let light = match scene.lights[0] {
@@ -407,6 +445,53 @@ fn bench_shadow(c: &mut Criterion) {
                 // scratch array made once per task.
                 packets.par_chunks(512).for_each_init(
                     || (strata::csg::CsgArena::new(), [packets[0]; GROUP]),
+                    |(arena, rays), ps| {
+                        for g in ps.chunks(GROUP) {
+                            rays[..g.len()].copy_from_slice(g);
+                            black_box(occlusion_group(&scene, &profile, &mut rays[..g.len()], &[None; GROUP], arena, false));
+                        }
+                    },
+                )
+            })
+        })
+    });
+    g.finish();
+
+    // Shadow rays from the hits of diffuse bounces: shading points scattered as path tracing scatters
+    // them, which the shadow stage traces one ray at a time (`occlusion_single`). Validated against
+    // the group traversal on every packet, then both timed.
+    let scattered = shadow_packets(&scene, &bounce_queues(&scene, &qs));
+    let mut stack = Bvh8Stack::default();
+    for g in scattered.chunks(GROUP) {
+        let single = occlusion_single(&scene, &profile, g, &[None; GROUP], &mut arena, &mut stack);
+        let (group, _) = occlusion_group(&scene, &profile, &mut g.to_vec(), &[None; GROUP], &mut arena, false);
+        for j in 0..g.len() {
+            assert_eq!(single[j].to_bitmask(), group[j].to_bitmask(), "one ray at a time disagrees with the group traversal");
+        }
+    }
+    let n = scattered.iter().map(|p| p.tmax.to_array().iter().filter(|&&t| t > 0.0).count() as u64).sum();
+    let mut g = c.benchmark_group("shadow");
+    g.throughput(Throughput::Elements(n));
+    g.sample_size(20);
+    g.bench_function("any_hit_scattered/bench_spheres.toml", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                scattered.par_chunks(512).for_each_init(
+                    || (strata::csg::CsgArena::new(), Bvh8Stack::default()),
+                    |(arena, stack), ps| {
+                        for g in ps.chunks(GROUP) {
+                            black_box(occlusion_single(&scene, &profile, g, &[None; GROUP], arena, stack));
+                        }
+                    },
+                )
+            })
+        })
+    });
+    g.bench_function("any_hit_scattered_groups/bench_spheres.toml", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                scattered.par_chunks(512).for_each_init(
+                    || (strata::csg::CsgArena::new(), [scattered[0]; GROUP]),
                     |(arena, rays), ps| {
                         for g in ps.chunks(GROUP) {
                             rays[..g.len()].copy_from_slice(g);
