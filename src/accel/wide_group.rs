@@ -21,7 +21,7 @@
 use super::aabb::{intersect_aabb_x8, PacketRay};
 use super::group::{culled, group_tmax, GroupBounds, SLACK};
 use super::wide::{Bvh8, Bvh8Node, WIDTH};
-use super::wide_traverse::{push_children, Bvh8Stack};
+use super::wide_traverse::{push_children_but_nearest, Bvh8Stack};
 use crate::simd::{f32x8, Ray8};
 use glam::Vec3;
 
@@ -96,13 +96,16 @@ impl Bvh8 {
                     enter &= !(1 << i);
                 }
             }
-            push_children(n, tn, enter, |i| packets[i], stack, &mut sp);
+            let mut nearest = push_children_but_nearest(n, tn, enter, |i| packets[i], stack, &mut sp);
             loop {
-                if sp == 0 {
-                    return;
-                }
-                sp -= 1;
-                let e = stack[sp];
+                let e = match nearest.take() {
+                    Some(e) => e,
+                    None if sp == 0 => return,
+                    None => {
+                        sp -= 1;
+                        stack[sp]
+                    }
+                };
                 // Culled with tmax then, or now that closer hits lowered it.
                 if culled(e.tn, tmax) {
                     continue;

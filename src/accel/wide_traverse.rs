@@ -177,17 +177,43 @@ pub fn transpose8x8(mut x: u64) -> u64 {
 /// can be +inf, for a box beyond the f32 range that a ray with `tmax = inf` enters: it is pushed last.)
 #[inline(always)]
 pub(super) fn push_children(n: &Bvh8Node, key: f32x8, hit: u32, lanes: impl Fn(usize) -> u32, stack: &mut [Entry], sp: &mut usize) {
+    if let Some(e) = push_children_but_nearest(n, key, hit, lanes, stack, sp) {
+        stack[*sp] = e;
+        *sp += 1;
+    }
+}
+
+/// [`push_children`], except that the nearest child (the one that would be on top) is returned
+/// instead of pushed: the traversal goes on with it at once, without a store and a load through the
+/// stack. `None` when no child is hit.
+#[inline(always)]
+pub(super) fn push_children_but_nearest(
+    n: &Bvh8Node,
+    key: f32x8,
+    hit: u32,
+    lanes: impl Fn(usize) -> u32,
+    stack: &mut [Entry],
+    sp: &mut usize,
+) -> Option<Entry> {
     let ka = key.to_array();
+    let top = hit.count_ones() as usize;
+    let mut nearest = None;
     let mut bits = hit;
     while bits != 0 {
         let i = bits.trailing_zeros() as usize;
         bits &= bits - 1;
         let k = f32x8::splat(ka[i]);
         let higher = !((2u32 << i) - 1);
-        let farther = (key.simd_gt(k).to_bitmask() | (key.simd_eq(k).to_bitmask() & higher)) & hit;
-        stack[*sp + farther.count_ones() as usize] = Entry { child: n.child[i], count: n.count[i], tn: ka[i], lanes: lanes(i) };
+        let farther = ((key.simd_gt(k).to_bitmask() | (key.simd_eq(k).to_bitmask() & higher)) & hit).count_ones() as usize;
+        let e = Entry { child: n.child[i], count: n.count[i], tn: ka[i], lanes: lanes(i) };
+        if farther + 1 == top {
+            nearest = Some(e);
+        } else {
+            stack[*sp + farther] = e;
+        }
     }
-    *sp += hit.count_ones() as usize;
+    *sp += top.saturating_sub(1);
+    nearest
 }
 
 /// Ray `lane` of `ray` against the 8 children of `n` with the single-ray kernel the traversals use:
@@ -248,39 +274,13 @@ impl Bvh8 {
         }
     }
 
-    /// Any-hit (occlusion) traversal of one ray: true as soon as `leaf(prim, tmax)` returns true. The
-    /// loop mirrors the closest-hit one (as `traverse.rs` keeps its two loops apart). Nothing is visited
-    /// when `tmax <= 0` (the packet any-hit convention).
+    /// Any-hit (occlusion) traversal of one ray: true as soon as `leaf(prim, tmax)` returns true
+    /// ([`Bvh8::occluded_lanes`] with the ray in one lane). Nothing is visited when `tmax <= 0` (the
+    /// packet any-hit convention).
     pub fn traverse_any_single(&self, o: Vec3, d: Vec3, tmax: f32, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, f32) -> bool) -> bool {
-        if self.nodes.is_empty() || !(tmax > 0.0) {
-            return false;
-        }
-        let ls = LaneSlabs::new(&splat_ray(o, d, tmax));
-        let (s, oct, tm) = (ls.lane(0), ls.oct[0], f32x8::splat(tmax));
-        let stack = &mut stack.0[..];
-        let mut sp = 0usize;
-        let mut node = 0usize;
-        loop {
-            let n = &self.nodes[node];
-            let (tn, hit) = slab8_oct(oct, n, &s, tm);
-            push_children(n, tn, hit.to_bitmask(), |_| 1, stack, &mut sp);
-            loop {
-                if sp == 0 {
-                    return false;
-                }
-                sp -= 1;
-                let e = stack[sp];
-                if e.count == 0 {
-                    node = e.child as usize;
-                    break;
-                }
-                for &p in &self.indices[e.child as usize..(e.child + e.count) as usize] {
-                    if leaf(p, tmax) {
-                        return true;
-                    }
-                }
-            }
-        }
+        let ray = splat_ray(o, d, tmax);
+        let hit = self.occluded_lanes(&ray, 1, stack, |_, first, count| self.indices[first..first + count].iter().any(|&p| leaf(p, tmax)));
+        hit != 0
     }
 
     /// Any-hit traversal of the lanes `lanes` of a packet, one ray at a time (for incoherent shadow
@@ -316,12 +316,23 @@ impl Bvh8 {
                     stack[sp] = Entry { child: n.child[i], count: n.count[i], tn: 0.0, lanes: 1 };
                     sp += ((hit >> i) & 1) as usize;
                 }
-                loop {
-                    if sp == 0 {
-                        continue 'lanes;
-                    }
+                // The last child pushed (the highest hit slot) is taken from the node, not back from
+                // the stack (no store-to-load round trip on the way down).
+                let mut top = (hit != 0).then(|| {
+                    let i = 31 - hit.leading_zeros() as usize;
                     sp -= 1;
-                    let e = stack[sp];
+                    (n.child[i], n.count[i])
+                });
+                loop {
+                    let (child, count) = match top.take() {
+                        Some(c) => c,
+                        None if sp == 0 => continue 'lanes,
+                        None => {
+                            sp -= 1;
+                            (stack[sp].child, stack[sp].count)
+                        }
+                    };
+                    let e = Entry { child, count, tn: 0.0, lanes: 1 };
                     if e.count == 0 {
                         node = e.child as usize;
                         break;
@@ -370,13 +381,16 @@ impl Bvh8 {
                 any |= bits;
             }
             let m = transpose8x8(m);
-            push_children(n, key, any, |i| ((m >> (8 * i)) & 0xff) as u32, stack, &mut sp);
+            let mut nearest = push_children_but_nearest(n, key, any, |i| ((m >> (8 * i)) & 0xff) as u32, stack, &mut sp);
             loop {
-                if sp == 0 {
-                    return;
-                }
-                sp -= 1;
-                let e = stack[sp];
+                let e = match nearest.take() {
+                    Some(e) => e,
+                    None if sp == 0 => return,
+                    None => {
+                        sp -= 1;
+                        stack[sp]
+                    }
+                };
                 // Lanes whose tmax fell below the smallest entry distance cannot enter any more.
                 let live = f32x8::splat(e.tn).simd_le(f32x8::from(tm)).to_bitmask() & e.lanes;
                 if live == 0 {
