@@ -392,7 +392,7 @@ impl Bvh8 {
                     }
                 };
                 // Lanes whose tmax fell below the smallest entry distance cannot enter any more.
-                let live = f32x8::splat(e.tn).simd_le(f32x8::from(tm)).to_bitmask() & e.lanes;
+                let live = f32x8::splat(e.tn).simd_le(ray.tmax).to_bitmask() & e.lanes;
                 if live == 0 {
                     continue;
                 }
