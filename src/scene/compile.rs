@@ -171,6 +171,7 @@ impl Compiler<'_> {
         let bvh8 = Bvh8::from_bvh(&bvh, Collapse::Sah);
         let wide_incoherent = bvh.nodes.len() >= WIDE_MIN_NODES;
         let leaf_spheres = super::leaf_spheres::LeafSpheres::new(&bvh, &bounded, &self.prims);
+        let prim_geo = self.prims.iter().map(super::PrimGeo::of).collect();
 
         let mut features = Features {
             csg: self.prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })),
@@ -214,6 +215,7 @@ impl Compiler<'_> {
             bvh,
             bvh8,
             wide_incoherent,
+            prim_geo,
             leaf_spheres,
             bounded,
             unbounded,

@@ -183,6 +183,31 @@ pub struct Prim {
     pub is_light: bool,
 }
 
+/// What Lambert shading reads of a prim, 32 bytes (the [`Prim`] is 176: two cache lines per hit, read
+/// at random): a sphere's centre and radius, or a flat prim's (plane, quad, disk) outward normal with
+/// `r = -1`, or `r = NaN` for every other shape (shaded from the whole prim); its motion and material.
+#[repr(C, align(32))]
+#[derive(Clone, Copy, Debug)]
+pub struct PrimGeo {
+    pub v: Vec3,
+    pub r: f32,
+    pub motion: Vec3,
+    pub material: u32,
+}
+
+impl PrimGeo {
+    pub fn of(p: &Prim) -> PrimGeo {
+        let (v, r) = match &p.shape {
+            Shape::Sphere { center, radius } => (*center, *radius),
+            Shape::Plane(pl) => (pl.normal, -1.0),
+            Shape::Quad(q) => (q.normal(), -1.0),
+            Shape::Disk(d) => (d.normal, -1.0),
+            _ => (Vec3::ZERO, f32::NAN),
+        };
+        PrimGeo { v, r, motion: p.motion, material: p.material }
+    }
+}
+
 /// Light sources sampled by the shadow stage.
 #[derive(Clone, Copy, Debug)]
 pub enum Light {
@@ -238,6 +263,8 @@ pub struct Scene {
     /// Whether incoherent queues take `bvh8`: `bvh` has at least `accel::WIDE_MIN_NODES` nodes (below,
     /// groups through the binary tree are faster for them).
     pub wide_incoherent: bool,
+    /// Per prim, what Lambert shading reads of it ([`PrimGeo`]).
+    pub prim_geo: Vec<PrimGeo>,
     /// The leaves' static spheres as lanes, per slot of `bvh.indices` (single-ray shadow tests).
     pub leaf_spheres: leaf_spheres::LeafSpheres,
     pub bounded: Vec<u32>,

@@ -438,48 +438,38 @@ impl Ctx<'_> {
                     t[l] = c;
                 }
             }
-            let prim = &scene.prims[prims[l] as usize];
-            let sh = prim.motion * times[l];
-            let material = match prim.shape {
-                Shape::Sphere { center, radius } => {
-                    sph |= 1 << l;
-                    let c = center + sh;
-                    for k in 0..3 {
-                        sc[k][l] = c[k];
-                    }
-                    sr[l] = radius;
-                    prim.material
+            let g = &scene.prim_geo[prims[l] as usize];
+            let sh = g.motion * times[l];
+            let material = if g.r > 0.0 {
+                sph |= 1 << l;
+                let c = g.v + sh;
+                for k in 0..3 {
+                    sc[k][l] = c[k];
                 }
-                Shape::Plane(_) | Shape::Quad(_) | Shape::Disk(_) => {
-                    // Flat prims (planes, quads, disks: the other common case) in 8 lanes below too;
-                    // their outward normal here.
-                    let normal = match &prim.shape {
-                        Shape::Plane(pl) => pl.normal,
-                        Shape::Quad(q) => q.normal(),
-                        Shape::Disk(d) => d.normal,
-                        _ => unreachable!(),
-                    };
-                    pla |= 1 << l;
-                    for (row, c) in nf.iter_mut().zip(normal.to_array()) {
-                        row[l] = c;
-                    }
-                    prim.material
+                sr[l] = g.r;
+                g.material
+            } else if g.r == -1.0 {
+                // Flat prims (planes, quads, disks: the other common case) in 8 lanes below too;
+                // their outward normal here.
+                pla |= 1 << l;
+                for (row, c) in nf.iter_mut().zip(g.v.to_array()) {
+                    row[l] = c;
                 }
-                _ => {
-                    // (`surface_hit` reads the ray's origin, direction and time only.)
-                    let r = RayItem {
-                        o: Vec3::new(ro[0][l], ro[1][l], ro[2][l]),
-                        d: Vec3::new(rd[0][l], rd[1][l], rd[2][l]),
-                        time: times[l],
-                        ..RayItem::default()
-                    };
-                    let hit = surface_hit(scene, &r, rt[l], prims[l], hits.leaf[i], hits.flip[i]);
-                    for k in 0..3 {
-                        (p[k][l], nf[k][l]) = (hit.p[k], hit.n_facing[k]);
-                    }
-                    scale[l] = hit.error_scale;
-                    hit.material
+                g.material
+            } else {
+                // (`surface_hit` reads the ray's origin, direction and time only.)
+                let r = RayItem {
+                    o: Vec3::new(ro[0][l], ro[1][l], ro[2][l]),
+                    d: Vec3::new(rd[0][l], rd[1][l], rd[2][l]),
+                    time: times[l],
+                    ..RayItem::default()
+                };
+                let hit = surface_hit(scene, &r, rt[l], prims[l], hits.leaf[i], hits.flip[i]);
+                for k in 0..3 {
+                    (p[k][l], nf[k][l]) = (hit.p[k], hit.n_facing[k]);
                 }
+                scale[l] = hit.error_scale;
+                hit.material
             };
             let (pixel, sample) = (paths.pixel[path[l] as usize], paths.sample[path[l] as usize]);
             let Material::Lambert { albedo } = &scene.materials[material as usize] else {
