@@ -139,11 +139,16 @@ fn bench_generate(c: &mut Criterion) {
     g.finish();
 }
 
-/// Incoherent secondary rays: from every camera hit of `bench_spheres`, a uniformly random direction
-/// (seeded), started 1e-3 back along the camera ray. Validated against the scalar f64 path, then timed.
-fn secondary_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
+/// One continuation ray per camera hit of `qs` (per queue): `next(ray, t, prim, u)` turns the camera
+/// ray that hit `prim` at `t` into it (or skips the hit), `u` a seeded uniform source.
+fn from_hits(
+    scene: &Scene,
+    qs: &[RayQueue],
+    seed: u64,
+    mut next: impl FnMut(strata::wavefront::queues::RayItem, f32, u32, &mut dyn FnMut() -> f32) -> Option<strata::wavefront::queues::RayItem>,
+) -> Vec<RayQueue> {
     use rand_core::{Rng, SeedableRng};
-    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
     let mut u = move || (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
     let (mut hits, mut cands) = (HitQueue::default(), CsgCandidates::default());
     qs.iter()
@@ -154,12 +159,9 @@ fn secondary_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
                 if hits.prim[i] == NONE {
                     continue;
                 }
-                let mut r = q.get(i);
-                r.o += r.d * (hits.t[i] - 1e-3);
-                let (z, phi) = (2.0 * u() - 1.0, std::f32::consts::TAU * u());
-                let s = (1.0 - z * z).max(0.0).sqrt();
-                r.d = glam::Vec3::new(s * phi.cos(), s * phi.sin(), z);
-                out.push(&r);
+                if let Some(r) = next(q.get(i), hits.t[i], hits.prim[i], &mut u) {
+                    out.push(&r);
+                }
             }
             out.pad();
             out
@@ -167,42 +169,37 @@ fn secondary_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
         .collect()
 }
 
+/// Incoherent secondary rays: from every camera hit of `bench_spheres`, a uniformly random direction
+/// (seeded), started 1e-3 back along the camera ray. Validated against the scalar f64 path, then timed.
+fn secondary_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
+    from_hits(scene, qs, 5, |mut r, t, _, u| {
+        r.o += r.d * (t - 1e-3);
+        let (z, phi) = (2.0 * u() - 1.0, std::f32::consts::TAU * u());
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        r.d = glam::Vec3::new(s * phi.cos(), s * phi.sin(), z);
+        Some(r)
+    })
+}
+
 /// Diffuse bounces: from every camera hit of `bench_spheres` (a sphere or the floor), a
 /// cosine-distributed direction about the surface normal (seeded), started off the surface along it
 /// as the shading stage starts them.
 fn bounce_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
-    use rand_core::{Rng, SeedableRng};
-    use strata::geometry::offset_ray_origin;
-    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
-    let mut u = move || (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
-    let (mut hits, mut cands) = (HitQueue::default(), CsgCandidates::default());
-    qs.iter()
-        .map(|q| {
-            intersect(scene, q, &mut hits, &mut cands);
-            let mut out = RayQueue::new(false, false);
-            for i in 0..q.len() {
-                if hits.prim[i] == NONE {
-                    continue;
-                }
-                let mut r = q.get(i);
-                let p = r.o + r.d * hits.t[i];
-                let n = match scene.prims[hits.prim[i] as usize].shape {
-                    Shape::Sphere { center, .. } => (p - center).normalize(),
-                    Shape::Plane(pl) => pl.normal,
-                    _ => continue,
-                };
-                let n = if n.dot(r.d) > 0.0 { -n } else { n };
-                let (a, b) = n.any_orthonormal_pair();
-                let (rad, phi) = (u().sqrt(), std::f32::consts::TAU * u());
-                let z = (1.0 - rad * rad).max(0.0).sqrt();
-                r.o = offset_ray_origin(p, n);
-                r.d = a * (rad * phi.cos()) + b * (rad * phi.sin()) + n * z;
-                out.push(&r);
-            }
-            out.pad();
-            out
-        })
-        .collect()
+    from_hits(scene, qs, 7, |mut r, t, prim, u| {
+        let p = r.o + r.d * t;
+        let n = match scene.prims[prim as usize].shape {
+            Shape::Sphere { center, .. } => (p - center).normalize(),
+            Shape::Plane(pl) => pl.normal,
+            _ => return None,
+        };
+        let n = if n.dot(r.d) > 0.0 { -n } else { n };
+        let (a, b) = n.any_orthonormal_pair();
+        let (rad, phi) = (u().sqrt(), std::f32::consts::TAU * u());
+        let z = (1.0 - rad * rad).max(0.0).sqrt();
+        r.o = strata::geometry::offset_ray_origin(p, n);
+        r.d = a * (rad * phi.cos()) + b * (rad * phi.sin()) + n * z;
+        Some(r)
+    })
 }
 
 fn bench_intersect_secondary(c: &mut Criterion) {
@@ -438,23 +435,7 @@ fn bench_shadow(c: &mut Criterion) {
             })
         })
     });
-    g.bench_function("any_hit/bench_spheres.toml", |b| {
-        b.iter(|| {
-            pool.install(|| {
-                // The packets are copied once per group (the traversal clobbers their tmax) into a
-                // scratch array made once per task.
-                packets.par_chunks(512).for_each_init(
-                    || (strata::csg::CsgArena::new(), [packets[0]; GROUP]),
-                    |(arena, rays), ps| {
-                        for g in ps.chunks(GROUP) {
-                            rays[..g.len()].copy_from_slice(g);
-                            black_box(occlusion_group(&scene, &profile, &mut rays[..g.len()], &[None; GROUP], arena, false));
-                        }
-                    },
-                )
-            })
-        })
-    });
+    time_groups(&mut g, "any_hit/bench_spheres.toml", &pool, &scene, &profile, &packets);
     g.finish();
 
     // Shadow rays from the hits of diffuse bounces: shading points scattered as path tracing scatters
@@ -487,22 +468,36 @@ fn bench_shadow(c: &mut Criterion) {
             })
         })
     });
-    g.bench_function("any_hit_scattered_groups/bench_spheres.toml", |b| {
+    time_groups(&mut g, "any_hit_scattered_groups/bench_spheres.toml", &pool, &scene, &profile, &scattered);
+    g.finish();
+}
+
+/// Time the any-hit group traversal (`occlusion_group`, groups of `GROUP` packets) over `packets`.
+fn time_groups(
+    g: &mut criterion::BenchmarkGroup<criterion::measurement::WallTime>,
+    name: &str,
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    profile: &Profile,
+    packets: &[strata::simd::Ray8],
+) {
+    g.bench_function(name, |b| {
         b.iter(|| {
             pool.install(|| {
-                scattered.par_chunks(512).for_each_init(
-                    || (strata::csg::CsgArena::new(), [scattered[0]; GROUP]),
+                // The packets are copied once per group (the traversal clobbers their tmax) into a
+                // scratch array made once per task.
+                packets.par_chunks(512).for_each_init(
+                    || (strata::csg::CsgArena::new(), [packets[0]; GROUP]),
                     |(arena, rays), ps| {
                         for g in ps.chunks(GROUP) {
                             rays[..g.len()].copy_from_slice(g);
-                            black_box(occlusion_group(&scene, &profile, &mut rays[..g.len()], &[None; GROUP], arena, false));
+                            black_box(occlusion_group(scene, profile, &mut rays[..g.len()], &[None; GROUP], arena, false));
                         }
                     },
                 )
             })
         })
     });
-    g.finish();
 }
 
 /// The input of the csg_merge stage for one wavefront: its rays, the hits of the intersect stage (non-CSG

@@ -5,8 +5,7 @@
 //! 1e-3 to 1e4, for rays from the open, from shapes' surfaces and from the floor, active and not.
 
 use glam::Vec3;
-use rand_core::{Rng, SeedableRng};
-use rand_xoshiro::Xoshiro256PlusPlus;
+use rand_core::Rng;
 use std::path::Path;
 use strata::accel::{Bvh8Stack, GROUP};
 use strata::csg::CsgArena;
@@ -15,19 +14,9 @@ use strata::scene::{parse_scene, Profile, Scene};
 use strata::simd::{f32x8, Ray8, Vec3x8};
 use strata::wavefront::shadow::{occlusion_group, occlusion_single};
 
-struct R(Xoshiro256PlusPlus);
-
-impl R {
-    fn f(&mut self) -> f32 {
-        (self.0.next_u32() >> 8) as f32 / (1u32 << 24) as f32
-    }
-    fn range(&mut self, a: f32, b: f32) -> f32 {
-        a + (b - a) * self.f()
-    }
-    fn vec(&mut self, a: f32, b: f32) -> Vec3 {
-        Vec3::new(self.range(a, b), self.range(a, b), self.range(a, b))
-    }
-}
+#[path = "common/rand.rs"]
+mod common_rand;
+use common_rand::Rand as R;
 
 /// A random opaque scene at scale `k` with `n` shapes (`motion`: a shutter and some moving spheres).
 fn scene(r: &mut R, k: f32, n: usize, motion: bool) -> Scene {
@@ -130,7 +119,7 @@ fn packets(r: &mut R, scene: &Scene, k: f32, motion: bool) -> (Vec<Ray8>, Vec<Op
 
 #[test]
 fn one_ray_at_a_time_occludes_the_lanes_the_group_traversal_does() {
-    let mut r = R(Xoshiro256PlusPlus::seed_from_u64(0x0051_491e));
+    let mut r = R::new(0x0051_491e);
     let profile = Profile::builtin("final");
     let mut arena = CsgArena::new();
     let mut stack = Bvh8Stack::default();

@@ -21,7 +21,7 @@
 use super::aabb::{intersect_aabb_x8, PacketRay};
 use super::group::{culled, group_tmax, GroupBounds, SLACK};
 use super::wide::{Bvh8, Bvh8Node, WIDTH};
-use super::wide_traverse::{push_children_but_nearest, Bvh8Stack};
+use super::wide_traverse::{pop, push_children_but_nearest, Bvh8Stack};
 use crate::simd::{f32x8, Ray8};
 use glam::Vec3;
 
@@ -98,13 +98,8 @@ impl Bvh8 {
             }
             let mut nearest = push_children_but_nearest(n, tn, enter, |i| packets[i], stack, &mut sp);
             loop {
-                let e = match nearest.take() {
-                    Some(e) => e,
-                    None if sp == 0 => return,
-                    None => {
-                        sp -= 1;
-                        stack[sp]
-                    }
+                let Some(e) = pop(&mut nearest, stack, &mut sp) else {
+                    return;
                 };
                 // Culled with tmax then, or now that closer hits lowered it.
                 if culled(e.tn, tmax) {

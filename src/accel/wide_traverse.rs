@@ -216,6 +216,20 @@ pub(super) fn push_children_but_nearest(
     nearest
 }
 
+/// The next entry of a traversal: `nearest` (the child [`push_children_but_nearest`] held back) if
+/// any, else the top of the stack; `None` when both are empty.
+#[inline(always)]
+pub(super) fn pop(nearest: &mut Option<Entry>, stack: &[Entry], sp: &mut usize) -> Option<Entry> {
+    if let Some(e) = nearest.take() {
+        return Some(e);
+    }
+    if *sp == 0 {
+        return None;
+    }
+    *sp -= 1;
+    Some(stack[*sp])
+}
+
 /// Ray `lane` of `ray` against the 8 children of `n` with the single-ray kernel the traversals use:
 /// `(tnear, hit bits)`, bit `i` for child `i` (tnear of missed children is unspecified). Against
 /// [`intersect_aabb_x8`] in `tests/wide_bvh.rs`.
@@ -383,13 +397,8 @@ impl Bvh8 {
             let m = transpose8x8(m);
             let mut nearest = push_children_but_nearest(n, key, any, |i| ((m >> (8 * i)) & 0xff) as u32, stack, &mut sp);
             loop {
-                let e = match nearest.take() {
-                    Some(e) => e,
-                    None if sp == 0 => return,
-                    None => {
-                        sp -= 1;
-                        stack[sp]
-                    }
+                let Some(e) = pop(&mut nearest, stack, &mut sp) else {
+                    return;
                 };
                 // Lanes whose tmax fell below the smallest entry distance cannot enter any more.
                 let live = f32x8::splat(e.tn).simd_le(ray.tmax).to_bitmask() & e.lanes;

@@ -1,4 +1,5 @@
-//! Seeded random inputs shared by the BVH test files (`tests/bvh.rs`, `tests/wide_bvh.rs`), included
+//! Seeded random inputs shared by the BVH test files (`tests/bvh.rs`, `tests/wide_bvh.rs`) and
+//! `tests/shadow_single.rs`, included
 //! with `#[path]`: each file uses a different subset, hence the `dead_code` allowance.
 #![allow(dead_code)]
 
