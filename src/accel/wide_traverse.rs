@@ -346,12 +346,11 @@ impl Bvh8 {
                             (stack[sp].child, stack[sp].count)
                         }
                     };
-                    let e = Entry { child, count, tn: 0.0, lanes: 1 };
-                    if e.count == 0 {
-                        node = e.child as usize;
+                    if count == 0 {
+                        node = child as usize;
                         break;
                     }
-                    if leaf(l, e.child as usize, e.count as usize) {
+                    if leaf(l, child as usize, count as usize) {
                         occluded |= 1 << l;
                         continue 'lanes;
                     }
