@@ -15,7 +15,7 @@ use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, trans
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{Bvh8Stack, GROUP};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
-use crate::geometry::spheres_lanes_x8;
+use crate::geometry::{intersect_sphere_x8, spheres_lanes_x8};
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
@@ -697,6 +697,11 @@ pub fn prim_occlusion(
 ) -> f32x8 {
     let zero = f32x8::ZERO;
     let none = zero.simd_gt(f32x8::ONE); // all false
+                                         // Static spheres that stop shadow rays (the common case) from their 32-byte record.
+    let g = &scene.prim_geo[pid as usize];
+    if g.r > 0.0 && (time.is_none() || g.motion == Vec3::ZERO) && blocks(scene, profile, g.material) {
+        return intersect_sphere_x8(g.v, g.r, ray).simd_lt(ray.tmax);
+    }
     let prim = &scene.prims[pid as usize];
     match prim.shape {
         Shape::Csg { solid } => {
