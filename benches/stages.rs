@@ -419,10 +419,7 @@ fn bench_shadow(c: &mut Criterion) {
         }
     }
     println!("shadow validation: {checked} rays agree");
-    let n = packets.iter().map(|p| p.tmax.to_array().iter().filter(|&&t| t > 0.0).count() as u64).sum();
-    let mut g = c.benchmark_group("shadow");
-    g.throughput(Throughput::Elements(n));
-    g.sample_size(20);
+    let mut g = shadow_group(c, &packets);
     // Packets of 8 traced one by one, and groups of GROUP (16) packets traced together (`accel/group.rs`).
     g.bench_function("any_hit_packets/bench_spheres.toml", |b| {
         b.iter(|| {
@@ -450,10 +447,7 @@ fn bench_shadow(c: &mut Criterion) {
             assert_eq!(single[j].to_bitmask(), group[j].to_bitmask(), "one ray at a time disagrees with the group traversal");
         }
     }
-    let n = scattered.iter().map(|p| p.tmax.to_array().iter().filter(|&&t| t > 0.0).count() as u64).sum();
-    let mut g = c.benchmark_group("shadow");
-    g.throughput(Throughput::Elements(n));
-    g.sample_size(20);
+    let mut g = shadow_group(c, &scattered);
     g.bench_function("any_hit_scattered/bench_spheres.toml", |b| {
         b.iter(|| {
             pool.install(|| {
@@ -470,6 +464,18 @@ fn bench_shadow(c: &mut Criterion) {
     });
     time_groups(&mut g, "any_hit_scattered_groups/bench_spheres.toml", &pool, &scene, &profile, &scattered);
     g.finish();
+}
+
+/// The `shadow` benchmark group, its throughput the active rays of `packets`.
+fn shadow_group<'a>(
+    c: &'a mut Criterion,
+    packets: &[strata::simd::Ray8],
+) -> criterion::BenchmarkGroup<'a, criterion::measurement::WallTime> {
+    let n = packets.iter().map(|p| p.tmax.to_array().iter().filter(|&&t| t > 0.0).count() as u64).sum();
+    let mut g = c.benchmark_group("shadow");
+    g.throughput(Throughput::Elements(n));
+    g.sample_size(20);
+    g
 }
 
 /// Time the any-hit group traversal (`occlusion_group`, groups of `GROUP` packets) over `packets`.

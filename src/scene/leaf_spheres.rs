@@ -18,8 +18,9 @@ pub struct LeafSpheres {
     pub r2: Vec<f32>,
     pub r2_lo: Vec<f32>,
     pub graze: Vec<f32>,
-    /// Per slot: 1 when the slot is a static sphere (its lane above holds it), else 0.
-    pub sphere: Vec<u8>,
+    /// Per slot `k`: bit `j` set when slot `k + j` (j < 8) is a static sphere (its lane above holds
+    /// it): a leaf's sphere lanes in one load, not a loop per leaf visit.
+    pub window: Vec<u8>,
 }
 
 impl LeafSpheres {
@@ -33,17 +34,21 @@ impl LeafSpheres {
             r2: vec![0.0; n],
             r2_lo: vec![0.0; n],
             graze: vec![0.0; n],
-            sphere: vec![0; n],
+            window: vec![0; n],
         };
+        let mut sphere = vec![false; n];
         for (k, &bi) in bvh.indices.iter().enumerate() {
             let prim = &prims[bounded[bi as usize] as usize];
             if let Shape::Sphere { center, radius } = prim.shape {
                 if prim.motion == Vec3::ZERO {
                     let c = SphereConsts::of(radius);
                     (s.cx[k], s.cy[k], s.cz[k]) = (center.x, center.y, center.z);
-                    (s.r2[k], s.r2_lo[k], s.graze[k], s.sphere[k]) = (c.r2, c.r2_lo, c.graze, 1);
+                    (s.r2[k], s.r2_lo[k], s.graze[k], sphere[k]) = (c.r2, c.r2_lo, c.graze, true);
                 }
             }
+        }
+        for k in 0..n {
+            s.window[k] = (0..8).filter(|&j| sphere.get(k + j) == Some(&true)).fold(0, |w, j| w | 1 << j);
         }
         s
     }
@@ -51,10 +56,6 @@ impl LeafSpheres {
     /// Bits of the slots `first..first + count` (at most 8) that are static spheres.
     #[inline(always)]
     pub fn sphere_bits(&self, first: usize, count: usize) -> u32 {
-        let mut bits = 0;
-        for (l, &f) in self.sphere[first..first + count].iter().enumerate() {
-            bits |= (f as u32) << l;
-        }
-        bits
+        self.window[first] as u32 & ((1u32 << count) - 1)
     }
 }
