@@ -11,12 +11,13 @@ use std::hint::black_box;
 use strata::accel::{Bvh8Stack, GROUP};
 use strata::csg::{intervals_f64, CsgArena};
 use strata::scene::{Profile, Scene, Shape};
+use strata::simd::f32x8;
 use strata::wavefront::csg_merge::csg_merge;
 use strata::wavefront::generate::generate;
 use strata::wavefront::intersect::{intersect, intersect_with, prim_t_f64, Traversal, INCOHERENT};
 use strata::wavefront::queues::NONE;
 use strata::wavefront::shade::{shade, ShadeOut};
-use strata::wavefront::shadow::{occluded_x8, occlusion_group, occlusion_single, shadow};
+use strata::wavefront::shadow::{occluded_x8, occlusion_group, occlusion_light_buffer, occlusion_single, shadow};
 use strata::wavefront::{CsgCandidates, HitQueue, NeeQueue, PathTable, RayQueue};
 
 /// Nearest hit of one ray by the scalar f64 path (BVH f64 traversal + f64 kernels + planes).
@@ -433,6 +434,43 @@ fn bench_shadow(c: &mut Criterion) {
         })
     });
     time_groups(&mut g, "any_hit/bench_spheres.toml", &pool, &scene, &profile, &packets);
+    // The same rays answered from the point light's light buffer (what the shadow stage does with
+    // them), validated against the group traversal on every packet first.
+    let lb = scene.light_buffers[0].as_ref().expect("the bench scene's point light has a light buffer");
+    // Lanes the buffer refuses (ground points far out towards the horizon) go through the group
+    // traversal, as the shadow stage sends them on to its batches.
+    let via_buffer = |p: &strata::simd::Ray8, arena: &mut strata::csg::CsgArena| {
+        let lanes = p.tmax.simd_gt(f32x8::ZERO).to_bitmask();
+        let (mut occ, answered) = occlusion_light_buffer(&scene, &profile, lb, p, lanes, None, arena);
+        if answered != lanes {
+            let rest = strata::simd::mask_from_bits(lanes & !answered);
+            let mut r = [strata::simd::Ray8 { tmax: rest.select(p.tmax, f32x8::splat(-1.0)), ..*p }];
+            occ |= occlusion_group(&scene, &profile, &mut r, &[None], arena, false).0[0].to_bitmask();
+        }
+        occ
+    };
+    let (mut refused, mut total) = (0, 0);
+    for g in packets.chunks(GROUP) {
+        let (group, _) = occlusion_group(&scene, &profile, &mut g.to_vec(), &[None; GROUP], &mut arena, false);
+        for (j, p) in g.iter().enumerate() {
+            let lanes = p.tmax.simd_gt(f32x8::ZERO).to_bitmask();
+            refused += (lanes & !occlusion_light_buffer(&scene, &profile, lb, p, lanes, None, &mut arena).1).count_ones();
+            total += lanes.count_ones();
+            assert_eq!(via_buffer(p, &mut arena), group[j].to_bitmask() & lanes, "the light buffer disagrees with the group traversal");
+        }
+    }
+    println!("light buffer validation: {total} rays agree with the group traversal ({refused} refused, traced by it)");
+    g.bench_function("any_hit_light_buffer/bench_spheres.toml", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                packets.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
+                    for p in ps {
+                        black_box(via_buffer(p, arena));
+                    }
+                })
+            })
+        })
+    });
     g.finish();
 
     // Shadow rays from the hits of diffuse bounces: shading points scattered as path tracing scatters

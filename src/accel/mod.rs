@@ -34,6 +34,7 @@
 mod aabb;
 mod build;
 mod group;
+mod light_buffer;
 mod node;
 mod traverse;
 mod validate;
@@ -44,6 +45,7 @@ mod wide_traverse;
 pub use aabb::{intersect_aabb_f64, intersect_aabb_x8, slab_interval_f64, Aabb, PacketRay, INV_D_CLAMP};
 pub use build::build_bvh;
 pub use group::GROUP;
+pub use light_buffer::{Bound, LightBuffer, NO_CELL};
 pub use node::{BvhNode, MAX_LEAF_COUNT};
 pub use wide::{Bvh8, Bvh8Node, Collapse, WIDE_MIN_NODES, WIDTH};
 pub use wide_group::WIDE_GROUP;

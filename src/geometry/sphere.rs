@@ -125,6 +125,58 @@ fn sphere_x8(c: Vec3x8, radius: f32, ray: &Ray8) -> f32x8 {
     }
 }
 
+/// The terms of the sphere kernel that depend on the packet only (`a = d.d`, `1 / a`, and the
+/// finite-ray mask of `finish_x8`), for any-hit tests of many spheres against one packet
+/// ([`occludes_sphere_x8`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SpherePacket {
+    a: f32x8,
+    inv_a: f32x8,
+    finite: f32x8,
+}
+
+impl SpherePacket {
+    #[inline(always)]
+    pub fn new(ray: &Ray8) -> Self {
+        let a = ray.d.dot(ray.d);
+        SpherePacket { a, inv_a: f32x8::ONE / a, finite: super::ray_finite_x8(ray) }
+    }
+}
+
+/// Any-hit twin of the sphere kernel: the lanes whose nearest hit lies in `(0, tmax)`, exactly
+/// `intersect_sphere_x8(center, radius, ray).simd_lt(ray.tmax)` (the same operations in the same
+/// order; `pk` from [`SpherePacket::new`] of this `ray`), at less cost: the packet's terms come from
+/// `pk`, and the square root and both divisions are skipped when every lane that meets the sphere's
+/// line starts outside it (`c0 >= 0`) and moves away from its centre (`b > 0`): then `q <= -b < 0`,
+/// so `c0 / q <= 0` and `q / a < 0`, and no root is positive (the usual case of a shadow ray leaving
+/// the sphere it starts on, and of spheres behind it).
+#[inline(always)]
+pub fn occludes_sphere_x8(center: Vec3, radius: f32, ray: &Ray8, pk: &SpherePacket) -> f32x8 {
+    let none = f32x8::ZERO;
+    let k = SphereConsts::of(radius);
+    let c = Vec3x8::splat(center);
+    let d = ray.d;
+    let (sx, ex) = two_diff_x8(ray.o.x, c.x);
+    let (sy, ey) = two_diff_x8(ray.o.y, c.y);
+    let (sz, ez) = two_diff_x8(ray.o.z, c.z);
+    let b = Vec3x8::new(sx, sy, sz).dot(d);
+    let kk = b * pk.inv_a;
+    let l = Vec3x8::new(kk.mul_neg_add(d.x, sx) + ex, kk.mul_neg_add(d.y, sy) + ey, kk.mul_neg_add(d.z, sz) + ez);
+    let disc = l.x.mul_neg_add(l.x, l.y.mul_neg_add(l.y, l.z.mul_neg_add(l.z, f32x8::splat(k.r2))));
+    let hit = disc.simd_ge(f32x8::splat(k.graze)) & pk.finite & ray.tmax.simd_gt(none);
+    if !hit.any() {
+        return none;
+    }
+    let c0 = dist2_minus_r2_x8(Vec3x8::new(sx, sy, sz), Vec3x8::new(ex, ey, ez), f32x8::splat(k.r2), f32x8::splat(k.r2_lo));
+    let away = b.simd_gt(none) & c0.simd_ge(none);
+    if !(hit & !away).any() {
+        return none;
+    }
+    let (near, far) = roots_x8(pk.a, pk.inv_a, b, disc, c0);
+    let t = nearest_x8(near, far);
+    hit & t.simd_gt(none) & t.simd_lt(ray.tmax)
+}
+
 /// Both crossings of the sphere's surface along the packet, `(entry, exit)` by distance (any sign;
 /// NaN where a lane misses), with the same arithmetic as [`intersect_sphere_x8`] (whose hit is the
 /// nearest positive one of them, within `(0, tmax)`).
@@ -297,6 +349,73 @@ mod tests {
         }
         assert_eq!(checked, 24_000);
         assert!(hits > 500, "only {hits} hits");
+    }
+
+    /// The any-hit twin gives exactly the kernel's verdict `t < tmax`: random packets at scales 1e-4
+    /// to 1e5 with origins on the surface (leaving and entering), just inside and outside it, at the
+    /// centre, grazing the silhouette, far away, and lanes with zero, infinite or NaN components and
+    /// `tmax` of -1, 0, finite and infinite.
+    #[test]
+    fn any_hit_twin_gives_the_kernels_verdict() {
+        let mut f = crate::sample::hash::test_uniforms(0xa11_0cc1_0de5);
+        let (mut occluded, mut checked) = (0, 0);
+        for round in 0..4000 {
+            let scale = [1e-4f32, 1.0, 1e3, 1e5][round % 4];
+            let v = |f: &mut dyn FnMut() -> f32| Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5);
+            let centre = v(&mut f) * scale * 10.0;
+            let radius = (0.01 + f()) * scale;
+            let mut rows = [[0.0f32; 8]; 7];
+            for l in 0..8 {
+                let n = v(&mut f).normalize_or(Vec3::Y);
+                let mut d = v(&mut f).normalize_or(Vec3::X) * (0.1 + f() * 10.0);
+                let on = centre + n * radius;
+                let mut tmax = [f32::INFINITY, 1.0, scale * 30.0, -1.0, 0.0][(round + l) % 5];
+                let o = match (round * 3 + l) % 11 {
+                    0 => {
+                        d = (n + v(&mut f)).normalize_or(n);
+                        on
+                    }
+                    1 => {
+                        d = -(n + v(&mut f)).normalize_or(n);
+                        on
+                    }
+                    2 => centre + n * radius * (1.0 - 1e-6),
+                    3 => centre + n * radius * (1.0 + 1e-6),
+                    4 => centre,
+                    5 => {
+                        let side = d.any_orthonormal_vector() * radius * (1.0 + (f() - 0.5) * 1e-6);
+                        centre + side - d * 5.0
+                    }
+                    6 => centre + v(&mut f) * scale * 1e4,
+                    7 => {
+                        d = Vec3::ZERO;
+                        on
+                    }
+                    8 => {
+                        d.x = [f32::INFINITY, f32::NAN][round % 2];
+                        on
+                    }
+                    9 => {
+                        tmax = f32::NAN;
+                        centre + v(&mut f) * scale * 20.0
+                    }
+                    _ => centre + v(&mut f) * scale * 20.0,
+                };
+                for k in 0..3 {
+                    (rows[k][l], rows[3 + k][l]) = (o[k], d[k]);
+                }
+                rows[6][l] = tmax;
+            }
+            let r = |k: usize| f32x8::from(rows[k]);
+            let ray = Ray8::new(Vec3x8::new(r(0), r(1), r(2)), Vec3x8::new(r(3), r(4), r(5)), r(6));
+            let want = intersect_sphere_x8(centre, radius, &ray).simd_lt(ray.tmax).to_bitmask();
+            let got = occludes_sphere_x8(centre, radius, &ray, &SpherePacket::new(&ray)).to_bitmask();
+            assert_eq!(got, want, "round {round}");
+            occluded += want.count_ones();
+            checked += 8;
+        }
+        assert_eq!(checked, 32_000);
+        assert!(occluded > 3000, "only {occluded} occluded lanes");
     }
 
     /// The 8-lane re-projection equals the scalar one bit for bit: random points near spheres at

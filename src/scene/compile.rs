@@ -5,7 +5,7 @@
 use super::error::{read_text, InputError, Source};
 use super::format::{CameraDef, LightDef, MaterialDef, SceneFile, ShapeDef, TransformDef, S, V3};
 use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS};
-use crate::accel::{build_bvh, Aabb, BuildOptions, Bvh8, Collapse, WIDE_MIN_NODES};
+use crate::accel::{build_bvh, Aabb, Bound, BuildOptions, Bvh8, Collapse, LightBuffer, WIDE_MIN_NODES};
 use crate::camera::Camera;
 use crate::csg::{self, Csg, CsgTree, Op};
 use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
@@ -172,6 +172,7 @@ impl Compiler<'_> {
         let wide_incoherent = bvh.nodes.len() >= WIDE_MIN_NODES;
         let leaf_spheres = super::leaf_spheres::LeafSpheres::new(&bvh, &bounded, &self.prims);
         let prim_geo = self.prims.iter().map(super::PrimGeo::of).collect();
+        let light_buffers = light_buffers(&self.lights, &self.prims, &bounds, &bounded);
 
         let mut features = Features {
             csg: self.prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })),
@@ -217,6 +218,7 @@ impl Compiler<'_> {
             wide_incoherent,
             prim_geo,
             leaf_spheres,
+            light_buffers,
             bounded,
             unbounded,
             csg: std::mem::replace(&mut self.csg, Csg::new()),
@@ -888,6 +890,35 @@ impl Compiler<'_> {
 /// then walks the ray and finds out), never no for one that can be: a thin sheet; a constant index equal
 /// to air's or to another used medium's (an index-matched interface); a priority below the highest among
 /// the used media (its surfaces inside a higher-priority medium are null crossings).
+/// A light buffer per point light over the bounded prims (static spheres by their own sphere, the
+/// others by the sphere around their box, swept over the shutter for moving prims), in scenes without
+/// CSG solids: a solid's bounding sphere is loose and each candidate costs an 8-lane interval merge,
+/// where the traversal's leaf boxes reject most packets first (bench_csg's shadow stage took 16-30%
+/// longer through the buffer, csg.toml 8%).
+pub fn light_buffers(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bounded: &[u32]) -> Vec<Option<LightBuffer>> {
+    if prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })) {
+        return vec![None; lights.len()];
+    }
+    let spheres: Vec<(u32, Bound)> = bounded
+        .iter()
+        .map(|&pid| {
+            let p = &prims[pid as usize];
+            let bound = match p.shape {
+                Shape::Sphere { center, radius } if p.motion == Vec3::ZERO => Bound { center: center.as_dvec3(), radius: radius as f64 },
+                _ => Bound::of_box(bounds[pid as usize].min, bounds[pid as usize].max),
+            };
+            (pid, bound)
+        })
+        .collect();
+    lights
+        .iter()
+        .map(|l| match *l {
+            Light::Point { position, .. } => LightBuffer::build(position, 0.0, &spheres, None),
+            _ => None,
+        })
+        .collect()
+}
+
 fn mark_passable(materials: &mut [Material], used: &[bool]) {
     let media: Vec<&Dielectric> = materials
         .iter()

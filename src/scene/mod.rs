@@ -267,6 +267,9 @@ pub struct Scene {
     pub prim_geo: Vec<PrimGeo>,
     /// The leaves' static spheres as lanes, per slot of `bvh.indices` (single-ray shadow tests).
     pub leaf_spheres: leaf_spheres::LeafSpheres,
+    /// Per light: its light buffer over the bounded prims (point lights only; the shadow stage answers
+    /// their shadow rays from it where they walk through nothing).
+    pub light_buffers: Vec<Option<crate::accel::LightBuffer>>,
     pub bounded: Vec<u32>,
     pub unbounded: Vec<u32>,
     pub csg: Csg,

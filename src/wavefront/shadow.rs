@@ -13,9 +13,9 @@ use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
 use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, Walk};
 use crate::accel::{intersect_aabb_x8, PacketRay};
-use crate::accel::{Bvh8Stack, GROUP};
+use crate::accel::{Bvh8Stack, LightBuffer, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
-use crate::geometry::{intersect_sphere_x8, spheres_lanes_x8};
+use crate::geometry::{occludes_sphere_x8, spheres_lanes_x8, SpherePacket};
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
@@ -236,6 +236,10 @@ pub fn shadow_with(
         .iter()
         .map(|light| (samples_for(light, profile.light_samples) >= cone_min_samples(scene)).then(|| LightCone::new(scene, light)).flatten())
         .collect();
+    // Point lights' light buffers, where shadow rays walk through nothing.
+    let buffers: Vec<Option<&LightBuffer>> =
+        scene.lights.iter().enumerate().map(|(li, _)| scene.light_buffers.get(li).and_then(|b| b.as_ref()).filter(|_| !walk)).collect();
+    let motion = scene.features.motion;
     let light_key = |i: usize, li: usize| light_key(seed, nee, across, i, li);
     let mut keys = LightKeys { keys: [0; KEY_CACHE], cached: None };
     // Whether any light draws samples (needs stream keys).
@@ -244,7 +248,7 @@ pub fn shadow_with(
     // 8-lane light sample. Each request sums its unoccluded contributions by light, then sample, from
     // zero (`Credit`), and the sums go to the paths in request order at the end: a path's radiance
     // then does not depend on which requests share a chunk or a batch (that depends on the tile).
-    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some));
+    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some) || buffers.iter().any(Option::is_some));
     let mut base = 0;
     while base < nee.len() {
         let m = (nee.len() - base).min(LANES);
@@ -308,6 +312,8 @@ pub fn shadow_with(
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
             // The cleared lanes' contributions of this light, summed over its samples in registers.
             let mut cleared_sum = Vec3x8::splat(Vec3::ZERO);
+            // Lanes some of whose samples the light buffer answered (their sums go with the cleared).
+            let mut buffered = 0u32;
             for j in 0..ns {
                 // Across: sample index = camera sample x ns + j of the pixel's set. Else all ns samples
                 // serve this one shading point: strata need no permutation.
@@ -375,6 +381,17 @@ pub fn shadow_with(
                         lanes &= !done;
                     }
                 }
+                if let Some(lb) = buffers[li].filter(|_| lanes != 0) {
+                    // Answered from the light's buffer (lanes it refuses go on to the batch).
+                    let tmax = mask_from_bits(lanes).select(f32x8::splat(end), f32x8::splat(-1.0));
+                    let ray = Ray8::new(o, target - o, tmax);
+                    let (occ, answered) = occlusion_light_buffer(scene, profile, lb, &ray, lanes, motion.then_some(time), arena);
+                    let keep = mask_from_bits(answered & !occ);
+                    cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
+                    traced += answered.count_ones() as u64;
+                    buffered |= answered;
+                    lanes &= !answered;
+                }
                 let mut todo = lanes & opaque;
                 while todo != 0 {
                     let pid = prim_of[todo.trailing_zeros() as usize];
@@ -400,7 +417,7 @@ pub fn shadow_with(
                     traced += flush(scene, profile, &mut pk, &mut credit, arena, walk, single.as_deref_mut());
                 }
             }
-            if clear | glass | opaque != 0 {
+            if clear | glass | opaque | buffered != 0 {
                 credit.add_clear(base, cleared_sum);
             }
         }
@@ -605,8 +622,12 @@ pub fn occlusion_group(
         // Lanes the planes already occlude take no part in the traversal.
         rays[j].tmax = occ[j].select(f32x8::splat(-1.0), rays[j].tmax);
     }
+    let mut pk = [SpherePacket::new(&rays[0]); GROUP];
+    for j in 1..k {
+        pk[j] = SpherePacket::new(&rays[j]);
+    }
     let from_bvh = scene.bvh.traverse_any_group(rays, |bi, j, ray| {
-        prim_occlusion(scene, profile, scene.bounded[bi as usize], ray, times[j], arena, walk, &mut touched[j])
+        prim_occlusion_with(scene, profile, scene.bounded[bi as usize], ray, Some(&pk[j]), times[j], arena, walk, &mut touched[j])
     });
     for j in 0..k {
         occ[j] |= from_bvh[j];
@@ -681,6 +702,93 @@ pub fn occlusion_single(
     occ
 }
 
+/// Any-hit occlusion of the lanes `lanes` of `ray`, shadow rays towards the centre of light buffer
+/// `lb` (`ray.d` = centre - `ray.o`, `tmax` their end), in scenes whose shadow rays walk through
+/// nothing: `(occluded, answered)`. Planes first, then the buffer's `always` list, then each lane's
+/// cell, nearest entries first and only those within the ray's reach. Lanes sharing a cell take its
+/// list together; every prim is tested with all lanes still pending (the leaf test of the traversal,
+/// [`prim_occlusion`]), so a lane is occluded exactly when the traversal would find it occluded: the
+/// cell lists hold every prim a lane's ray can meet (`accel/light_buffer.rs`). Lanes the buffer refuses
+/// (see [`LightBuffer::cells_x8`]) are not answered; the caller traces them.
+pub fn occlusion_light_buffer(
+    scene: &Scene,
+    profile: &Profile,
+    lb: &LightBuffer,
+    ray: &Ray8,
+    lanes: u32,
+    time: Option<f32x8>,
+    arena: &mut CsgArena,
+) -> (u32, u32) {
+    let cells = lb.cells_x8(Vec3x8::new(-ray.d.x, -ray.d.y, -ray.d.z));
+    let answered = lanes & lane_bits(|l| cells[l] != NO_CELL);
+    if answered == 0 {
+        return (0, 0);
+    }
+    let mut ray = Ray8 { tmax: mask_from_bits(answered).select(ray.tmax, f32x8::splat(-1.0)), ..*ray };
+    let pk = SpherePacket::new(&ray);
+    let mut pending = answered;
+    for &pid in scene.unbounded.iter().chain(lb.always()) {
+        if !buffer_test(scene, profile, pid, &mut ray, &pk, time, arena, &mut pending) {
+            return (answered, answered);
+        }
+    }
+    let cell_v = u32x8::from(cells);
+    let len2 = ray.d.dot_unfused(ray.d);
+    let mut todo = pending;
+    while todo != 0 {
+        let c = cells[todo.trailing_zeros() as usize];
+        let same = todo & cell_v.simd_eq(u32x8::splat(c)).to_bitmask();
+        todo &= !same;
+        // The farthest reach of these lanes (with room for the rounding of their lengths).
+        let reach = hmax(mask_from_bits(same).select(len2, f32x8::ZERO)) * (1.0 + 4e-6);
+        let (prims, near2) = lb.cell(c);
+        for (&pid, &n2) in prims.iter().zip(near2) {
+            if n2 > reach {
+                break;
+            }
+            if !buffer_test(scene, profile, pid, &mut ray, &pk, time, arena, &mut pending) {
+                return (answered, answered);
+            }
+            if pending & same == 0 {
+                break;
+            }
+        }
+    }
+    (answered & !pending, answered)
+}
+
+/// One prim of [`occlusion_light_buffer`] against the `pending` lanes of `ray`: occluded lanes leave
+/// `pending` (and the ray: `tmax = -1`). False when no lane is left.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn buffer_test(
+    scene: &Scene,
+    profile: &Profile,
+    pid: u32,
+    ray: &mut Ray8,
+    pk: &SpherePacket,
+    time: Option<f32x8>,
+    arena: &mut CsgArena,
+    pending: &mut u32,
+) -> bool {
+    let mut touched = 0;
+    let occ = prim_occlusion_with(scene, profile, pid, ray, Some(pk), time, arena, false, &mut touched).to_bitmask() & *pending;
+    debug_assert_eq!(touched, 0, "no surface lets shadow rays through");
+    if occ != 0 {
+        *pending &= !occ;
+        ray.tmax = mask_from_bits(*pending).select(ray.tmax, f32x8::splat(-1.0));
+    }
+    *pending != 0
+}
+
+/// The largest lane of `v` (no NaN lanes).
+#[inline(always)]
+fn hmax(v: f32x8) -> f32 {
+    let a = v.to_array();
+    let m = |x: f32, y: f32| if x > y { x } else { y };
+    m(m(m(a[0], a[1]), m(a[2], a[3])), m(m(a[4], a[5]), m(a[6], a[7])))
+}
+
 /// Any-hit test of 8 shadow rays against one prim (the traversal's leaf callback): the occluded lanes,
 /// and into `touched` the lanes that met a surface they walk through.
 #[allow(clippy::too_many_arguments)]
@@ -695,12 +803,30 @@ pub fn prim_occlusion(
     walk: bool,
     touched: &mut u32,
 ) -> f32x8 {
+    prim_occlusion_with(scene, profile, pid, ray, None, time, arena, walk, touched)
+}
+
+/// [`prim_occlusion`]; `pk`: the packet's sphere terms, when the caller tests many prims against it.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn prim_occlusion_with(
+    scene: &Scene,
+    profile: &Profile,
+    pid: u32,
+    ray: &Ray8,
+    pk: Option<&SpherePacket>,
+    time: Option<f32x8>,
+    arena: &mut CsgArena,
+    walk: bool,
+    touched: &mut u32,
+) -> f32x8 {
     let zero = f32x8::ZERO;
     let none = zero.simd_gt(f32x8::ONE); // all false
                                          // Static spheres that stop shadow rays (the common case) from their 32-byte record.
     let g = &scene.prim_geo[pid as usize];
     if g.r > 0.0 && (time.is_none() || g.motion == Vec3::ZERO) && blocks(scene, profile, g.material) {
-        return intersect_sphere_x8(g.v, g.r, ray).simd_lt(ray.tmax);
+        let pk = pk.copied().unwrap_or_else(|| SpherePacket::new(ray));
+        return occludes_sphere_x8(g.v, g.r, ray, &pk);
     }
     let prim = &scene.prims[pid as usize];
     match prim.shape {
