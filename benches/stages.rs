@@ -347,6 +347,12 @@ struct ShadeWork {
 
 /// Shadow rays from every hit of the queues `qs` to the scene's first light, packed 8 at a time.
 fn shadow_packets(scene: &Scene, qs: &[RayQueue]) -> Vec<strata::simd::Ray8> {
+    shadow_packets_own(scene, qs).0
+}
+
+/// [`shadow_packets`], and per lane the static sphere its ray leaves outward (a hit on the lit side of
+/// a sphere, seen from outside), else `NONE`: what the shading stage records for the shadow stage.
+fn shadow_packets_own(scene: &Scene, qs: &[RayQueue]) -> (Vec<strata::simd::Ray8>, Vec<[u32; 8]>) {
     use strata::simd::{f32x8, Ray8, Vec3x8};
     let light = match scene.lights[0] {
         strata::scene::Light::Point { position, .. } => position,
@@ -362,16 +368,27 @@ fn shadow_packets(scene: &Scene, qs: &[RayQueue]) -> Vec<strata::simd::Ray8> {
                 let p = r.o + r.d * hits.t[i];
                 let n = (light - p).normalize();
                 let o = p + n * 1e-3;
-                lanes.push((o, light - o));
+                let prim = &scene.prims[hits.prim[i] as usize];
+                let own = match prim.shape {
+                    Shape::Sphere { center, radius }
+                        if prim.motion == glam::Vec3::ZERO
+                            && (o - center).as_dvec3().length_squared() > (radius as f64).powi(2) * (1.0 + 1e-5)
+                            && (o - center).dot(light - o) > 0.0 =>
+                    {
+                        hits.prim[i]
+                    }
+                    _ => NONE,
+                };
+                lanes.push((o, light - o, own));
             }
         }
     }
-    lanes
+    let rays = lanes
         .chunks(8)
         .map(|c| {
             let mut a = [[0.0f32; 8]; 6];
             let mut tmax = [-1.0f32; 8];
-            for (l, (o, d)) in c.iter().enumerate() {
+            for (l, (o, d, _)) in c.iter().enumerate() {
                 for k in 0..3 {
                     a[k][l] = o[k];
                     a[3 + k][l] = d[k];
@@ -381,14 +398,16 @@ fn shadow_packets(scene: &Scene, qs: &[RayQueue]) -> Vec<strata::simd::Ray8> {
             let v = |k: usize| f32x8::from(a[k]);
             Ray8::new(Vec3x8::new(v(0), v(1), v(2)), Vec3x8::new(v(3), v(4), v(5)), f32x8::from(tmax))
         })
-        .collect()
+        .collect();
+    let own = lanes.chunks(8).map(|c| std::array::from_fn(|l| c.get(l).map_or(NONE, |x| x.2))).collect();
+    (rays, own)
 }
 
 fn bench_shadow(c: &mut Criterion) {
     let pool = support::pool();
     let scene = support::scene("bench_spheres.toml");
     let qs = support::camera_queues(&scene, 1);
-    let packets = shadow_packets(&scene, &qs);
+    let (packets, own) = shadow_packets_own(&scene, &qs);
     let profile = Profile::builtin("bench");
     // Validate any-hit against the scalar closest-hit path on a subset.
     let mut arena = strata::csg::CsgArena::new();
@@ -439,9 +458,9 @@ fn bench_shadow(c: &mut Criterion) {
     let lb = scene.light_buffers[0].as_ref().expect("the bench scene's point light has a light buffer");
     // Lanes the buffer refuses (ground points far out towards the horizon) go through the group
     // traversal, as the shadow stage sends them on to its batches.
-    let via_buffer = |p: &strata::simd::Ray8, arena: &mut strata::csg::CsgArena| {
+    let via_buffer = |p: &strata::simd::Ray8, own: &[u32; 8], arena: &mut strata::csg::CsgArena| {
         let lanes = p.tmax.simd_gt(f32x8::ZERO).to_bitmask();
-        let (mut occ, answered) = occlusion_light_buffer(&scene, &profile, lb, p, lanes, None, arena);
+        let (mut occ, answered) = occlusion_light_buffer(&scene, &profile, lb, p, lanes, own, None, arena);
         if answered != lanes {
             let rest = strata::simd::mask_from_bits(lanes & !answered);
             let mut r = [strata::simd::Ray8 { tmax: rest.select(p.tmax, f32x8::splat(-1.0)), ..*p }];
@@ -450,22 +469,27 @@ fn bench_shadow(c: &mut Criterion) {
         occ
     };
     let (mut refused, mut total) = (0, 0);
-    for g in packets.chunks(GROUP) {
+    for (g, own) in packets.chunks(GROUP).zip(own.chunks(GROUP)) {
         let (group, _) = occlusion_group(&scene, &profile, &mut g.to_vec(), &[None; GROUP], &mut arena, false);
         for (j, p) in g.iter().enumerate() {
             let lanes = p.tmax.simd_gt(f32x8::ZERO).to_bitmask();
-            refused += (lanes & !occlusion_light_buffer(&scene, &profile, lb, p, lanes, None, &mut arena).1).count_ones();
+            refused += (lanes & !occlusion_light_buffer(&scene, &profile, lb, p, lanes, &own[j], None, &mut arena).1).count_ones();
             total += lanes.count_ones();
-            assert_eq!(via_buffer(p, &mut arena), group[j].to_bitmask() & lanes, "the light buffer disagrees with the group traversal");
+            assert_eq!(
+                via_buffer(p, &own[j], &mut arena),
+                group[j].to_bitmask() & lanes,
+                "the light buffer disagrees with the group traversal"
+            );
         }
     }
     println!("light buffer validation: {total} rays agree with the group traversal ({refused} refused, traced by it)");
+    let work: Vec<(strata::simd::Ray8, [u32; 8])> = packets.iter().copied().zip(own.iter().copied()).collect();
     g.bench_function("any_hit_light_buffer/bench_spheres.toml", |b| {
         b.iter(|| {
             pool.install(|| {
-                packets.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
-                    for p in ps {
-                        black_box(via_buffer(p, arena));
+                work.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
+                    for (p, own) in ps {
+                        black_box(via_buffer(p, own, arena));
                     }
                 })
             })

@@ -368,12 +368,15 @@ pub struct NeeQueue {
     /// The camera sample index of the path (light samples are stratified across a pixel's samples).
     pub sample: Vec<u32>,
     pub time: Vec<f32>,
+    /// A static sphere the point lies on, seen from outside (its shadow rays leave it outward and
+    /// cannot meet it again: it is convex), else [`NONE`].
+    pub own: Vec<u32>,
 }
 
 impl NeeQueue {
     pub fn clear(&mut self) {
         macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
-        clr!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time);
+        clr!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time, own);
     }
     pub fn len(&self) -> usize {
         self.px.len()
@@ -383,7 +386,7 @@ impl NeeQueue {
     }
     #[inline]
     #[allow(clippy::too_many_arguments)]
-    pub fn push(&mut self, p: Vec3, o: Vec3, n: Vec3, w: Vec3, path: u32, key: u64, sample: u32, time: f32) {
+    pub fn push(&mut self, p: Vec3, o: Vec3, n: Vec3, w: Vec3, path: u32, key: u64, sample: u32, time: f32, own: u32) {
         self.px.push(p.x);
         self.py.push(p.y);
         self.pz.push(p.z);
@@ -400,6 +403,7 @@ impl NeeQueue {
         self.key.push(key);
         self.sample.push(sample);
         self.time.push(time);
+        self.own.push(own);
     }
 }
 
@@ -413,6 +417,7 @@ pub struct NeeRows<'a> {
     pub key: &'a [u64; LANES],
     pub sample: &'a [u32; LANES],
     pub time: &'a [f32; LANES],
+    pub own: &'a [u32; LANES],
 }
 
 impl NeeQueue {
@@ -429,6 +434,7 @@ impl NeeQueue {
         put(&mut self.key, r.key, m);
         put(&mut self.sample, r.sample, m);
         put(&mut self.time, r.time, m);
+        put(&mut self.own, r.own, m);
     }
 }
 

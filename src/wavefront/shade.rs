@@ -421,6 +421,8 @@ impl Ctx<'_> {
         // Spheres (the common case) take their geometry in 8 lanes below: lanes in `sph`, with their
         // centre moved to the ray's time, and radius.
         let mut sph = 0u32;
+        // Static sphere lanes (their shadow rays from outside cannot meet the sphere again).
+        let mut still = 0u32;
         let mut pla = 0u32;
         let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
         let mut shift = [[0.0f32; LANES]; 3];
@@ -442,6 +444,7 @@ impl Ctx<'_> {
             let sh = g.motion * times[l];
             let material = if g.r > 0.0 {
                 sph |= 1 << l;
+                still |= ((g.motion == Vec3::ZERO) as u32) << l;
                 let c = g.v + sh;
                 for k in 0..3 {
                     sc[k][l] = c[k];
@@ -510,9 +513,16 @@ impl Ctx<'_> {
             (p, nf) = (pv.rows(), nv.rows());
             scale = mask.select(o.x.abs().max(o.y.abs().max(o.z.abs())), v(&scale)).to_array();
         }
+        let mut own = [NONE; LANES];
         if sph != 0 {
             // (Other lanes' results are discarded by the select below.)
             let (ps, n, front) = sphere_hits_x8(naive, d, &sc, &sr);
+            let outside = sph & still & front.to_bitmask();
+            for (l, o) in own.iter_mut().enumerate() {
+                if outside & (1 << l) != 0 {
+                    *o = prims[l];
+                }
+            }
             let neg = Vec3x8::new(-n.x, -n.y, -n.z);
             let n_facing = Vec3x8::select(front, n, neg);
             let mask = mask_from_bits(sph);
@@ -540,7 +550,7 @@ impl Ctx<'_> {
             let wr = [v(&w[0]) * inv_pi, v(&w[1]) * inv_pi, v(&w[2]) * inv_pi].map(|x| x.to_array());
             nee.push_rows(
                 m,
-                NeeRows { p: &p, o: [&ox, &oy, &oz], n: &nf, w: &wr, path: &path, key: &keys, sample: &samples, time: &times },
+                NeeRows { p: &p, o: [&ox, &oy, &oz], n: &nf, w: &wr, path: &path, key: &keys, sample: &samples, time: &times, own: &own },
             );
         }
         if profile.diffuse_depth == 0 {

@@ -261,6 +261,7 @@ pub fn shadow_with(
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
         let time = f(&nee.time);
+        let own = gather8(&nee.own, m == LANES, base, |l| base + l.min(m - 1));
         let req = u32x8::from(std::array::from_fn(|l| (base + l.min(m - 1)) as u32));
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
@@ -385,7 +386,7 @@ pub fn shadow_with(
                     // Answered from the light's buffer (lanes it refuses go on to the batch).
                     let tmax = mask_from_bits(lanes).select(f32x8::splat(end), f32x8::splat(-1.0));
                     let ray = Ray8::new(o, target - o, tmax);
-                    let (occ, answered) = occlusion_light_buffer(scene, profile, lb, &ray, lanes, motion.then_some(time), arena);
+                    let (occ, answered) = occlusion_light_buffer(scene, profile, lb, &ray, lanes, &own, motion.then_some(time), arena);
                     let keep = mask_from_bits(answered & !occ);
                     cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
                     traced += answered.count_ones() as u64;
@@ -710,17 +711,24 @@ pub fn occlusion_single(
 /// [`prim_occlusion`]), so a lane is occluded exactly when the traversal would find it occluded: the
 /// cell lists hold every prim a lane's ray can meet (`accel/light_buffer.rs`). Lanes the buffer refuses
 /// (see [`LightBuffer::cells_x8`]) are not answered; the caller traces them.
+///
+/// `own[l]`: a static sphere lane `l`'s ray leaves outward from a point on or outside it
+/// ([`NONE`](super::queues::NONE) for none), which it therefore cannot meet (spheres are convex): not tested for that lane. (The
+/// kernel agrees: `tests/light_buffer.rs` holds it to a miss for such rays at scales 1e-4 to 1e5.)
+#[allow(clippy::too_many_arguments)]
 pub fn occlusion_light_buffer(
     scene: &Scene,
     profile: &Profile,
     lb: &LightBuffer,
     ray: &Ray8,
     lanes: u32,
+    own: &[u32; LANES],
     time: Option<f32x8>,
     arena: &mut CsgArena,
 ) -> (u32, u32) {
     let cells = lb.cells_x8(Vec3x8::new(-ray.d.x, -ray.d.y, -ray.d.z));
-    let answered = lanes & lane_bits(|l| cells[l] != NO_CELL);
+    let cell_v = u32x8::from(cells);
+    let answered = lanes & !cell_v.simd_eq(u32x8::splat(NO_CELL)).to_bitmask();
     if answered == 0 {
         return (0, 0);
     }
@@ -732,7 +740,7 @@ pub fn occlusion_light_buffer(
             return (answered, answered);
         }
     }
-    let cell_v = u32x8::from(cells);
+    let own_v = u32x8::from(*own);
     let len2 = ray.d.dot_unfused(ray.d);
     let mut todo = pending;
     while todo != 0 {
@@ -746,8 +754,18 @@ pub fn occlusion_light_buffer(
             if n2 > reach {
                 break;
             }
-            if !buffer_test(scene, profile, pid, &mut ray, &pk, time, arena, &mut pending) {
-                return (answered, answered);
+            let mine = own_v.simd_eq(u32x8::splat(pid)).to_bitmask() & pending;
+            if mine == 0 {
+                if !buffer_test(scene, profile, pid, &mut ray, &pk, time, arena, &mut pending) {
+                    return (answered, answered);
+                }
+            } else if mine != pending {
+                // The lanes on this sphere skip it; the others test it.
+                let mut others = pending & !mine;
+                let mut r = Ray8 { tmax: mask_from_bits(others).select(ray.tmax, f32x8::splat(-1.0)), ..ray };
+                buffer_test(scene, profile, pid, &mut r, &pk, time, arena, &mut others);
+                pending = others | mine;
+                ray.tmax = mask_from_bits(pending).select(ray.tmax, f32x8::splat(-1.0));
             }
             if pending & same == 0 {
                 break;

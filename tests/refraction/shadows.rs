@@ -31,7 +31,7 @@ fn transmittance_at(shapes: &str, materials: &str, light: Vec3, p: Vec3, transmi
         let mut paths = PathTable::default();
         paths.push(0, 0);
         // p is both the shading point and the shadow-ray origin (the floor is 0.01 below it).
-        nee.push(p, p, Vec3::Y, Vec3::ONE, 0, 7, 0, time);
+        nee.push(p, p, Vec3::Y, Vec3::ONE, 0, 7, 0, time, strata::wavefront::queues::NONE);
         let mut arena = CsgArena::new();
         shadow(&s, &profile, 1, &nee, &mut paths, &mut arena);
         Vec3::new(paths.lr[0], paths.lg[0], paths.lb[0])
