@@ -30,6 +30,7 @@
 //! exact direction, and a direction on a face edge may go to either face: both edges' cells list it).
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::simd::{f32x8, Vec3x8, LANES};
 
@@ -126,26 +127,44 @@ impl LightBuffer {
         }
         let n = side.unwrap_or_else(|| choose_side(&cones)).clamp(MIN_SIDE, MAX_SIDE);
         let cells = 6 * (n as usize) * (n as usize);
-        // (cell, near, id) for every cell a cone meets.
-        let mut entries: Vec<(u32, f32, u32)> = Vec::new();
-        for &(id, axis, alpha, near) in &cones {
-            let near2 = round_down((near * near) as f32, near * near);
-            for_each_cell(n, axis, alpha, |cell| entries.push((cell, near2, id)));
-        }
-        entries.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+        // (cell, near^2, id) for every cell a cone meets, cones in parallel chunks (concatenated in
+        // order, so the result does not depend on the thread count).
+        let table = FaceCells::new(n);
+        let chunks: Vec<Vec<(u32, f32, u32)>> = cones
+            .par_chunks(4096)
+            .map(|chunk| {
+                let mut out = Vec::new();
+                for &(id, axis, alpha, near) in chunk {
+                    let near2 = round_down((near * near) as f32, near * near);
+                    table.for_each_cell(axis, alpha, |cell| out.push((cell, near2, id)));
+                }
+                out
+            })
+            .collect();
+        // Counting sort by cell, then each cell's entries by distance (and id: a total order).
         let mut start = vec![0u32; cells + 1];
-        for e in &entries {
+        for e in chunks.iter().flatten() {
             start[e.0 as usize + 1] += 1;
         }
         for c in 0..cells {
             start[c + 1] += start[c];
         }
+        let total = start[cells] as usize;
+        let mut entries = vec![(0.0f32, 0u32); total];
+        let mut fill = start.clone();
+        for &(cell, near2, id) in chunks.iter().flatten() {
+            entries[fill[cell as usize] as usize] = (near2, id);
+            fill[cell as usize] += 1;
+        }
+        for c in 0..cells {
+            entries[start[c] as usize..start[c + 1] as usize].sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        }
         Some(LightBuffer {
             center,
             n,
             start,
-            prims: entries.iter().map(|e| e.2).collect(),
-            near2: entries.iter().map(|e| e.1).collect(),
+            prims: entries.iter().map(|e| e.1).collect(),
+            near2: entries.iter().map(|e| e.0).collect(),
             always,
             max_len2: (max_len * max_len) as f32,
         })
@@ -239,69 +258,80 @@ fn round_down(x: f32, exact: f64) -> f32 {
     x.max(0.0)
 }
 
-/// The unit direction of face `face`'s point `(u, v)`.
-fn face_dir(face: u32, u: f64, v: f64) -> DVec3 {
-    let s = if face & 1 == 1 { -1.0 } else { 1.0 };
-    let p = match face / 2 {
-        0 => DVec3::new(s, u, v),
-        1 => DVec3::new(u, s, v),
-        _ => DVec3::new(u, v, s),
-    };
-    p.normalize()
+/// The bounding cones of one face's cells (every face has the same ones, axes permuted): per cell
+/// `(iu, iv)`, the unit direction of its centre in face coordinates `(u, v, 1) / |(u, v, 1)|` and the
+/// cosine and sine of its half-angle (the largest angle to a corner) plus [`CONE_PAD`].
+struct FaceCells {
+    n: u32,
+    cells: Vec<([f64; 3], f64, f64)>,
 }
 
-/// Call `f(cell)` for every cell the cone `(axis, alpha)` meets (conservatively: each cell by its
-/// bounding cone).
-fn for_each_cell(n: u32, axis: DVec3, alpha: f64, mut f: impl FnMut(u32)) {
-    let s = alpha.sin();
-    let cos_cell = |face: u32, iu: u32, iv: u32| {
+impl FaceCells {
+    fn new(n: u32) -> Self {
         let w = 2.0 / n as f64;
-        let (u0, v0) = (-1.0 + w * iu as f64, -1.0 + w * iv as f64);
-        let g = face_dir(face, u0 + 0.5 * w, v0 + 0.5 * w);
-        let corners = [(u0, v0), (u0 + w, v0), (u0, v0 + w), (u0 + w, v0 + w)];
-        let beta = corners.iter().map(|&(u, v)| g.dot(face_dir(face, u, v)).clamp(-1.0, 1.0).acos()).fold(0.0f64, f64::max);
-        (g, beta)
-    };
-    for face in 0..6u32 {
-        let k = (face / 2) as usize;
-        let sign = if face & 1 == 1 { -1.0 } else { 1.0 };
-        let (i, j) = match k {
-            0 => (1, 2),
-            1 => (0, 2),
-            _ => (0, 1),
-        };
-        // The cone is the set of directions of points in the ball (axis, sin alpha), inside this box.
-        let (z0, z1) = (sign * axis[k] - s, sign * axis[k] + s);
-        if z1 <= 0.0 {
-            continue;
+        let dir = |u: f64, v: f64| DVec3::new(u, v, 1.0).normalize();
+        let mut cells = Vec::with_capacity((n * n) as usize);
+        for iv in 0..n {
+            for iu in 0..n {
+                let (u0, v0) = (-1.0 + w * iu as f64, -1.0 + w * iv as f64);
+                let g = dir(u0 + 0.5 * w, v0 + 0.5 * w);
+                let corners = [(u0, v0), (u0 + w, v0), (u0, v0 + w), (u0 + w, v0 + w)];
+                let beta = corners.iter().map(|&(u, v)| g.dot(dir(u, v)).clamp(-1.0, 1.0).acos()).fold(0.0f64, f64::max) + CONE_PAD;
+                cells.push(([g.x, g.y, g.z], beta.cos(), beta.sin()));
+            }
         }
-        let range = |lo: f64, hi: f64| -> (f64, f64) {
-            if z0 > 0.0 {
-                ((lo / z0).min(lo / z1), (hi / z0).max(hi / z1))
-            } else {
-                // Points with z' -> 0+ reach any ratio of the sign of their numerator.
-                (if lo < 0.0 { f64::NEG_INFINITY } else { lo / z1 }, if hi > 0.0 { f64::INFINITY } else { hi / z1 })
+        FaceCells { n, cells }
+    }
+
+    /// Call `f(cell)` for every cell the cone `(axis, alpha)` meets (conservatively: each cell by its
+    /// padded bounding cone: the angle between the axes at most `alpha + beta`, compared as cosines).
+    fn for_each_cell(&self, axis: DVec3, alpha: f64, mut f: impl FnMut(u32)) {
+        let n = self.n;
+        let s = alpha.sin();
+        let (ca, sa) = (alpha.cos(), s);
+        for face in 0..6u32 {
+            let k = (face / 2) as usize;
+            let sign = if face & 1 == 1 { -1.0 } else { 1.0 };
+            let (i, j) = match k {
+                0 => (1, 2),
+                1 => (0, 2),
+                _ => (0, 1),
+            };
+            // The cone is the set of directions of points in the ball (axis, sin alpha), inside this box.
+            let (z0, z1) = (sign * axis[k] - s, sign * axis[k] + s);
+            if z1 <= 0.0 {
+                continue;
             }
-        };
-        let (ulo, uhi) = range(axis[i] - s, axis[i] + s);
-        let (vlo, vhi) = range(axis[j] - s, axis[j] + s);
-        let cell_range = |lo: f64, hi: f64| -> Option<(u32, u32)> {
-            let (lo, hi) = ((lo - 1e-6).max(-1.0), (hi + 1e-6).min(1.0));
-            if lo > hi {
-                return None;
-            }
-            let at = |x: f64| (((x + 1.0) * 0.5 * n as f64).floor() as i64).clamp(0, n as i64 - 1) as u32;
-            Some((at(lo), at(hi)))
-        };
-        let (Some((iu0, iu1)), Some((iv0, iv1))) = (cell_range(ulo, uhi), cell_range(vlo, vhi)) else {
-            continue;
-        };
-        for iv in iv0..=iv1 {
-            for iu in iu0..=iu1 {
-                let (g, beta) = cos_cell(face, iu, iv);
-                let angle = g.dot(axis).clamp(-1.0, 1.0).acos();
-                if angle <= alpha + beta + CONE_PAD {
-                    f((face * n + iv) * n + iu);
+            let range = |lo: f64, hi: f64| -> (f64, f64) {
+                if z0 > 0.0 {
+                    ((lo / z0).min(lo / z1), (hi / z0).max(hi / z1))
+                } else {
+                    // Points with z' -> 0+ reach any ratio of the sign of their numerator.
+                    (if lo < 0.0 { f64::NEG_INFINITY } else { lo / z1 }, if hi > 0.0 { f64::INFINITY } else { hi / z1 })
+                }
+            };
+            let (ulo, uhi) = range(axis[i] - s, axis[i] + s);
+            let (vlo, vhi) = range(axis[j] - s, axis[j] + s);
+            let cell_range = |lo: f64, hi: f64| -> Option<(u32, u32)> {
+                let (lo, hi) = ((lo - 1e-6).max(-1.0), (hi + 1e-6).min(1.0));
+                if lo > hi {
+                    return None;
+                }
+                let at = |x: f64| (((x + 1.0) * 0.5 * n as f64).floor() as i64).clamp(0, n as i64 - 1) as u32;
+                Some((at(lo), at(hi)))
+            };
+            let (Some((iu0, iu1)), Some((iv0, iv1))) = (cell_range(ulo, uhi), cell_range(vlo, vhi)) else {
+                continue;
+            };
+            // The axis in this face's coordinates (u, v, out).
+            let a = [axis[i], axis[j], sign * axis[k]];
+            for iv in iv0..=iv1 {
+                for iu in iu0..=iu1 {
+                    let (g, cb, sb) = self.cells[(iv * n + iu) as usize];
+                    // cos(angle) >= cos(alpha + beta), with room for the rounding of both sides.
+                    if g[0] * a[0] + g[1] * a[1] + g[2] * a[2] >= ca * cb - sa * sb - 1e-12 {
+                        f((face * n + iv) * n + iu);
+                    }
                 }
             }
         }
