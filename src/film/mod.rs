@@ -8,6 +8,7 @@
 //! adds floor(q^2 / 2^32), both exact integer operations. A sample whose value is not finite or whose
 //! magnitude reaches [`MAX_SAMPLE_VALUE`] is discarded and counted, never accumulated.
 
+mod cells;
 pub mod checksum;
 pub mod file;
 pub mod output;
@@ -190,13 +191,15 @@ impl Pixel {
 /// than 2^32 samples) moves to the film's side table of [`Pixel`]s, and
 /// `wide` is then its index there plus one. Either way the stored values are exact, so the film is the
 /// same whatever the order of additions.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C, align(64))]
 struct Cell {
     sum: [i64; 3],
     sum_sq: [i64; 3],
     count: u32,
     wide: u32,
+    /// (Explicit, so that the 64-byte cell has no implicit padding: `Pod`.)
+    pad: [u32; 2],
 }
 
 /// Bytes the film takes per pixel (pixels moved to the side table take a [`Pixel`] more).
@@ -235,7 +238,7 @@ impl Cell {
 pub struct Film {
     pub width: u32,
     pub height: u32,
-    cells: Vec<Cell>,
+    cells: cells::Cells<Cell>,
     /// Pixels whose sums left the 64-bit range (`Cell::wide` - 1 indexes here).
     wide: Vec<Pixel>,
 }
@@ -251,10 +254,10 @@ impl Eq for Film {}
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Film {
-        let mut cells = vec![Cell::default(); width as usize * height as usize];
-        // The allocation may come as untouched zero pages (the compiler turns allocate-and-zero into
-        // a zeroed allocation): touch every page now, once, rather than in the render, where each first
-        // write would fault inside the accumulate stage with the film locked (~1.5 us a page here).
+        let mut cells = cells::Cells::<Cell>::zeroed(width as usize * height as usize);
+        // The pages come untouched (zero pages of the OS): touch every page now, once, rather than in
+        // the render, where each first write would fault inside the accumulate stage with the film
+        // locked (~1.5 us a 4 KiB page here; one fault per 2 MiB where huge pages are given).
         for c in cells.iter_mut().step_by(4096 / FILM_BYTES_PER_PIXEL) {
             std::hint::black_box(c).wide = 0;
         }
