@@ -45,7 +45,7 @@ impl<T: Pod> Cells<T> {
         let offset = (map.as_ptr() as usize).next_multiple_of(HUGE) - map.as_ptr() as usize;
         // Only advice: without THP the pages are ordinary ones, as a Vec's.
         let _ = map.advise_range(memmap2::Advice::HugePage, offset, rounded);
-        (offset % std::mem::align_of::<T>() == 0).then_some(Store::Map(map, offset))
+        offset.is_multiple_of(std::mem::align_of::<T>()).then_some(Store::Map(map, offset))
     }
 }
 
