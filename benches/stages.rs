@@ -345,13 +345,9 @@ struct ShadeWork {
     order: Vec<u32>,
 }
 
-/// Shadow rays from every hit of the queues `qs` to the scene's first light, packed 8 at a time.
-fn shadow_packets(scene: &Scene, qs: &[RayQueue]) -> Vec<strata::simd::Ray8> {
-    shadow_packets_own(scene, qs).0
-}
-
-/// [`shadow_packets`], and per lane the static sphere its ray leaves outward (a hit on the lit side of
-/// a sphere, seen from outside), else `NONE`: what the shading stage records for the shadow stage.
+/// Shadow rays from every hit of the queues `qs` to the scene's first light, packed 8 at a time, and
+/// per lane the static sphere its ray leaves outward (a hit on the lit side of a sphere, seen from
+/// outside), else `NONE`: what the shading stage records for the shadow stage.
 fn shadow_packets_own(scene: &Scene, qs: &[RayQueue]) -> (Vec<strata::simd::Ray8>, Vec<[u32; 8]>) {
     use strata::simd::{f32x8, Ray8, Vec3x8};
     let light = match scene.lights[0] {
@@ -455,52 +451,13 @@ fn bench_shadow(c: &mut Criterion) {
     time_groups(&mut g, "any_hit/bench_spheres.toml", &pool, &scene, &profile, &packets);
     // The same rays answered from the point light's light buffer (what the shadow stage does with
     // them), validated against the group traversal on every packet first.
-    let lb = scene.light_buffers[0].as_ref().expect("the bench scene's point light has a light buffer");
-    // Lanes the buffer refuses (ground points far out towards the horizon) go through the group
-    // traversal, as the shadow stage sends them on to its batches.
-    let via_buffer = |p: &strata::simd::Ray8, own: &[u32; 8], arena: &mut strata::csg::CsgArena| {
-        let lanes = p.tmax.simd_gt(f32x8::ZERO).to_bitmask();
-        let (mut occ, answered) = occlusion_light_buffer(&scene, &profile, lb, p, lanes, own, None, arena);
-        if answered != lanes {
-            let rest = strata::simd::mask_from_bits(lanes & !answered);
-            let mut r = [strata::simd::Ray8 { tmax: rest.select(p.tmax, f32x8::splat(-1.0)), ..*p }];
-            occ |= occlusion_group(&scene, &profile, &mut r, &[None], arena, false).0[0].to_bitmask();
-        }
-        occ
-    };
-    let (mut refused, mut total) = (0, 0);
-    for (g, own) in packets.chunks(GROUP).zip(own.chunks(GROUP)) {
-        let (group, _) = occlusion_group(&scene, &profile, &mut g.to_vec(), &[None; GROUP], &mut arena, false);
-        for (j, p) in g.iter().enumerate() {
-            let lanes = p.tmax.simd_gt(f32x8::ZERO).to_bitmask();
-            refused += (lanes & !occlusion_light_buffer(&scene, &profile, lb, p, lanes, &own[j], None, &mut arena).1).count_ones();
-            total += lanes.count_ones();
-            assert_eq!(
-                via_buffer(p, &own[j], &mut arena),
-                group[j].to_bitmask() & lanes,
-                "the light buffer disagrees with the group traversal"
-            );
-        }
-    }
-    println!("light buffer validation: {total} rays agree with the group traversal ({refused} refused, traced by it)");
-    let work: Vec<(strata::simd::Ray8, [u32; 8])> = packets.iter().copied().zip(own.iter().copied()).collect();
-    g.bench_function("any_hit_light_buffer/bench_spheres.toml", |b| {
-        b.iter(|| {
-            pool.install(|| {
-                work.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
-                    for (p, own) in ps {
-                        black_box(via_buffer(p, own, arena));
-                    }
-                })
-            })
-        })
-    });
+    time_light_buffer(&mut g, "any_hit_light_buffer/bench_spheres.toml", &pool, &scene, &profile, &packets, &own);
     g.finish();
 
     // Shadow rays from the hits of diffuse bounces: shading points scattered as path tracing scatters
     // them, which the shadow stage traces one ray at a time (`occlusion_single`). Validated against
     // the group traversal on every packet, then both timed.
-    let scattered = shadow_packets(&scene, &bounce_queues(&scene, &qs));
+    let (scattered, scattered_own) = shadow_packets_own(&scene, &bounce_queues(&scene, &qs));
     let mut stack = Bvh8Stack::default();
     for g in scattered.chunks(GROUP) {
         let single = occlusion_single(&scene, &profile, g, &[None; GROUP], &mut arena, &mut stack);
@@ -525,7 +482,62 @@ fn bench_shadow(c: &mut Criterion) {
         })
     });
     time_groups(&mut g, "any_hit_scattered_groups/bench_spheres.toml", &pool, &scene, &profile, &scattered);
+    time_light_buffer(&mut g, "any_hit_scattered_light_buffer/bench_spheres.toml", &pool, &scene, &profile, &scattered, &scattered_own);
     g.finish();
+}
+
+/// Validate against the group traversal, then time, the shadow rays `packets` (towards the scene's
+/// first light, a point light) answered from its light buffer as the shadow stage answers them: lanes
+/// on a static sphere skip it (`own`), lanes the buffer refuses go through the group traversal.
+#[allow(clippy::too_many_arguments)]
+fn time_light_buffer(
+    g: &mut criterion::BenchmarkGroup<criterion::measurement::WallTime>,
+    name: &str,
+    pool: &rayon::ThreadPool,
+    scene: &Scene,
+    profile: &Profile,
+    packets: &[strata::simd::Ray8],
+    own: &[[u32; 8]],
+) {
+    let lb = scene.light_buffers[0].as_ref().expect("the bench scene's point light has a light buffer");
+    let via_buffer = |p: &strata::simd::Ray8, own: &[u32; 8], arena: &mut strata::csg::CsgArena| {
+        let lanes = p.tmax.simd_gt(f32x8::ZERO).to_bitmask();
+        let (mut occ, answered) = occlusion_light_buffer(scene, profile, lb, p, lanes, own, None, arena);
+        if answered != lanes {
+            let rest = strata::simd::mask_from_bits(lanes & !answered);
+            let mut r = [strata::simd::Ray8 { tmax: rest.select(p.tmax, f32x8::splat(-1.0)), ..*p }];
+            occ |= occlusion_group(scene, profile, &mut r, &[None], arena, false).0[0].to_bitmask();
+        }
+        occ
+    };
+    let mut arena = strata::csg::CsgArena::new();
+    let (mut refused, mut total) = (0, 0);
+    for (grp, own) in packets.chunks(GROUP).zip(own.chunks(GROUP)) {
+        let (group, _) = occlusion_group(scene, profile, &mut grp.to_vec(), &[None; GROUP], &mut arena, false);
+        for (j, p) in grp.iter().enumerate() {
+            let lanes = p.tmax.simd_gt(f32x8::ZERO).to_bitmask();
+            refused += (lanes & !occlusion_light_buffer(scene, profile, lb, p, lanes, &own[j], None, &mut arena).1).count_ones();
+            total += lanes.count_ones();
+            assert_eq!(
+                via_buffer(p, &own[j], &mut arena),
+                group[j].to_bitmask() & lanes,
+                "the light buffer disagrees with the group traversal"
+            );
+        }
+    }
+    println!("{name}: {total} rays agree with the group traversal ({refused} refused, traced by it)");
+    let work: Vec<(strata::simd::Ray8, [u32; 8])> = packets.iter().copied().zip(own.iter().copied()).collect();
+    g.bench_function(name, |b| {
+        b.iter(|| {
+            pool.install(|| {
+                work.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
+                    for (p, own) in ps {
+                        black_box(via_buffer(p, own, arena));
+                    }
+                })
+            })
+        })
+    });
 }
 
 /// The `shadow` benchmark group, its throughput the active rays of `packets`.
