@@ -103,6 +103,11 @@ impl Vec3x8 {
     pub fn scale(self, s: f32x8) -> Self {
         Self { x: self.x * s, y: self.y * s, z: self.z * s }
     }
+    /// `v` in the lanes of `mask`, +0 elsewhere (as a sum's term: the unmasked lanes add nothing).
+    #[inline(always)]
+    pub fn masked(v: Self, mask: f32x8) -> Self {
+        Self { x: v.x & mask, y: v.y & mask, z: v.z & mask }
+    }
     /// `self * s + o`, lane-wise, fused.
     #[inline(always)]
     pub fn mul_add(self, s: f32x8, o: Self) -> Self {

@@ -365,7 +365,7 @@ pub fn shadow_with(
                 let lanes = lit.to_bitmask() & live;
                 if lanes & clear != 0 {
                     let keep = mask_from_bits(lanes & clear);
-                    cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
+                    cleared_sum = cleared_sum + Vec3x8::masked(c, keep);
                     cleared += (lanes & clear).count_ones() as u64;
                 }
                 let mut lanes = lanes & !clear;
@@ -388,7 +388,7 @@ pub fn shadow_with(
                     let ray = Ray8::new(o, target - o, tmax);
                     let (occ, answered) = occlusion_light_buffer(scene, profile, lb, &ray, lanes, &own, motion.then_some(time), arena);
                     let keep = mask_from_bits(answered & !occ);
-                    cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
+                    cleared_sum = cleared_sum + Vec3x8::masked(c, keep);
                     traced += answered.count_ones() as u64;
                     buffered |= answered;
                     lanes &= !answered;
@@ -403,7 +403,7 @@ pub fn shadow_with(
                     let occ = prim_occlusion(scene, profile, pid, &Ray8::new(o, target - o, tmax), None, arena, walk, &mut touched);
                     debug_assert_eq!(touched, 0, "an opaque prim lets no ray through");
                     let keep = mask_from_bits(same & !occ.to_bitmask());
-                    cleared_sum = cleared_sum + Vec3x8::new(c.x & keep, c.y & keep, c.z & keep);
+                    cleared_sum = cleared_sum + Vec3x8::masked(c, keep);
                     traced += same.count_ones() as u64;
                     lanes &= !same;
                 }
