@@ -1,7 +1,10 @@
 //! Stage 5: next-event estimation. Each request (a shading point) is expanded into light samples with the
 //! profile's light strategy; the shadow rays are packed in batches of 16 packets of 8 (consecutive samples
 //! of one point, and neighbouring points, are coherent) and traced together with any-hit group traversal;
-//! unoccluded samples add their contribution to the path.
+//! unoccluded samples add their contribution to the path. Before a sample's rays join a batch, the chunk
+//! loop decides what it can without one: the light-cone test (`cone.rs`) for lights with many samples,
+//! and, for point lights in scenes that have one, the light's light buffer
+//! ([`occlusion_light_buffer`], `accel/light_buffer.rs`).
 //! Smooth dielectrics block direct light (the light they pass is a caustic), except where they do not
 //! deflect it (null crossings, index-matched media, thin sheets), or everywhere under the profile's opt-in,
 //! non-physical transmissive shadows: lanes whose any-hit test met only such dielectrics are then walked
