@@ -16,7 +16,7 @@ use crate::optics::{
 };
 use crate::sample::{hash_combine, random_f32, sample_2d, stream_key, Sampler2d};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture};
-use crate::simd::{f32x8, gather8, mask_from_bits, Vec3x8, LANES};
+use crate::simd::{f32x8, gather8, mask_from_bits, u32x8, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
@@ -517,12 +517,8 @@ impl Ctx<'_> {
         if sph != 0 {
             // (Other lanes' results are discarded by the select below.)
             let (ps, n, front) = sphere_hits_x8(naive, d, &sc, &sr);
-            let outside = sph & still & front.to_bitmask();
-            for (l, o) in own.iter_mut().enumerate() {
-                if outside & (1 << l) != 0 {
-                    *o = prims[l];
-                }
-            }
+            let outside = bytemuck::cast::<f32x8, u32x8>(mask_from_bits(sph & still) & front);
+            own = ((u32x8::from(prims) & outside) | (u32x8::splat(NONE) & !outside)).to_array();
             let neg = Vec3x8::new(-n.x, -n.y, -n.z);
             let n_facing = Vec3x8::select(front, n, neg);
             let mask = mask_from_bits(sph);

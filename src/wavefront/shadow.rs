@@ -240,8 +240,7 @@ pub fn shadow_with(
         .map(|light| (samples_for(light, profile.light_samples) >= cone_min_samples(scene)).then(|| LightCone::new(scene, light)).flatten())
         .collect();
     // Point lights' light buffers, where shadow rays walk through nothing.
-    let buffers: Vec<Option<&LightBuffer>> =
-        scene.lights.iter().enumerate().map(|(li, _)| scene.light_buffers.get(li).and_then(|b| b.as_ref()).filter(|_| !walk)).collect();
+    let buffer = |li: usize| scene.light_buffers.get(li).and_then(|b| b.as_ref()).filter(|_| !walk);
     let motion = scene.features.motion;
     let light_key = |i: usize, li: usize| light_key(seed, nee, across, i, li);
     let mut keys = LightKeys { keys: [0; KEY_CACHE], cached: None };
@@ -251,7 +250,7 @@ pub fn shadow_with(
     // 8-lane light sample. Each request sums its unoccluded contributions by light, then sample, from
     // zero (`Credit`), and the sums go to the paths in request order at the end: a path's radiance
     // then does not depend on which requests share a chunk or a batch (that depends on the tile).
-    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some) || buffers.iter().any(Option::is_some));
+    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some) || (0..scene.lights.len()).any(|li| buffer(li).is_some()));
     let mut base = 0;
     while base < nee.len() {
         let m = (nee.len() - base).min(LANES);
@@ -385,7 +384,7 @@ pub fn shadow_with(
                         lanes &= !done;
                     }
                 }
-                if let Some(lb) = buffers[li].filter(|_| lanes != 0) {
+                if let Some(lb) = buffer(li).filter(|_| lanes != 0) {
                     // Answered from the light's buffer (lanes it refuses go on to the batch).
                     let tmax = mask_from_bits(lanes).select(f32x8::splat(end), f32x8::splat(-1.0));
                     let ray = Ray8::new(o, target - o, tmax);
