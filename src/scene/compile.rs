@@ -896,6 +896,12 @@ impl Compiler<'_> {
 /// where the traversal's leaf boxes reject most packets first (bench_csg's shadow stage took 16-30%
 /// longer through the buffer, csg.toml 8%).
 pub fn light_buffers(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bounded: &[u32]) -> Vec<Option<LightBuffer>> {
+    light_buffers_within(lights, prims, bounds, bounded, LIGHT_BUFFER_ENTRIES)
+}
+
+/// [`light_buffers`] within `budget` entries in all: a buffer that would exceed what is left of it is
+/// not built (that light's shadow rays are traced through the BVH).
+fn light_buffers_within(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bounded: &[u32], budget: usize) -> Vec<Option<LightBuffer>> {
     if prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })) {
         return vec![None; lights.len()];
     }
@@ -910,14 +916,22 @@ pub fn light_buffers(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bounded:
             (pid, bound)
         })
         .collect();
+    let mut budget = budget;
     lights
         .iter()
         .map(|l| match *l {
-            Light::Point { position, .. } => LightBuffer::build(position, 0.0, &spheres, None),
+            Light::Point { position, .. } if budget > 0 => {
+                let lb = LightBuffer::build(position, 0.0, &spheres, None)?;
+                budget = budget.checked_sub(lb.entry_count())?;
+                Some(lb)
+            }
             _ => None,
         })
         .collect()
 }
+
+/// Entries (8 bytes each) all of a scene's light buffers may hold together: 256 MiB.
+pub const LIGHT_BUFFER_ENTRIES: usize = 32 << 20;
 
 fn mark_passable(materials: &mut [Material], used: &[bool]) {
     let media: Vec<&Dielectric> = materials
@@ -1025,4 +1039,35 @@ fn csg_torus_placement(center: Vec3) -> Affine3A {
 fn csg_halfspace_placement(point: Vec3, normal: Vec3) -> Affine3A {
     // Canonical half-space: z <= 0 (outward normal +z), rotated so +z becomes `normal`, moved to `point`.
     Affine3A::from_rotation_translation(Quat::from_rotation_arc(Vec3::Z, normal), point)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Point lights get buffers in order while their entries fit the budget; area lights and scenes
+    /// with CSG solids get none.
+    #[test]
+    fn light_buffers_fit_their_budget() {
+        let light = |y: f32| Light::Point { position: Vec3::new(0.0, y, 0.0), intensity: Vec3::ONE };
+        let quad = Light::Quad { quad: Quad::new(Vec3::new(-1.0, 5.0, -1.0), Vec3::X, Vec3::Z), radiance: Vec3::ONE };
+        let prims: Vec<Prim> = (0..50)
+            .map(|i| Prim {
+                shape: Shape::Sphere { center: Vec3::new(i as f32 * 0.7 - 17.0, 0.5, (i % 7) as f32 - 3.0), radius: 0.3 },
+                material: 0,
+                motion: Vec3::ZERO,
+                is_light: false,
+            })
+            .collect();
+        let bounds: Vec<Aabb> = prims.iter().map(|p| prim_bounds(&p.shape, &Csg::new()).unwrap()).collect();
+        let bounded: Vec<u32> = (0..50).collect();
+        let lights = [light(8.0), quad, light(12.0), light(9.0)];
+        let all = light_buffers_within(&lights, &prims, &bounds, &bounded, usize::MAX);
+        assert!(all[0].is_some() && all[1].is_none() && all[2].is_some() && all[3].is_some());
+        let first = all[0].as_ref().unwrap().entry_count();
+        assert!(first > 0);
+        // Room for the first buffer only: the others are traced through the BVH.
+        let some = light_buffers_within(&lights, &prims, &bounds, &bounded, first);
+        assert!(some[0].is_some() && some[2].is_none() && some[3].is_none());
+    }
 }
