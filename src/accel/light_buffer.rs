@@ -73,7 +73,6 @@ impl Bound {
 /// x, y); `u = q_u / |q_k|` in `[-1, 1]` splits into `n` equal cells.
 #[derive(Clone, Debug, Default)]
 pub struct LightBuffer {
-    center: Vec3,
     n: u32,
     /// Entries of cell `c`: `start[c]..start[c + 1]`.
     start: Vec<u32>,
@@ -160,7 +159,6 @@ impl LightBuffer {
             entries[start[c] as usize..start[c + 1] as usize].sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         }
         Some(LightBuffer {
-            center,
             n,
             start,
             prims: entries.iter().map(|e| e.1).collect(),
@@ -168,11 +166,6 @@ impl LightBuffer {
             always,
             max_len2: (max_len * max_len) as f32,
         })
-    }
-
-    /// The light's centre (the point queries measure directions from).
-    pub fn center(&self) -> Vec3 {
-        self.center
     }
 
     /// Cells per face side.
@@ -197,11 +190,6 @@ impl LightBuffer {
     /// Entries over all cells (statistics).
     pub fn entry_count(&self) -> usize {
         self.prims.len()
-    }
-
-    /// Cells holding at least one entry (statistics).
-    pub fn occupied_cells(&self) -> usize {
-        self.start.windows(2).filter(|w| w[1] > w[0]).count()
     }
 
     /// The cell of each lane's direction `q = o - center` from the centre, or [`NO_CELL`] where the
