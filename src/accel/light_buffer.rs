@@ -66,7 +66,9 @@ impl Bound {
     }
 }
 
-/// A light buffer: a cube of `6 n^2` direction cells around `center` (see the module doc).
+/// A light buffer: a cube of `6 n^2` direction cells around the light's centre (see the module doc).
+/// Queries take the direction from the ray (`-d` of a ray aimed at the centre), so the centre itself
+/// is not kept.
 ///
 /// Cell `(face, iu, iv)` is `(face * n + iv) * n + iu`; face `2 k + s` looks along axis `k` (`s = 1`:
 /// negative), its `u` and `v` axes the other two in increasing order (x face: y, z; y face: x, z; z face:
@@ -187,7 +189,7 @@ impl LightBuffer {
         (&self.prims[a..b], &self.near2[a..b])
     }
 
-    /// Entries over all cells (statistics).
+    /// Entries over all cells (what the scene's buffer budget counts).
     pub fn entry_count(&self) -> usize {
         self.prims.len()
     }
