@@ -17,7 +17,9 @@ use strata::wavefront::generate::generate;
 use strata::wavefront::intersect::{intersect, intersect_with, prim_t_f64, Traversal, INCOHERENT};
 use strata::wavefront::queues::NONE;
 use strata::wavefront::shade::{shade, ShadeOut};
-use strata::wavefront::shadow::{occluded_x8, occlusion_group, occlusion_light_buffer, occlusion_single, shadow};
+use strata::wavefront::shadow::{
+    occluded_x8, occlusion_group, occlusion_light_buffer, occlusion_light_buffer_x16, occlusion_single, shadow,
+};
 use strata::wavefront::{CsgCandidates, HitQueue, NeeQueue, PathTable, RayQueue};
 
 /// Nearest hit of one ray by the scalar f64 path (BVH f64 traversal + f64 kernels + planes).
@@ -527,6 +529,43 @@ fn time_light_buffer(
     }
     println!("{name}: {total} rays agree with the group traversal ({refused} refused, traced by it)");
     let work: Vec<(strata::simd::Ray8, [u32; 8])> = packets.iter().copied().zip(own.iter().copied()).collect();
+    // Pairs of packets as 16 lanes (what the shadow stage does), validated against single packets.
+    let via_pair = |w: &[(strata::simd::Ray8, [u32; 8])], arena: &mut strata::csg::CsgArena| {
+        let empty = strata::simd::Ray8 { tmax: f32x8::splat(-1.0), ..w[0].0 };
+        let rays = [w[0].0, w.get(1).map_or(empty, |x| x.0)];
+        let mut own2 = [NONE; 16];
+        own2[..8].copy_from_slice(&w[0].1);
+        if let Some(x) = w.get(1) {
+            own2[8..].copy_from_slice(&x.1);
+        }
+        let lanes = rays[0].tmax.simd_gt(f32x8::ZERO).to_bitmask() | rays[1].tmax.simd_gt(f32x8::ZERO).to_bitmask() << 8;
+        let (mut occ, answered) = occlusion_light_buffer_x16(scene, profile, lb, &rays, lanes, &own2, None, arena);
+        if answered != lanes {
+            for (h, ray) in rays.iter().enumerate() {
+                let rest = strata::simd::mask_from_bits((lanes & !answered) >> (8 * h) & 0xff);
+                let mut r = [strata::simd::Ray8 { tmax: rest.select(ray.tmax, f32x8::splat(-1.0)), ..*ray }];
+                occ |= occlusion_group(scene, profile, &mut r, &[None], arena, false).0[0].to_bitmask() << (8 * h);
+            }
+        }
+        occ
+    };
+    for w in work.chunks(2) {
+        let pair = via_pair(w, &mut arena);
+        for (h, (p, own)) in w.iter().enumerate() {
+            assert_eq!((pair >> (8 * h)) & 0xff, via_buffer(p, own, &mut arena), "a pair disagrees with its packets");
+        }
+    }
+    g.bench_function(format!("{name}_pairs"), |b| {
+        b.iter(|| {
+            pool.install(|| {
+                work.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
+                    for w in ps.chunks(2) {
+                        black_box(via_pair(w, arena));
+                    }
+                })
+            })
+        })
+    });
     g.bench_function(name, |b| {
         b.iter(|| {
             pool.install(|| {

@@ -8,7 +8,103 @@
 //! with AVX2+FMA an `f32x8` is one ymm register and `mul_add` is one `vfmadd`.
 
 use glam::Vec3;
-pub use wide::{f32x8, i32x8, u32x8};
+pub use wide::{f32x16, f32x8, i32x16, i32x8, u32x16, u32x8};
+
+/// The float-lane operations a kernel written once for both widths uses (`f32x8`, and `f32x16` where
+/// a stage pairs packets): generic kernels take the same operations in the same order at either width,
+/// so a lane's result does not depend on the width it was computed at.
+pub trait Lanes:
+    Copy
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
+    + std::ops::Neg<Output = Self>
+    + std::ops::BitAnd<Output = Self>
+    + std::ops::BitOr<Output = Self>
+    + std::ops::Not<Output = Self>
+{
+    fn splat(x: f32) -> Self;
+    fn mul_add(self, m: Self, a: Self) -> Self;
+    fn mul_sub(self, m: Self, a: Self) -> Self;
+    fn mul_neg_add(self, m: Self, a: Self) -> Self;
+    fn sqrt(self) -> Self;
+    fn min(self, o: Self) -> Self;
+    fn max(self, o: Self) -> Self;
+    fn ge(self, o: Self) -> Self;
+    fn gt(self, o: Self) -> Self;
+    fn lt(self, o: Self) -> Self;
+    fn eq(self, o: Self) -> Self;
+    /// `self` a mask: `a` where set, else `b`.
+    fn select(self, a: Self, b: Self) -> Self;
+    fn any(self) -> bool;
+    fn bits(self) -> u32;
+}
+
+macro_rules! impl_lanes {
+    ($t:ty) => {
+        impl Lanes for $t {
+            #[inline(always)]
+            fn splat(x: f32) -> Self {
+                <$t>::splat(x)
+            }
+            #[inline(always)]
+            fn mul_add(self, m: Self, a: Self) -> Self {
+                <$t>::mul_add(self, m, a)
+            }
+            #[inline(always)]
+            fn mul_sub(self, m: Self, a: Self) -> Self {
+                <$t>::mul_sub(self, m, a)
+            }
+            #[inline(always)]
+            fn mul_neg_add(self, m: Self, a: Self) -> Self {
+                <$t>::mul_neg_add(self, m, a)
+            }
+            #[inline(always)]
+            fn sqrt(self) -> Self {
+                <$t>::sqrt(self)
+            }
+            #[inline(always)]
+            fn min(self, o: Self) -> Self {
+                <$t>::min(self, o)
+            }
+            #[inline(always)]
+            fn max(self, o: Self) -> Self {
+                <$t>::max(self, o)
+            }
+            #[inline(always)]
+            fn ge(self, o: Self) -> Self {
+                self.simd_ge(o)
+            }
+            #[inline(always)]
+            fn gt(self, o: Self) -> Self {
+                self.simd_gt(o)
+            }
+            #[inline(always)]
+            fn lt(self, o: Self) -> Self {
+                self.simd_lt(o)
+            }
+            #[inline(always)]
+            fn eq(self, o: Self) -> Self {
+                self.simd_eq(o)
+            }
+            #[inline(always)]
+            fn select(self, a: Self, b: Self) -> Self {
+                <$t>::select(self, a, b)
+            }
+            #[inline(always)]
+            fn any(self) -> bool {
+                <$t>::any(self)
+            }
+            #[inline(always)]
+            fn bits(self) -> u32 {
+                <$t>::to_bitmask(self)
+            }
+        }
+    };
+}
+impl_lanes!(f32x8);
+impl_lanes!(f32x16);
 
 /// Lanes per packet.
 pub const LANES: usize = 8;

@@ -16,7 +16,7 @@ use strata::render::{render_into, RenderJob};
 use strata::scene::{parse_scene, Profile};
 use strata::simd::{f32x8, Ray8, Vec3x8};
 use strata::wavefront::queues::NONE;
-use strata::wavefront::shadow::{occlusion_group, occlusion_light_buffer};
+use strata::wavefront::shadow::{occlusion_group, occlusion_light_buffer, occlusion_light_buffer_x16};
 use strata::wavefront::Settings;
 
 #[path = "common/rand.rs"]
@@ -31,7 +31,7 @@ fn the_light_buffer_occludes_the_lanes_the_traversal_does() {
     let mut r = R::new(0x11b0_ffe5);
     let profile = Profile::builtin("final");
     let mut arena = CsgArena::new();
-    let (mut lanes, mut occluded, mut refused) = (0u32, 0u32, 0u32);
+    let (mut lanes, mut occluded, mut refused, mut pairs) = (0u32, 0u32, 0u32, 0usize);
     for case in 0..24 {
         let k = [1e-3f32, 1.0, 37.0, 1e4][case % 4];
         let motion = case % 3 == 2;
@@ -71,8 +71,22 @@ fn the_light_buffer_occludes_the_lanes_the_traversal_does() {
                 occluded += occ.count_ones();
                 refused += (active & !answered).count_ones();
             }
+            // Two packets as 16 lanes (as the shadow stage asks): each half the traversal's verdict
+            // (the packet pairs of this loop: packet j with j + 1, and with itself).
+            for (a, b) in (0..GROUP).map(|j| (j, (j + (j % 2 == 0) as usize) % GROUP)) {
+                let bits = |j: usize| rays[j].tmax.simd_gt(f32x8::ZERO).to_bitmask();
+                let active = bits(a) | bits(b) << 8;
+                let time = times[a].map(|t| [t, times[b].unwrap()]);
+                let (occ, answered) =
+                    occlusion_light_buffer_x16(&scene, &profile, lb, &[rays[a], rays[b]], active, &[NONE; 16], time, &mut arena);
+                assert_eq!(answered & !active, 0, "only active lanes are answered");
+                let want = (group[a].to_bitmask() | group[b].to_bitmask() << 8) & answered;
+                assert_eq!(occ, want, "case {case}, packets {a} and {b}: buffer {occ:016b}, traversal {want:016b}");
+                pairs += 1;
+            }
         }
     }
+    assert_eq!(pairs, 24 * 8 * GROUP);
     assert!(occluded > lanes / 10 && occluded < lanes * 9 / 10, "{occluded} of {lanes} answered lanes occluded");
     // Some far floor points are refused (and traced by the traversal), most lanes are answered.
     assert!(refused > 0 && refused < lanes / 10, "{refused} refused, {lanes} answered");

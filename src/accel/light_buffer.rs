@@ -32,7 +32,7 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::simd::{f32x8, Vec3x8, LANES};
+use crate::simd::{f32x8, u32x8, Vec3x8, LANES};
 
 /// Cones wider than this (half-angle, radians) go to the `always` list (a prim that covers a large
 /// part of the sky of the light would be listed in thousands of cells).
@@ -199,6 +199,12 @@ impl LightBuffer {
     /// for (the caller traces those lanes through the BVH).
     #[inline(always)]
     pub fn cells_x8(&self, q: Vec3x8) -> [u32; LANES] {
+        self.cells_v8(q).to_array()
+    }
+
+    /// [`LightBuffer::cells_x8`] as a vector.
+    #[inline(always)]
+    pub fn cells_v8(&self, q: Vec3x8) -> u32x8 {
         let (ax, ay, az) = (q.x.abs(), q.y.abs(), q.z.abs());
         let xm = ax.simd_ge(ay) & ax.simd_ge(az);
         let ym = !xm & ay.simd_ge(az);
@@ -219,7 +225,7 @@ impl LightBuffer {
         let face = axis * f32x8::splat(2.0) + (signed.simd_lt(f32x8::ZERO) & f32x8::ONE);
         let n = f32x8::splat(self.n as f32);
         let cell = ok.select((face * n + iv) * n + iu, f32x8::splat(-1.0)).fast_trunc_int();
-        bytemuck::cast(cell.to_array())
+        bytemuck::cast(cell)
     }
 }
 

@@ -39,11 +39,11 @@ pub use offset::{offset_ray_origin, offset_ray_origin_scaled, offset_ray_origin_
 pub use plane::{intersect_plane_f64, intersect_plane_x8, Plane};
 pub use quad::{intersect_quad_f64, intersect_quad_x8, Quad};
 pub use sphere::{
-    intersect_sphere_f64, intersect_sphere_moving_x8, intersect_sphere_x8, normal_sphere, occludes_sphere_x8, refine_sphere_point,
-    refine_sphere_point_x8, sphere_interval_x8, spheres_lanes_x8, SphereConsts, SpherePacket, GRAZE,
+    intersect_sphere_f64, intersect_sphere_moving_x8, intersect_sphere_x8, normal_sphere, occludes_sphere, occludes_sphere_x8,
+    refine_sphere_point, refine_sphere_point_x8, sphere_interval_x8, spheres_lanes_x8, SphereConsts, SpherePacket, SpherePacketOf, GRAZE,
 };
 
-use crate::simd::{f32x8, Ray8};
+use crate::simd::{f32x8, Lanes, Ray8};
 use glam::DVec3;
 
 /// The "no hit" distance.
@@ -55,9 +55,15 @@ pub const MISS: f32 = f32::INFINITY;
 /// six products is 0 exactly when all six components are finite (it cannot overflow).
 #[inline(always)]
 pub fn ray_finite_x8(ray: &Ray8) -> f32x8 {
-    let (o, d, z) = (ray.o, ray.d, f32x8::ZERO);
-    let s = o.x.mul_add(z, o.y.mul_add(z, o.z.mul_add(z, d.x.mul_add(z, d.y.mul_add(z, d.z * z)))));
-    s.simd_eq(z)
+    ray_finite([ray.o.x, ray.o.y, ray.o.z], [ray.d.x, ray.d.y, ray.d.z])
+}
+
+/// [`ray_finite_x8`] at any lane width, from the rays' origins and directions by axis.
+#[inline(always)]
+pub(crate) fn ray_finite<F: Lanes>(o: [F; 3], d: [F; 3]) -> F {
+    let z = F::splat(0.0);
+    let s = o[0].mul_add(z, o[1].mul_add(z, o[2].mul_add(z, d[0].mul_add(z, d[1].mul_add(z, d[2] * z)))));
+    s.eq(z)
 }
 
 /// The common tail of every kernel: keep `t` where the shape test passed, the ray is valid and
@@ -84,12 +90,13 @@ fn finish_all_x8(t: f32x8, ray: &Ray8, hit: f32x8) -> f32x8 {
 /// TwoSum; Ogita, Rump & Oishi, "Accurate Sum and Dot Product", SIAM J. Sci. Comput. 2005, alg. 3.1).
 #[inline(always)]
 pub(crate) fn two_diff_x8(a: f32x8, b: f32x8) -> (f32x8, f32x8) {
-    two_sum_x8(a, -b)
+    two_sum(a, -b)
 }
 
-/// `a + b = s + e` exactly, `s = fl(a + b)` (Knuth TwoSum, 6 flops, no ordering requirement).
+/// `a + b = s + e` exactly, `s = fl(a + b)` (Knuth TwoSum, 6 flops, no ordering requirement), at any
+/// lane width.
 #[inline(always)]
-pub(crate) fn two_sum_x8(a: f32x8, b: f32x8) -> (f32x8, f32x8) {
+pub(crate) fn two_sum<F: Lanes>(a: F, b: F) -> (F, F) {
     let s = a + b;
     let bb = s - a;
     let e = (a - (s - bb)) + (b - bb);

@@ -4,8 +4,8 @@
 //! Notation: ray `o + t d`, centre `c`, radius `r`, `f = o - c`. With the half-b form
 //! `a t^2 + 2 b t + c0 = 0`: `a = d.d`, `b = f.d`, `c0 = f.f - r^2`.
 
-use super::{finish_x8, nearest_f64, two_diff_x8, two_sum_x8, valid_f64, MISS};
-use crate::simd::{f32x8, Ray8, Vec3x8};
+use super::{finish_x8, nearest_f64, two_diff_x8, two_sum, valid_f64, MISS};
+use crate::simd::{f32x8, Lanes, Ray8, Vec3x8};
 use glam::{DVec3, Vec3};
 
 /// Tangent rule for spheres and ellipsoids, in units of `r^2`: a computed `r^2 - |l|^2` in
@@ -127,19 +127,30 @@ fn sphere_x8(c: Vec3x8, radius: f32, ray: &Ray8) -> f32x8 {
 
 /// The terms of the sphere kernel that depend on the packet only (`a = d.d`, `1 / a`, and the
 /// finite-ray mask of `finish_x8`), for any-hit tests of many spheres against one packet
-/// ([`occludes_sphere_x8`]).
+/// ([`occludes_sphere_x8`]); `F` the lane type (8 lanes, or 16 for two packets at once).
 #[derive(Clone, Copy, Debug)]
-pub struct SpherePacket {
-    a: f32x8,
-    inv_a: f32x8,
-    finite: f32x8,
+pub struct SpherePacketOf<F> {
+    a: F,
+    inv_a: F,
+    finite: F,
 }
+
+/// [`SpherePacketOf`] of one 8-lane packet.
+pub type SpherePacket = SpherePacketOf<f32x8>;
 
 impl SpherePacket {
     #[inline(always)]
     pub fn new(ray: &Ray8) -> Self {
-        let a = ray.d.dot(ray.d);
-        SpherePacket { a, inv_a: f32x8::ONE / a, finite: super::ray_finite_x8(ray) }
+        SpherePacketOf::of([ray.o.x, ray.o.y, ray.o.z], [ray.d.x, ray.d.y, ray.d.z])
+    }
+}
+
+impl<F: Lanes> SpherePacketOf<F> {
+    /// From the rays' origins and directions by axis (the same operations as [`SpherePacket::new`]).
+    #[inline(always)]
+    pub fn of(o: [F; 3], d: [F; 3]) -> Self {
+        let a = d[0].mul_add(d[0], d[1].mul_add(d[1], d[2] * d[2]));
+        SpherePacketOf { a, inv_a: F::splat(1.0) / a, finite: super::ray_finite(o, d) }
     }
 }
 
@@ -152,29 +163,34 @@ impl SpherePacket {
 /// the sphere it starts on, and of spheres behind it).
 #[inline(always)]
 pub fn occludes_sphere_x8(center: Vec3, radius: f32, ray: &Ray8, pk: &SpherePacket) -> f32x8 {
-    let none = f32x8::ZERO;
+    occludes_sphere([ray.o.x, ray.o.y, ray.o.z], [ray.d.x, ray.d.y, ray.d.z], ray.tmax, center, radius, pk)
+}
+
+/// [`occludes_sphere_x8`] at any lane width (rays by axis: origins `o`, directions `d`, `tmax`; `pk`
+/// of these rays). Lane-wise operations only, so each lane's verdict is the 8-lane twin's.
+#[inline(always)]
+pub fn occludes_sphere<F: Lanes>(o: [F; 3], d: [F; 3], tmax: F, center: Vec3, radius: f32, pk: &SpherePacketOf<F>) -> F {
+    let none = F::splat(0.0);
     let k = SphereConsts::of(radius);
-    let c = Vec3x8::splat(center);
-    let d = ray.d;
-    let (sx, ex) = two_diff_x8(ray.o.x, c.x);
-    let (sy, ey) = two_diff_x8(ray.o.y, c.y);
-    let (sz, ez) = two_diff_x8(ray.o.z, c.z);
-    let b = Vec3x8::new(sx, sy, sz).dot(d);
+    let (sx, ex) = two_sum(o[0], -F::splat(center.x));
+    let (sy, ey) = two_sum(o[1], -F::splat(center.y));
+    let (sz, ez) = two_sum(o[2], -F::splat(center.z));
+    let b = sx.mul_add(d[0], sy.mul_add(d[1], sz * d[2]));
     let kk = b * pk.inv_a;
-    let l = Vec3x8::new(kk.mul_neg_add(d.x, sx) + ex, kk.mul_neg_add(d.y, sy) + ey, kk.mul_neg_add(d.z, sz) + ez);
-    let disc = l.x.mul_neg_add(l.x, l.y.mul_neg_add(l.y, l.z.mul_neg_add(l.z, f32x8::splat(k.r2))));
-    let hit = disc.simd_ge(f32x8::splat(k.graze)) & pk.finite & ray.tmax.simd_gt(none);
+    let l = [kk.mul_neg_add(d[0], sx) + ex, kk.mul_neg_add(d[1], sy) + ey, kk.mul_neg_add(d[2], sz) + ez];
+    let disc = l[0].mul_neg_add(l[0], l[1].mul_neg_add(l[1], l[2].mul_neg_add(l[2], F::splat(k.r2))));
+    let hit = disc.ge(F::splat(k.graze)) & pk.finite & tmax.gt(none);
     if !hit.any() {
         return none;
     }
-    let c0 = dist2_minus_r2_x8(Vec3x8::new(sx, sy, sz), Vec3x8::new(ex, ey, ez), f32x8::splat(k.r2), f32x8::splat(k.r2_lo));
-    let away = b.simd_gt(none) & c0.simd_ge(none);
+    let c0 = dist2_minus_r2([sx, sy, sz], [ex, ey, ez], F::splat(k.r2), F::splat(k.r2_lo));
+    let away = b.gt(none) & c0.ge(none);
     if !(hit & !away).any() {
         return none;
     }
-    let (near, far) = roots_x8(pk.a, pk.inv_a, b, disc, c0);
-    let t = nearest_x8(near, far);
-    hit & t.simd_gt(none) & t.simd_lt(ray.tmax)
+    let (near, far) = roots(pk.a, pk.inv_a, b, disc, c0);
+    let t = near.gt(none).select(near, far);
+    hit & t.gt(none) & t.lt(tmax)
 }
 
 /// Both crossings of the sphere's surface along the packet, `(entry, exit)` by distance (any sign;
@@ -193,13 +209,19 @@ pub fn sphere_interval_x8(center: Vec3, radius: f32, ray: &Ray8) -> (f32x8, f32x
 /// Sterbenz's lemma whenever it cancels (`r2/2 <= w <= 2 r2`), and everything else is tiny.
 #[inline(always)]
 fn dist2_minus_r2_x8(s: Vec3x8, e: Vec3x8, r2: f32x8, r2_lo: f32x8) -> f32x8 {
-    let (px, py, pz) = (s.x * s.x, s.y * s.y, s.z * s.z);
-    let pi = s.x.mul_sub(s.x, px) + s.y.mul_sub(s.y, py) + s.z.mul_sub(s.z, pz);
-    let (u, eu) = two_sum_x8(px, py);
-    let (w, ew) = two_sum_x8(u, pz);
-    let two = f32x8::splat(2.0);
+    dist2_minus_r2([s.x, s.y, s.z], [e.x, e.y, e.z], r2, r2_lo)
+}
+
+/// [`dist2_minus_r2_x8`] at any lane width (`s`, `e` by axis).
+#[inline(always)]
+fn dist2_minus_r2<F: Lanes>(s: [F; 3], e: [F; 3], r2: F, r2_lo: F) -> F {
+    let (px, py, pz) = (s[0] * s[0], s[1] * s[1], s[2] * s[2]);
+    let pi = s[0].mul_sub(s[0], px) + s[1].mul_sub(s[1], py) + s[2].mul_sub(s[2], pz);
+    let (u, eu) = two_sum(px, py);
+    let (w, ew) = two_sum(u, pz);
+    let two = F::splat(2.0);
     // (s + e)^2 - s^2 = e (2 s + e), per component.
-    let cross = e.x.mul_add(s.x.mul_add(two, e.x), e.y.mul_add(s.y.mul_add(two, e.y), e.z * s.z.mul_add(two, e.z)));
+    let cross = e[0].mul_add(s[0].mul_add(two, e[0]), e[1].mul_add(s[1].mul_add(two, e[1]), e[2] * s[2].mul_add(two, e[2])));
     (w - r2) + (((eu + ew) + pi) + (cross - r2_lo))
 }
 
@@ -210,8 +232,14 @@ fn dist2_minus_r2_x8(s: Vec3x8, e: Vec3x8, r2: f32x8, r2_lo: f32x8) -> f32x8 {
 /// which `finish_x8` turns into MISS).
 #[inline(always)]
 pub(super) fn roots_x8(a: f32x8, inv_a: f32x8, b: f32x8, disc: f32x8, c0: f32x8) -> (f32x8, f32x8) {
-    let h = (disc.max(f32x8::ZERO) * a).sqrt();
-    let sign_b = b & f32x8::splat(-0.0);
+    roots(a, inv_a, b, disc, c0)
+}
+
+/// [`roots_x8`] at any lane width.
+#[inline(always)]
+fn roots<F: Lanes>(a: F, inv_a: F, b: F, disc: F, c0: F) -> (F, F) {
+    let h = (disc.max(F::splat(0.0)) * a).sqrt();
+    let sign_b = b & F::splat(-0.0);
     let q = -(b + (h | sign_b)); // h >= 0, so `h | sign(b)` is copysign(h, b)
     let t0 = c0 / q;
     let t1 = q * inv_a;
@@ -411,6 +439,19 @@ mod tests {
             let want = intersect_sphere_x8(centre, radius, &ray).simd_lt(ray.tmax).to_bitmask();
             let got = occludes_sphere_x8(centre, radius, &ray, &SpherePacket::new(&ray)).to_bitmask();
             assert_eq!(got, want, "round {round}");
+            // At 16 lanes (these rays beside the same rays reversed): each half the 8-lane verdict.
+            let rev = |k: usize| {
+                let mut a = rows[k];
+                a.reverse();
+                a
+            };
+            let wide16 = |a: [f32; 8], b: [f32; 8]| -> wide::f32x16 { bytemuck::cast([a, b]) };
+            let o16 = [wide16(rows[0], rev(0)), wide16(rows[1], rev(1)), wide16(rows[2], rev(2))];
+            let d16 = [wide16(rows[3], rev(3)), wide16(rows[4], rev(4)), wide16(rows[5], rev(5))];
+            let t16 = wide16(rows[6], rev(6));
+            let got16 = occludes_sphere(o16, d16, t16, centre, radius, &SpherePacketOf::of(o16, d16)).to_bitmask();
+            let want_rev = (0..8).fold(0, |m, l| m | ((want >> (7 - l)) & 1) << l);
+            assert_eq!(got16, want | want_rev << 8, "round {round}, 16 lanes");
             occluded += want.count_ones();
             checked += 8;
         }

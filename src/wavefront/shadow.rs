@@ -18,11 +18,11 @@ use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, trans
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{Bvh8Stack, LightBuffer, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
-use crate::geometry::{occludes_sphere_x8, spheres_lanes_x8, SpherePacket};
+use crate::geometry::{occludes_sphere, occludes_sphere_x8, spheres_lanes_x8, SpherePacket, SpherePacketOf};
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
-use crate::simd::{f32x8, gather8, lane_bits, load8, mask_from_bits, store8, u32x8, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x16, f32x8, gather8, i32x16, lane_bits, load8, mask_from_bits, store8, u32x16, u32x8, Lanes, Ray8, Vec3x8, LANES};
 use glam::Vec3;
 
 /// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
@@ -241,7 +241,6 @@ pub fn shadow_with(
         .collect();
     // Point lights' light buffers, where shadow rays walk through nothing.
     let buffer = |li: usize| scene.light_buffers.get(li).and_then(|b| b.as_ref()).filter(|_| !walk);
-    let motion = scene.features.motion;
     let light_key = |i: usize, li: usize| light_key(seed, nee, across, i, li);
     let mut keys = LightKeys { keys: [0; KEY_CACHE], cached: None };
     // Whether any light draws samples (needs stream keys).
@@ -250,7 +249,10 @@ pub fn shadow_with(
     // 8-lane light sample. Each request sums its unoccluded contributions by light, then sample, from
     // zero (`Credit`), and the sums go to the paths in request order at the end: a path's radiance
     // then does not depend on which requests share a chunk or a batch (that depends on the tile).
-    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some) || (0..scene.lights.len()).any(|li| buffer(li).is_some()));
+    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some), (0..scene.lights.len()).any(|li| buffer(li).is_some()));
+    // Per light with a buffer, the packet of an even chunk waiting for its pair.
+    let mut held: Vec<Option<BufferJob>> = scene.lights.iter().map(|_| None).collect();
+    let mut chunk = 0usize;
     let mut base = 0;
     while base < nee.len() {
         let m = (nee.len() - base).min(LANES);
@@ -263,7 +265,6 @@ pub fn shadow_with(
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
         let time = f(&nee.time);
-        let own = gather8(&nee.own, m == LANES, base, |l| base + l.min(m - 1));
         let req = u32x8::from(std::array::from_fn(|l| (base + l.min(m - 1)) as u32));
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
@@ -315,8 +316,6 @@ pub fn shadow_with(
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
             // The cleared lanes' contributions of this light, summed over its samples in registers.
             let mut cleared_sum = Vec3x8::splat(Vec3::ZERO);
-            // Lanes some of whose samples the light buffer answered (their sums go with the cleared).
-            let mut buffered = 0u32;
             for j in 0..ns {
                 // Across: sample index = camera sample x ns + j of the pixel's set. Else all ns samples
                 // serve this one shading point: strata need no permutation.
@@ -384,16 +383,16 @@ pub fn shadow_with(
                         lanes &= !done;
                     }
                 }
-                if let Some(lb) = buffer(li).filter(|_| lanes != 0) {
-                    // Answered from the light's buffer (lanes it refuses go on to the batch).
-                    let tmax = mask_from_bits(lanes).select(f32x8::splat(end), f32x8::splat(-1.0));
-                    let ray = Ray8::new(o, target - o, tmax);
-                    let (occ, answered) = occlusion_light_buffer(scene, profile, lb, &ray, lanes, &own, motion.then_some(time), arena);
-                    let keep = mask_from_bits(answered & !occ);
-                    cleared_sum = cleared_sum + Vec3x8::masked(c, keep);
-                    traced += answered.count_ones() as u64;
-                    buffered |= answered;
-                    lanes &= !answered;
+                if let Some(lb) = buffer(li) {
+                    // Answered from the light's buffer, two chunks' packets at once: an even chunk's
+                    // packet waits for the next chunk's (`BufferJob`).
+                    let job = (lanes != 0).then_some(BufferJob { base, lanes, c });
+                    lanes = 0;
+                    if chunk.is_multiple_of(2) {
+                        held[li] = job;
+                    } else {
+                        traced += resolve_buffered(scene, profile, lb, li, nee, held[li].take().as_ref(), job.as_ref(), &mut credit, arena);
+                    }
                 }
                 let mut todo = lanes & opaque;
                 while todo != 0 {
@@ -420,11 +419,17 @@ pub fn shadow_with(
                     traced += flush(scene, profile, &mut pk, &mut credit, arena, walk, single.as_deref_mut());
                 }
             }
-            if clear | glass | opaque | buffered != 0 {
+            if clear | glass | opaque != 0 {
                 credit.add_clear(base, cleared_sum);
             }
         }
         base += m;
+        chunk += 1;
+    }
+    for (li, job) in held.iter_mut().enumerate() {
+        if let Some(lb) = buffer(li) {
+            traced += resolve_buffered(scene, profile, lb, li, nee, job.take().as_ref(), None, &mut credit, arena);
+        }
     }
     if pk.len > 0 {
         traced += flush(scene, profile, &mut pk, &mut credit, arena, walk, single);
@@ -442,15 +447,31 @@ pub fn shadow_with(
 struct Credit {
     c: [Vec<f32>; 3],
     clear: [Vec<f32>; 3],
+    /// Sums of the contributions answered from light buffers (by light, from zero).
+    buffered: [Vec<f32>; 3],
 }
 
 impl Credit {
-    /// For `n` requests; `cone`: whether any light takes the light-cone test (else no clear sums).
-    fn new(n: usize, cone: bool) -> Self {
+    /// For `n` requests; `cone`: whether any light takes the light-cone test (else no clear sums);
+    /// `buffers`: whether any light has a light buffer.
+    fn new(n: usize, cone: bool, buffers: bool) -> Self {
         // Padded to whole packets: a whole packet's vector never reaches past the end.
         let len = n.next_multiple_of(LANES);
-        let z = |len: usize| [vec![0.0; len], vec![0.0; len], vec![0.0; len]];
-        Credit { c: z(len), clear: z(if cone { len } else { 0 }) }
+        let z = |on: bool| {
+            let len = if on { len } else { 0 };
+            [vec![0.0; len], vec![0.0; len], vec![0.0; len]]
+        };
+        Credit { c: z(true), clear: z(cone), buffered: z(buffers) }
+    }
+
+    /// Add the contributions `c` of a chunk's lanes `lit` answered from a light buffer.
+    #[inline(always)]
+    fn add_buffered(&mut self, base: usize, c: Vec3x8, lit: u32) {
+        let c = Vec3x8::masked(c, mask_from_bits(lit));
+        for (acc, v) in self.buffered.iter_mut().zip([c.x, c.y, c.z]) {
+            let sum = load8(acc, base) + v;
+            store8(acc, base, sum);
+        }
     }
 
     /// Add the sums `c` of a chunk's contributions cleared by the light-cone test (lane `l` = request
@@ -501,12 +522,87 @@ impl Credit {
         for (i, &p) in nee.path.iter().enumerate() {
             paths.add(p, Vec3::new(self.c[0][i], self.c[1][i], self.c[2][i]));
         }
-        if !self.clear[0].is_empty() {
-            for (i, &p) in nee.path.iter().enumerate() {
-                paths.add(p, Vec3::new(self.clear[0][i], self.clear[1][i], self.clear[2][i]));
+        for sums in [&self.clear, &self.buffered] {
+            if !sums[0].is_empty() {
+                for (i, &p) in nee.path.iter().enumerate() {
+                    paths.add(p, Vec3::new(sums[0][i], sums[1][i], sums[2][i]));
+                }
             }
         }
     }
+}
+
+/// A chunk's shadow rays towards a point light with a light buffer, waiting to be answered with the
+/// next chunk's ([`resolve_buffered`]): the rays are rebuilt from the requests then.
+#[derive(Clone, Copy)]
+struct BufferJob {
+    /// The chunk's first request.
+    base: usize,
+    /// The lanes with a shadow ray.
+    lanes: u32,
+    /// The lanes' contributions if unoccluded.
+    c: Vec3x8,
+}
+
+/// Answer up to two chunks' shadow rays towards point light `li` from its buffer `lb` as 16 lanes
+/// ([`occlusion_light_buffer_x16`]); lanes it refuses are traced through the BVH as one packet. The
+/// unoccluded lanes' contributions go to their requests' buffered sums. Even chunks wait for the
+/// odd chunk after them and every light's jobs are answered in light order at that chunk, so each
+/// request's buffered sum adds its lights in light order, whichever chunks were paired. Rays traced.
+#[allow(clippy::too_many_arguments)]
+fn resolve_buffered(
+    scene: &Scene,
+    profile: &Profile,
+    lb: &LightBuffer,
+    li: usize,
+    nee: &NeeQueue,
+    a: Option<&BufferJob>,
+    b: Option<&BufferJob>,
+    credit: &mut Credit,
+    arena: &mut CsgArena,
+) -> u64 {
+    let jobs = match (a, b) {
+        (Some(a), b) => [Some(a), b],
+        (None, b) => [b, None],
+    };
+    if jobs[0].is_none() {
+        return 0;
+    }
+    let Light::Point { position, .. } = scene.lights[li] else { unreachable!("light buffers are built for point lights") };
+    let motion = scene.features.motion;
+    // A job's rays as the chunk loop makes them: from the spawn points to the light, tmax 1.
+    let rays_of = |j: &BufferJob| {
+        let (base, m) = (j.base, (nee.len() - j.base).min(LANES));
+        let f = |v: &Vec<f32>| f32x8::from(gather8(v, m == LANES, base, |l| base + l.min(m - 1)));
+        let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
+        let tmax = mask_from_bits(j.lanes).select(f32x8::ONE, f32x8::splat(-1.0));
+        let own = gather8(&nee.own, m == LANES, base, |l| base + l.min(m - 1));
+        (Ray8::new(o, Vec3x8::splat(position) - o, tmax), own, motion.then(|| f(&nee.time)))
+    };
+    let mut rays = [Ray8::new(Vec3x8::splat(Vec3::ZERO), Vec3x8::splat(Vec3::ONE), f32x8::splat(-1.0)); 2];
+    let mut own = [super::queues::NONE; 2 * LANES];
+    let mut times = [None; 2];
+    let mut lanes = 0;
+    for (h, j) in jobs.iter().enumerate() {
+        if let Some(j) = j {
+            let (r, o, t) = rays_of(j);
+            (rays[h], times[h]) = (r, t);
+            own[LANES * h..LANES * (h + 1)].copy_from_slice(&o);
+            lanes |= j.lanes << (LANES * h);
+        }
+    }
+    let time = times[0].map(|t| [t, times[1].unwrap_or(t)]);
+    let (mut occ, answered) = occlusion_light_buffer_x16(scene, profile, lb, &rays, lanes, &own, time, arena);
+    for (h, j) in jobs.iter().enumerate() {
+        let Some(j) = j else { continue };
+        let refused = (lanes & !answered) >> (LANES * h) & 0xff;
+        if refused != 0 {
+            let mut r = [Ray8 { tmax: mask_from_bits(refused).select(rays[h].tmax, f32x8::splat(-1.0)), ..rays[h] }];
+            occ |= occlusion_group(scene, profile, &mut r, &[times[h]], arena, false).0[0].to_bitmask() << (LANES * h);
+        }
+        credit.add_buffered(j.base, j.c, (lanes & !occ) >> (LANES * h) & 0xff);
+    }
+    lanes.count_ones() as u64
 }
 
 /// Trace the batch's shadow rays (any hit, as one traversal group, or one ray at a time when `single`
@@ -717,6 +813,9 @@ pub fn occlusion_single(
 /// `own[l]`: a static sphere lane `l`'s ray leaves outward from a point on or outside it
 /// ([`NONE`](super::queues::NONE) for none), which it therefore cannot meet (spheres are convex): not tested for that lane. (The
 /// kernel agrees: `tests/light_buffer.rs` holds it to a miss for such rays at scales 1e-4 to 1e5.)
+///
+/// One packet: [`occlusion_light_buffer_x16`] with an empty second half (which costs about what a
+/// pair does: the shadow stage pairs packets).
 #[allow(clippy::too_many_arguments)]
 pub fn occlusion_light_buffer(
     scene: &Scene,
@@ -728,85 +827,144 @@ pub fn occlusion_light_buffer(
     time: Option<f32x8>,
     arena: &mut CsgArena,
 ) -> (u32, u32) {
-    let cells = lb.cells_x8(Vec3x8::new(-ray.d.x, -ray.d.y, -ray.d.z));
-    let cell_v = u32x8::from(cells);
-    let answered = lanes & !cell_v.simd_eq(u32x8::splat(NO_CELL)).to_bitmask();
+    let mut own2 = [super::queues::NONE; 2 * LANES];
+    own2[..LANES].copy_from_slice(own);
+    let empty = Ray8 { tmax: f32x8::splat(-1.0), ..*ray };
+    occlusion_light_buffer_x16(scene, profile, lb, &[*ray, empty], lanes, &own2, time.map(|t| [t, t]), arena)
+}
+
+/// [`occlusion_light_buffer`] of two packets at once, as 16 lanes (lane `8 h + l` = lane `l` of
+/// `rays[h]`; `lanes`, `own`, the results likewise): cells looked up, lists walked and spheres tested
+/// for all 16 lanes together (`f32x16`: one AVX-512 register, so a pair costs about what one packet
+/// does); other prims by packet. Each lane's verdict is the one-packet query's.
+#[allow(clippy::too_many_arguments)]
+pub fn occlusion_light_buffer_x16(
+    scene: &Scene,
+    profile: &Profile,
+    lb: &LightBuffer,
+    rays: &[Ray8; 2],
+    lanes: u32,
+    own: &[u32; 2 * LANES],
+    time: Option<[f32x8; 2]>,
+    arena: &mut CsgArena,
+) -> (u32, u32) {
+    let neg = |r: &Ray8| Vec3x8::new(-r.d.x, -r.d.y, -r.d.z);
+    // (Built in registers and stored once: two 8-lane stores read back as one vector stall.)
+    let cell_v: u32x16 = bytemuck::cast([lb.cells_v8(neg(&rays[0])), lb.cells_v8(neg(&rays[1]))]);
+    let cells = cell_v.to_array();
+    let answered = lanes & !cell_v.simd_eq(u32x16::splat(NO_CELL)).to_bitmask();
     if answered == 0 {
         return (0, 0);
     }
-    let mut ray = Ray8 { tmax: mask_from_bits(answered).select(ray.tmax, f32x8::splat(-1.0)), ..*ray };
-    let pk = SpherePacket::new(&ray);
-    let mut pending = answered;
+    let cat = |a: f32x8, b: f32x8| -> f32x16 { bytemuck::cast([a, b]) };
+    let (r0, r1) = (&rays[0], &rays[1]);
+    let o = [cat(r0.o.x, r1.o.x), cat(r0.o.y, r1.o.y), cat(r0.o.z, r1.o.z)];
+    let d = [cat(r0.d.x, r1.d.x), cat(r0.d.y, r1.d.y), cat(r0.d.z, r1.d.z)];
+    let mut q = Query16 {
+        scene,
+        profile,
+        rays,
+        o,
+        d,
+        tmax: mask16(answered).select(cat(r0.tmax, r1.tmax), f32x16::splat(-1.0)),
+        pk: SpherePacketOf::of(o, d),
+        time,
+        pending: answered,
+    };
     for &pid in scene.unbounded.iter().chain(lb.always()) {
-        if !buffer_test(scene, profile, pid, &mut ray, &pk, time, arena, &mut pending) {
+        if !q.test(pid, arena) {
             return (answered, answered);
         }
     }
-    let own_v = u32x8::from(*own);
-    let len2 = ray.d.dot_unfused(ray.d);
-    let mut todo = pending;
+    let own_v = u32x16::from(*own);
+    let len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let mut todo = q.pending;
     while todo != 0 {
         let c = cells[todo.trailing_zeros() as usize];
-        let same = todo & cell_v.simd_eq(u32x8::splat(c)).to_bitmask();
+        let same = todo & cell_v.simd_eq(u32x16::splat(c)).to_bitmask();
         todo &= !same;
         // The farthest reach of these lanes (with room for the rounding of their lengths).
-        let reach = hmax(mask_from_bits(same).select(len2, f32x8::ZERO)) * (1.0 + 4e-6);
+        // (Squares are >= 0, so their largest is the largest of their bit patterns.)
+        let far: u32x16 = bytemuck::cast(mask16(same).select(len2, f32x16::ZERO));
+        let reach = f32::from_bits(far.reduce_max()) * (1.0 + 4e-6);
         let (prims, near2) = lb.cell(c);
         for (&pid, &n2) in prims.iter().zip(near2) {
             if n2 > reach {
                 break;
             }
-            let mine = own_v.simd_eq(u32x8::splat(pid)).to_bitmask() & pending;
+            let mine = own_v.simd_eq(u32x16::splat(pid)).to_bitmask() & q.pending;
             if mine == 0 {
-                if !buffer_test(scene, profile, pid, &mut ray, &pk, time, arena, &mut pending) {
+                if !q.test(pid, arena) {
                     return (answered, answered);
                 }
-            } else if mine != pending {
+            } else if mine != q.pending {
                 // The lanes on this sphere skip it; the others test it.
-                let mut others = pending & !mine;
-                let mut r = Ray8 { tmax: mask_from_bits(others).select(ray.tmax, f32x8::splat(-1.0)), ..ray };
-                buffer_test(scene, profile, pid, &mut r, &pk, time, arena, &mut others);
-                pending = others | mine;
-                ray.tmax = mask_from_bits(pending).select(ray.tmax, f32x8::splat(-1.0));
+                let keep = q.tmax;
+                q.pending &= !mine;
+                q.tmax = mask16(q.pending).select(q.tmax, f32x16::splat(-1.0));
+                q.test(pid, arena);
+                q.pending |= mine;
+                q.tmax = mask16(mine).select(keep, q.tmax);
             }
-            if pending & same == 0 {
+            if q.pending & same == 0 {
                 break;
             }
         }
     }
-    (answered & !pending, answered)
+    (answered & !q.pending, answered)
 }
 
-/// One prim of [`occlusion_light_buffer`] against the `pending` lanes of `ray`: occluded lanes leave
-/// `pending` (and the ray: `tmax = -1`). False when no lane is left.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn buffer_test(
-    scene: &Scene,
-    profile: &Profile,
-    pid: u32,
-    ray: &mut Ray8,
-    pk: &SpherePacket,
-    time: Option<f32x8>,
-    arena: &mut CsgArena,
-    pending: &mut u32,
-) -> bool {
-    let mut touched = 0;
-    let occ = prim_occlusion_with(scene, profile, pid, ray, Some(pk), time, arena, false, &mut touched).to_bitmask() & *pending;
-    debug_assert_eq!(touched, 0, "no surface lets shadow rays through");
-    if occ != 0 {
-        *pending &= !occ;
-        ray.tmax = mask_from_bits(*pending).select(ray.tmax, f32x8::splat(-1.0));
+/// The state of one [`occlusion_light_buffer_x16`] query: the 16 rays by axis, their `tmax` (-1 in
+/// lanes no longer pending), the sphere terms, and the pending lanes.
+struct Query16<'a> {
+    scene: &'a Scene,
+    profile: &'a Profile,
+    rays: &'a [Ray8; 2],
+    o: [f32x16; 3],
+    d: [f32x16; 3],
+    tmax: f32x16,
+    pk: SpherePacketOf<f32x16>,
+    time: Option<[f32x8; 2]>,
+    pending: u32,
+}
+
+impl Query16<'_> {
+    /// Prim `pid` against the pending lanes: occluded lanes leave `pending` (and `tmax = -1`). False
+    /// when no lane is left. Static spheres in 16 lanes; other prims by packet, as the traversal's leaf
+    /// test ([`prim_occlusion`]).
+    #[inline(always)]
+    fn test(&mut self, pid: u32, arena: &mut CsgArena) -> bool {
+        let (scene, profile) = (self.scene, self.profile);
+        let g = &scene.prim_geo[pid as usize];
+        let occ = if g.r > 0.0 && (self.time.is_none() || g.motion == Vec3::ZERO) && blocks(scene, profile, g.material) {
+            occludes_sphere(self.o, self.d, self.tmax, g.v, g.r, &self.pk).bits()
+        } else {
+            let t: [f32x8; 2] = bytemuck::cast(self.tmax);
+            let mut occ = 0;
+            for h in 0..2 {
+                if (self.pending >> (LANES * h)) & 0xff != 0 {
+                    let r = Ray8 { tmax: t[h], ..self.rays[h] };
+                    let mut touched = 0;
+                    let hit = prim_occlusion_with(scene, profile, pid, &r, None, self.time.map(|t| t[h]), arena, false, &mut touched);
+                    debug_assert_eq!(touched, 0, "no surface lets shadow rays through");
+                    occ |= hit.to_bitmask() << (LANES * h);
+                }
+            }
+            occ
+        } & self.pending;
+        if occ != 0 {
+            self.pending &= !occ;
+            self.tmax = mask16(self.pending).select(self.tmax, f32x16::splat(-1.0));
+        }
+        self.pending != 0
     }
-    *pending != 0
 }
 
-/// The largest lane of `v` (no NaN lanes).
+/// The 16-lane mask set in the lanes whose bit is set in `bits`.
 #[inline(always)]
-fn hmax(v: f32x8) -> f32 {
-    let a = v.to_array();
-    let m = |x: f32, y: f32| if x > y { x } else { y };
-    m(m(m(a[0], a[1]), m(a[2], a[3])), m(m(a[4], a[5]), m(a[6], a[7])))
+fn mask16(bits: u32) -> f32x16 {
+    let lane = i32x16::from(std::array::from_fn::<i32, 16, _>(|l| 1 << l));
+    bytemuck::cast((i32x16::splat(bits as i32) & lane).simd_eq(lane))
 }
 
 /// Any-hit test of 8 shadow rays against one prim (the traversal's leaf callback): the occluded lanes,
