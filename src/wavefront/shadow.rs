@@ -519,15 +519,32 @@ impl Credit {
 
     /// Each request's sum to its path, in request order.
     fn to_paths(&self, nee: &NeeQueue, paths: &mut PathTable) {
-        for (i, &p) in nee.path.iter().enumerate() {
-            paths.add(p, Vec3::new(self.c[0][i], self.c[1][i], self.c[2][i]));
-        }
-        for sums in [&self.clear, &self.buffered] {
+        for sums in [&self.c, &self.clear, &self.buffered] {
             if !sums[0].is_empty() {
-                for (i, &p) in nee.path.iter().enumerate() {
-                    paths.add(p, Vec3::new(sums[0][i], sums[1][i], sums[2][i]));
-                }
+                add_to_paths(sums, &nee.path, paths);
             }
+        }
+    }
+}
+
+/// `paths[path[i]] += sums[i]` for every request `i`, in request order; 8 at a time where 8
+/// consecutive requests serve 8 consecutive paths (the usual case: camera paths in order), which adds
+/// the same values to the same paths.
+fn add_to_paths(sums: &[Vec<f32>; 3], path: &[u32], paths: &mut PathTable) {
+    let steps = u32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
+    let mut i = 0;
+    while i < path.len() {
+        let p = path[i];
+        if i + LANES <= path.len() && u32x8::from(gather8(path, true, i, |l| l)) == u32x8::splat(p) + steps {
+            let q = p as usize;
+            for (acc, sum) in [&mut paths.lr, &mut paths.lg, &mut paths.lb].into_iter().zip(sums) {
+                let v = load8(acc, q) + load8(sum, i);
+                store8(acc, q, v);
+            }
+            i += LANES;
+        } else {
+            paths.add(p, Vec3::new(sums[0][i], sums[1][i], sums[2][i]));
+            i += 1;
         }
     }
 }
