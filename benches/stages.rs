@@ -489,8 +489,9 @@ fn bench_shadow(c: &mut Criterion) {
 }
 
 /// Validate against the group traversal, then time, the shadow rays `packets` (towards the scene's
-/// first light, a point light) answered from its light buffer as the shadow stage answers them: lanes
-/// on a static sphere skip it (`own`), lanes the buffer refuses go through the group traversal.
+/// first light, a point light) answered from its light buffer as the shadow stage answers them: two
+/// packets at a time as 16 lanes (row `name`; one packet at a time in `name_one_packet`), lanes on a
+/// static sphere skip it (`own`), lanes the buffer refuses go through the group traversal.
 #[allow(clippy::too_many_arguments)]
 fn time_light_buffer(
     g: &mut criterion::BenchmarkGroup<criterion::measurement::WallTime>,
@@ -529,7 +530,8 @@ fn time_light_buffer(
     }
     println!("{name}: {total} rays agree with the group traversal ({refused} refused, traced by it)");
     let work: Vec<(strata::simd::Ray8, [u32; 8])> = packets.iter().copied().zip(own.iter().copied()).collect();
-    // Pairs of packets as 16 lanes (what the shadow stage does), validated against single packets.
+    // Pairs of packets as 16 lanes (what the shadow stage does: the timed row `name`), validated
+    // against single packets.
     let via_pair = |w: &[(strata::simd::Ray8, [u32; 8])], arena: &mut strata::csg::CsgArena| {
         let empty = strata::simd::Ray8 { tmax: f32x8::splat(-1.0), ..w[0].0 };
         let rays = [w[0].0, w.get(1).map_or(empty, |x| x.0)];
@@ -555,7 +557,7 @@ fn time_light_buffer(
             assert_eq!((pair >> (8 * h)) & 0xff, via_buffer(p, own, &mut arena), "a pair disagrees with its packets");
         }
     }
-    g.bench_function(format!("{name}_pairs"), |b| {
+    g.bench_function(name, |b| {
         b.iter(|| {
             pool.install(|| {
                 work.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
@@ -566,7 +568,8 @@ fn time_light_buffer(
             })
         })
     });
-    g.bench_function(name, |b| {
+    // One packet at a time (the pair query with an empty half: what a lone packet costs).
+    g.bench_function(format!("{name}_one_packet"), |b| {
         b.iter(|| {
             pool.install(|| {
                 work.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
