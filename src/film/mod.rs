@@ -287,6 +287,19 @@ impl Film {
         (0..self.len()).map(|i| self.pixel(i))
     }
 
+    /// Ask the cache for pixel `i`'s cell ahead of a [`Film::merge_pixel`] (a hint: no effect on the
+    /// film; out-of-range `i` is ignored).
+    #[inline(always)]
+    pub fn prefetch(&self, i: usize) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(c) = self.cells.get(i) {
+            // SAFETY: a prefetch reads nothing architecturally; the pointer is to a live cell.
+            unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((c as *const Cell).cast()) };
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = i;
+    }
+
     /// Add `p`'s sums and count to pixel `i`.
     #[inline(always)]
     pub fn merge_pixel(&mut self, i: usize, p: &Pixel) {

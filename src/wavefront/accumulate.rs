@@ -27,6 +27,10 @@ pub fn accumulate(paths: &PathTable, film: &mut Film) -> u64 {
     let n = paths.len();
     for base in (0..n).step_by(8) {
         let m = (n - base).min(8);
+        // The cells are spread over a film larger than L2: ask for the one two chunks ahead now.
+        if let Some(&ahead) = paths.pixel.get(base + 16) {
+            film.prefetch(ahead as usize);
+        }
         // A whole chunk is one block copy (lane by lane stores would stall the vector loads after them).
         let lanes = |v: &[f32]| -> [f32; 8] {
             match v.get(base..base + 8) {
