@@ -17,8 +17,8 @@ Not run by CI or the tests.
 """
 import argparse
 import filecmp
+import json
 import os
-import re
 import statistics
 import subprocess
 import sys
@@ -27,17 +27,16 @@ STAGES = ["generate", "intersect", "csg_merge", "shade", "shadow", "accumulate"]
 
 
 def run(binary, out, threads, args):
-    cmd = [binary, "render", *args, "--threads", str(threads), "-o", out]
+    """Stage CPU seconds and wall seconds of one render, at full precision (from `--stats-json`)."""
+    stats = os.path.splitext(out)[0] + ".json"
+    cmd = [binary, "render", *args, "--threads", str(threads), "-q", "-o", out, "--stats-json", stats]
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed:\n{p.stderr}")
-    text = p.stdout + p.stderr
-    stages = re.search(r"stages \(cpu s\): (.*)", text)
-    wall = re.search(r"time: ([\d.]+) s wall", text)
-    if not stages or not wall:
-        sys.exit(f"no render summary from {binary}:\n{text}")
-    got = {k: float(v) for k, v in re.findall(r"(\w+) ([\d.]+)", stages.group(1))}
-    got["wall"] = float(wall.group(1))
+    with open(stats) as f:
+        s = json.load(f)
+    got = {k: float(v) for k, v in s["stage_seconds"].items()}
+    got["wall"] = float(s["seconds"])
     return got
 
 
@@ -63,13 +62,13 @@ def main():
         for n, b in zip(names, a.binaries):
             got = run(b, f"target/ab/{n}.exr", a.threads, render_args)
             results[n].append(got)
-            print(f"round {r} {n}  wall {got['wall']:.3f}  " + "  ".join(f"{k} {got.get(k, 0):.3f}" for k in STAGES), flush=True)
+            print(f"round {r} {n}  wall {got['wall']:.4f}  " + "  ".join(f"{k} {got.get(k, 0):.4f}" for k in STAGES), flush=True)
     print()
     for n in names:
         cols = []
         for k in ["wall", *STAGES]:
             v = [g.get(k, 0.0) for g in results[n]]
-            cols.append(f"{k} {statistics.median(v):.3f} ({min(v):.3f}-{max(v):.3f})")
+            cols.append(f"{k} {statistics.median(v):.4f} ({min(v):.4f}-{max(v):.4f})")
         print(f"{n}  median (range): " + "  ".join(cols))
     first = f"target/ab/{names[0]}.exr"
     for n in names[1:]:
