@@ -568,7 +568,7 @@ fn time_light_buffer(
             })
         })
     });
-    // One packet at a time (the pair query with an empty half: what a lone packet costs).
+    // One packet at a time (the 8-lane query: what the stage uses without AVX-512, and for a lone packet).
     g.bench_function(format!("{name}_one_packet"), |b| {
         b.iter(|| {
             pool.install(|| {

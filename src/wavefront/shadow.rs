@@ -384,11 +384,12 @@ pub fn shadow_with(
                     }
                 }
                 if let Some(lb) = buffer(li) {
-                    // Answered from the light's buffer, two chunks' packets at once: an even chunk's
-                    // packet waits for the next chunk's (`BufferJob`).
+                    // Answered from the light's buffer; where AVX-512 makes 16 lanes cost what 8 do,
+                    // two chunks' packets at once: an even chunk's packet waits for the next chunk's
+                    // (`BufferJob`).
                     let job = (lanes != 0).then_some(BufferJob { base, lanes, c });
                     lanes = 0;
-                    if chunk.is_multiple_of(2) {
+                    if PAIR_PACKETS && chunk.is_multiple_of(2) {
                         held[li] = job;
                     } else {
                         traced += resolve_buffered(scene, profile, lb, li, nee, held[li].take().as_ref(), job.as_ref(), &mut credit, arena);
@@ -561,11 +562,12 @@ struct BufferJob {
     c: Vec3x8,
 }
 
-/// Answer up to two chunks' shadow rays towards point light `li` from its buffer `lb` as 16 lanes
-/// ([`occlusion_light_buffer_x16`]); lanes it refuses are traced through the BVH as one packet. The
-/// unoccluded lanes' contributions go to their requests' buffered sums. Even chunks wait for the
-/// odd chunk after them and every light's jobs are answered in light order at that chunk, so each
-/// request's buffered sum adds its lights in light order, whichever chunks were paired. Rays traced.
+/// Answer up to two chunks' shadow rays towards point light `li` from its buffer `lb` (two as 16 lanes,
+/// [`occlusion_light_buffer_x16`]; one as 8); lanes it refuses are traced through the BVH as one
+/// packet. The unoccluded lanes' contributions go to their requests' buffered sums. Where packets are
+/// paired ([`PAIR_PACKETS`]), even chunks wait for the odd chunk after them and every light's jobs are
+/// answered in light order at that chunk, so each request's buffered sum adds its lights in light
+/// order, whichever chunks were paired (and unpaired, each chunk's at its light's turn). Rays traced.
 #[allow(clippy::too_many_arguments)]
 fn resolve_buffered(
     scene: &Scene,
@@ -609,7 +611,11 @@ fn resolve_buffered(
         }
     }
     let time = times[0].map(|t| [t, times[1].unwrap_or(t)]);
-    let (mut occ, answered) = occlusion_light_buffer_x16(scene, profile, lb, &rays, lanes, &own, time, arena);
+    let (mut occ, answered) = if jobs[1].is_some() {
+        occlusion_light_buffer_x16(scene, profile, lb, &rays, lanes, &own, time, arena)
+    } else {
+        query_light_buffer::<f32x8>(scene, profile, lb, &rays[..1], lanes, &own[..LANES], time, arena)
+    };
     for (h, j) in jobs.iter().enumerate() {
         let Some(j) = j else { continue };
         let refused = (lanes & !answered) >> (LANES * h) & 0xff;
@@ -830,9 +836,6 @@ pub fn occlusion_single(
 /// `own[l]`: a static sphere lane `l`'s ray leaves outward from a point on or outside it
 /// ([`NONE`](super::queues::NONE) for none), which it therefore cannot meet (spheres are convex): not tested for that lane. (The
 /// kernel agrees: `tests/light_buffer.rs` holds it to a miss for such rays at scales 1e-4 to 1e5.)
-///
-/// One packet: [`occlusion_light_buffer_x16`] with an empty second half (which costs about what a
-/// pair does: the shadow stage pairs packets).
 #[allow(clippy::too_many_arguments)]
 pub fn occlusion_light_buffer(
     scene: &Scene,
@@ -844,16 +847,13 @@ pub fn occlusion_light_buffer(
     time: Option<f32x8>,
     arena: &mut CsgArena,
 ) -> (u32, u32) {
-    let mut own2 = [super::queues::NONE; 2 * LANES];
-    own2[..LANES].copy_from_slice(own);
-    let empty = Ray8 { tmax: f32x8::splat(-1.0), ..*ray };
-    occlusion_light_buffer_x16(scene, profile, lb, &[*ray, empty], lanes, &own2, time.map(|t| [t, t]), arena)
+    query_light_buffer::<f32x8>(scene, profile, lb, std::slice::from_ref(ray), lanes, own, time.map(|t| [t; 2]), arena)
 }
 
 /// [`occlusion_light_buffer`] of two packets at once, as 16 lanes (lane `8 h + l` = lane `l` of
 /// `rays[h]`; `lanes`, `own`, the results likewise): cells looked up, lists walked and spheres tested
-/// for all 16 lanes together (`f32x16`: one AVX-512 register, so a pair costs about what one packet
-/// does); other prims by packet. Each lane's verdict is the one-packet query's.
+/// for all 16 lanes together (`f32x16`: one AVX-512 register, so on such targets a pair costs about
+/// what one packet does); other prims by packet. Each lane's verdict is the one-packet query's.
 #[allow(clippy::too_many_arguments)]
 pub fn occlusion_light_buffer_x16(
     scene: &Scene,
@@ -865,25 +865,139 @@ pub fn occlusion_light_buffer_x16(
     time: Option<[f32x8; 2]>,
     arena: &mut CsgArena,
 ) -> (u32, u32) {
-    let neg = |r: &Ray8| Vec3x8::new(-r.d.x, -r.d.y, -r.d.z);
-    // (Built in registers and stored once: two 8-lane stores read back as one vector stall.)
-    let cell_v: u32x16 = bytemuck::cast([lb.cells_v8(neg(&rays[0])), lb.cells_v8(neg(&rays[1]))]);
-    let cells = cell_v.to_array();
-    let answered = lanes & !cell_v.simd_eq(u32x16::splat(NO_CELL)).to_bitmask();
+    query_light_buffer::<f32x16>(scene, profile, lb, rays, lanes, own, time, arena)
+}
+
+/// Whether the shadow stage pairs packets for the light buffer: where `f32x16` is one register. (On
+/// AVX2 a pair costs two packets' work, and pairing scattered packets measured 3% slower.)
+const PAIR_PACKETS: bool = cfg!(target_feature = "avx512f");
+
+/// A lane type of the light-buffer query: one packet of 8 rays (`f32x8`) or two (`f32x16`), with
+/// the integer lanes (`U`) of its cells and own spheres.
+trait PacketLanes: Lanes {
+    /// Packets per vector.
+    const PACKETS: usize;
+    type U: Copy;
+    /// The vector of the packets' lanes `p` (`PACKETS` of them), packet `h` in lanes `8 h..8 h + 8`.
+    fn cat(p: &[f32x8]) -> Self;
+    /// Packet `h`'s lanes.
+    fn half(self, h: usize) -> f32x8;
+    /// The mask set in the lanes whose bit is set in `bits`.
+    fn from_bits(bits: u32) -> Self;
+    /// The integer vector of the packets' lanes `p`.
+    fn cat_u(p: &[u32x8]) -> Self::U;
+    /// The integer vector of `v[..8 * PACKETS]`.
+    fn load_u(v: &[u32]) -> Self::U;
+    /// The lanes of `u` equal to `c`, as bits.
+    fn eq_bits(u: Self::U, c: u32) -> u32;
+    /// The largest lane of `self` taken as unsigned integers (for non-negative floats: the largest).
+    fn max_bits(self) -> u32;
+}
+
+impl PacketLanes for f32x8 {
+    const PACKETS: usize = 1;
+    type U = u32x8;
+    #[inline(always)]
+    fn cat(p: &[f32x8]) -> Self {
+        p[0]
+    }
+    #[inline(always)]
+    fn half(self, _: usize) -> f32x8 {
+        self
+    }
+    #[inline(always)]
+    fn from_bits(bits: u32) -> Self {
+        mask_from_bits(bits)
+    }
+    #[inline(always)]
+    fn cat_u(p: &[u32x8]) -> u32x8 {
+        p[0]
+    }
+    #[inline(always)]
+    fn load_u(v: &[u32]) -> u32x8 {
+        u32x8::from(<[u32; 8]>::try_from(&v[..8]).unwrap())
+    }
+    #[inline(always)]
+    fn eq_bits(u: u32x8, c: u32) -> u32 {
+        u.simd_eq(u32x8::splat(c)).to_bitmask()
+    }
+    #[inline(always)]
+    fn max_bits(self) -> u32 {
+        bytemuck::cast::<f32x8, u32x8>(self).reduce_max()
+    }
+}
+
+impl PacketLanes for f32x16 {
+    const PACKETS: usize = 2;
+    type U = u32x16;
+    // (Vectors of two packets are built in registers: two 8-lane stores read back as one vector
+    // would stall.)
+    #[inline(always)]
+    fn cat(p: &[f32x8]) -> Self {
+        bytemuck::cast([p[0], p[1]])
+    }
+    #[inline(always)]
+    fn half(self, h: usize) -> f32x8 {
+        bytemuck::cast::<f32x16, [f32x8; 2]>(self)[h]
+    }
+    #[inline(always)]
+    fn from_bits(bits: u32) -> Self {
+        let lane = i32x16::from(std::array::from_fn::<i32, 16, _>(|l| 1 << l));
+        bytemuck::cast((i32x16::splat(bits as i32) & lane).simd_eq(lane))
+    }
+    #[inline(always)]
+    fn cat_u(p: &[u32x8]) -> u32x16 {
+        bytemuck::cast([p[0], p[1]])
+    }
+    #[inline(always)]
+    fn load_u(v: &[u32]) -> u32x16 {
+        u32x16::from(<[u32; 16]>::try_from(&v[..16]).unwrap())
+    }
+    #[inline(always)]
+    fn eq_bits(u: u32x16, c: u32) -> u32 {
+        u.simd_eq(u32x16::splat(c)).to_bitmask()
+    }
+    #[inline(always)]
+    fn max_bits(self) -> u32 {
+        bytemuck::cast::<f32x16, u32x16>(self).reduce_max()
+    }
+}
+
+/// The light-buffer query of `F::PACKETS` packets `rays` as one vector of lanes (see
+/// [`occlusion_light_buffer`]; `lanes`, `own` and the results by lane, packet `h` in lanes
+/// `8 h..8 h + 8`; `time` per packet).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn query_light_buffer<F: PacketLanes>(
+    scene: &Scene,
+    profile: &Profile,
+    lb: &LightBuffer,
+    rays: &[Ray8],
+    lanes: u32,
+    own: &[u32],
+    time: Option<[f32x8; 2]>,
+    arena: &mut CsgArena,
+) -> (u32, u32) {
+    let rays = &rays[..F::PACKETS];
+    let mut per = [u32x8::ZERO; 2];
+    for (h, r) in rays.iter().enumerate() {
+        per[h] = lb.cells_v8(Vec3x8::new(-r.d.x, -r.d.y, -r.d.z));
+    }
+    let cell_v = F::cat_u(&per[..F::PACKETS]);
+    let cells: [u32; 2 * LANES] = bytemuck::cast(per);
+    let answered = lanes & !F::eq_bits(cell_v, NO_CELL);
     if answered == 0 {
         return (0, 0);
     }
-    let cat = |a: f32x8, b: f32x8| -> f32x16 { bytemuck::cast([a, b]) };
-    let (r0, r1) = (&rays[0], &rays[1]);
-    let o = [cat(r0.o.x, r1.o.x), cat(r0.o.y, r1.o.y), cat(r0.o.z, r1.o.z)];
-    let d = [cat(r0.d.x, r1.d.x), cat(r0.d.y, r1.d.y), cat(r0.d.z, r1.d.z)];
-    let mut q = Query16 {
+    let o = [by_lane::<F>(rays, |r| r.o.x), by_lane(rays, |r| r.o.y), by_lane(rays, |r| r.o.z)];
+    let d = [by_lane::<F>(rays, |r| r.d.x), by_lane(rays, |r| r.d.y), by_lane(rays, |r| r.d.z)];
+    let mut q = Query {
         scene,
         profile,
         rays,
         o,
         d,
-        tmax: mask16(answered).select(cat(r0.tmax, r1.tmax), f32x16::splat(-1.0)),
+        tmax: F::from_bits(answered).select(by_lane(rays, |r| r.tmax), F::splat(-1.0)),
         pk: SpherePacketOf::of(o, d),
         time,
         pending: answered,
@@ -893,23 +1007,22 @@ pub fn occlusion_light_buffer_x16(
             return (answered, answered);
         }
     }
-    let own_v = u32x16::from(*own);
+    let own_v = F::load_u(own);
     let len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     let mut todo = q.pending;
     while todo != 0 {
         let c = cells[todo.trailing_zeros() as usize];
-        let same = todo & cell_v.simd_eq(u32x16::splat(c)).to_bitmask();
+        let same = todo & F::eq_bits(cell_v, c);
         todo &= !same;
-        // The farthest reach of these lanes (with room for the rounding of their lengths).
-        // (Squares are >= 0, so their largest is the largest of their bit patterns.)
-        let far: u32x16 = bytemuck::cast(mask16(same).select(len2, f32x16::ZERO));
-        let reach = f32::from_bits(far.reduce_max()) * (1.0 + 4e-6);
+        // The farthest reach of these lanes (with room for the rounding of their lengths). (Squares
+        // are >= 0, so their largest is the largest of their bit patterns.)
+        let reach = f32::from_bits(F::from_bits(same).select(len2, F::splat(0.0)).max_bits()) * (1.0 + 4e-6);
         let (prims, near2) = lb.cell(c);
         for (&pid, &n2) in prims.iter().zip(near2) {
             if n2 > reach {
                 break;
             }
-            let mine = own_v.simd_eq(u32x16::splat(pid)).to_bitmask() & q.pending;
+            let mine = F::eq_bits(own_v, pid) & q.pending;
             if mine == 0 {
                 if !q.test(pid, arena) {
                     return (answered, answered);
@@ -918,10 +1031,10 @@ pub fn occlusion_light_buffer_x16(
                 // The lanes on this sphere skip it; the others test it.
                 let keep = q.tmax;
                 q.pending &= !mine;
-                q.tmax = mask16(q.pending).select(q.tmax, f32x16::splat(-1.0));
+                q.tmax = F::from_bits(q.pending).select(q.tmax, F::splat(-1.0));
                 q.test(pid, arena);
                 q.pending |= mine;
-                q.tmax = mask16(mine).select(keep, q.tmax);
+                q.tmax = F::from_bits(mine).select(keep, q.tmax);
             }
             if q.pending & same == 0 {
                 break;
@@ -931,24 +1044,34 @@ pub fn occlusion_light_buffer_x16(
     (answered & !q.pending, answered)
 }
 
-/// The state of one [`occlusion_light_buffer_x16`] query: the 16 rays by axis, their `tmax` (-1 in
-/// lanes no longer pending), the sphere terms, and the pending lanes.
-struct Query16<'a> {
+/// One field `f` of the packets `rays` (`F::PACKETS` of them) as one vector.
+#[inline(always)]
+fn by_lane<F: PacketLanes>(rays: &[Ray8], f: impl Fn(&Ray8) -> f32x8) -> F {
+    let mut p = [f32x8::ZERO; 2];
+    for (h, r) in rays.iter().enumerate() {
+        p[h] = f(r);
+    }
+    F::cat(&p[..F::PACKETS])
+}
+
+/// The state of one [`query_light_buffer`]: the rays by axis, their `tmax` (-1 in lanes no longer
+/// pending), the sphere terms, and the pending lanes.
+struct Query<'a, F> {
     scene: &'a Scene,
     profile: &'a Profile,
-    rays: &'a [Ray8; 2],
-    o: [f32x16; 3],
-    d: [f32x16; 3],
-    tmax: f32x16,
-    pk: SpherePacketOf<f32x16>,
+    rays: &'a [Ray8],
+    o: [F; 3],
+    d: [F; 3],
+    tmax: F,
+    pk: SpherePacketOf<F>,
     time: Option<[f32x8; 2]>,
     pending: u32,
 }
 
-impl Query16<'_> {
+impl<F: PacketLanes> Query<'_, F> {
     /// Prim `pid` against the pending lanes: occluded lanes leave `pending` (and `tmax = -1`). False
-    /// when no lane is left. Static spheres in 16 lanes; other prims by packet, as the traversal's leaf
-    /// test ([`prim_occlusion`]).
+    /// when no lane is left. Static spheres in all lanes at once; other prims by packet, as the
+    /// traversal's leaf test ([`prim_occlusion`]).
     #[inline(always)]
     fn test(&mut self, pid: u32, arena: &mut CsgArena) -> bool {
         let (scene, profile) = (self.scene, self.profile);
@@ -956,11 +1079,10 @@ impl Query16<'_> {
         let occ = if g.r > 0.0 && (self.time.is_none() || g.motion == Vec3::ZERO) && blocks(scene, profile, g.material) {
             occludes_sphere(self.o, self.d, self.tmax, g.v, g.r, &self.pk).bits()
         } else {
-            let t: [f32x8; 2] = bytemuck::cast(self.tmax);
             let mut occ = 0;
-            for h in 0..2 {
+            for (h, ray) in self.rays.iter().enumerate() {
                 if (self.pending >> (LANES * h)) & 0xff != 0 {
-                    let r = Ray8 { tmax: t[h], ..self.rays[h] };
+                    let r = Ray8 { tmax: self.tmax.half(h), ..*ray };
                     let mut touched = 0;
                     let hit = prim_occlusion_with(scene, profile, pid, &r, None, self.time.map(|t| t[h]), arena, false, &mut touched);
                     debug_assert_eq!(touched, 0, "no surface lets shadow rays through");
@@ -971,17 +1093,10 @@ impl Query16<'_> {
         } & self.pending;
         if occ != 0 {
             self.pending &= !occ;
-            self.tmax = mask16(self.pending).select(self.tmax, f32x16::splat(-1.0));
+            self.tmax = F::from_bits(self.pending).select(self.tmax, F::splat(-1.0));
         }
         self.pending != 0
     }
-}
-
-/// The 16-lane mask set in the lanes whose bit is set in `bits`.
-#[inline(always)]
-fn mask16(bits: u32) -> f32x16 {
-    let lane = i32x16::from(std::array::from_fn::<i32, 16, _>(|l| 1 << l));
-    bytemuck::cast((i32x16::splat(bits as i32) & lane).simd_eq(lane))
 }
 
 /// Any-hit test of 8 shadow rays against one prim (the traversal's leaf callback): the occluded lanes,
