@@ -18,7 +18,7 @@ use strata::wavefront::intersect::{intersect, intersect_with, prim_t_f64, Traver
 use strata::wavefront::queues::NONE;
 use strata::wavefront::shade::{shade, ShadeOut};
 use strata::wavefront::shadow::{
-    occluded_x8, occlusion_group, occlusion_light_buffer, occlusion_light_buffer_x16, occlusion_single, shadow,
+    occluded_x8, occlusion_group, occlusion_light_buffer, occlusion_light_buffer_x16, occlusion_refused, occlusion_single, shadow,
 };
 use strata::wavefront::{CsgCandidates, HitQueue, NeeQueue, PathTable, RayQueue};
 
@@ -505,13 +505,8 @@ fn time_light_buffer(
     let lb = scene.light_buffers[0].as_ref().expect("the bench scene's point light has a light buffer");
     let via_buffer = |p: &strata::simd::Ray8, own: &[u32; 8], arena: &mut strata::csg::CsgArena| {
         let lanes = p.tmax.simd_gt(f32x8::ZERO).to_bitmask();
-        let (mut occ, answered) = occlusion_light_buffer(scene, profile, lb, p, lanes, own, None, arena);
-        if answered != lanes {
-            let rest = strata::simd::mask_from_bits(lanes & !answered);
-            let mut r = [strata::simd::Ray8 { tmax: rest.select(p.tmax, f32x8::splat(-1.0)), ..*p }];
-            occ |= occlusion_group(scene, profile, &mut r, &[None], arena, false).0[0].to_bitmask();
-        }
-        occ
+        let (occ, answered) = occlusion_light_buffer(scene, profile, lb, p, lanes, own, None, arena);
+        occ | occlusion_refused(scene, profile, p, lanes & !answered, None, arena)
     };
     let mut arena = strata::csg::CsgArena::new();
     let (mut refused, mut total) = (0, 0);
@@ -541,15 +536,10 @@ fn time_light_buffer(
             own2[8..].copy_from_slice(&x.1);
         }
         let lanes = rays[0].tmax.simd_gt(f32x8::ZERO).to_bitmask() | rays[1].tmax.simd_gt(f32x8::ZERO).to_bitmask() << 8;
-        let (mut occ, answered) = occlusion_light_buffer_x16(scene, profile, lb, &rays, lanes, &own2, None, arena);
-        if answered != lanes {
-            for (h, ray) in rays.iter().enumerate() {
-                let rest = strata::simd::mask_from_bits((lanes & !answered) >> (8 * h) & 0xff);
-                let mut r = [strata::simd::Ray8 { tmax: rest.select(ray.tmax, f32x8::splat(-1.0)), ..*ray }];
-                occ |= occlusion_group(scene, profile, &mut r, &[None], arena, false).0[0].to_bitmask() << (8 * h);
-            }
-        }
-        occ
+        let (occ, answered) = occlusion_light_buffer_x16(scene, profile, lb, &rays, lanes, &own2, None, arena);
+        (0..2).fold(occ, |occ, h| {
+            occ | occlusion_refused(scene, profile, &rays[h], (lanes & !answered) >> (8 * h) & 0xff, None, arena) << (8 * h)
+        })
     };
     for w in work.chunks(2) {
         let pair = via_pair(w, &mut arena);

@@ -618,14 +618,20 @@ fn resolve_buffered(
     };
     for (h, j) in jobs.iter().enumerate() {
         let Some(j) = j else { continue };
-        let refused = (lanes & !answered) >> (LANES * h) & 0xff;
-        if refused != 0 {
-            let mut r = [Ray8 { tmax: mask_from_bits(refused).select(rays[h].tmax, f32x8::splat(-1.0)), ..rays[h] }];
-            occ |= occlusion_group(scene, profile, &mut r, &[times[h]], arena, false).0[0].to_bitmask() << (LANES * h);
-        }
+        occ |= occlusion_refused(scene, profile, &rays[h], (lanes & !answered) >> (LANES * h) & 0xff, times[h], arena) << (LANES * h);
         credit.add_buffered(j.base, j.c, (lanes & !occ) >> (LANES * h) & 0xff);
     }
     lanes.count_ones() as u64
+}
+
+/// The occluded lanes among `refused`, lanes of `ray` a light buffer did not answer, by the group
+/// traversal (one packet; none when `refused` is empty).
+pub fn occlusion_refused(scene: &Scene, profile: &Profile, ray: &Ray8, refused: u32, time: Option<f32x8>, arena: &mut CsgArena) -> u32 {
+    if refused == 0 {
+        return 0;
+    }
+    let mut r = [Ray8 { tmax: mask_from_bits(refused).select(ray.tmax, f32x8::splat(-1.0)), ..*ray }];
+    occlusion_group(scene, profile, &mut r, &[time], arena, false).0[0].to_bitmask()
 }
 
 /// Trace the batch's shadow rays (any hit, as one traversal group, or one ray at a time when `single`
