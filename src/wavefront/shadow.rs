@@ -249,9 +249,10 @@ pub fn shadow_with(
     // 8-lane light sample. Each request sums its unoccluded contributions by light, then sample, from
     // zero (`Credit`), and the sums go to the paths in request order at the end: a path's radiance
     // then does not depend on which requests share a chunk or a batch (that depends on the tile).
-    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some), (0..scene.lights.len()).any(|li| buffer(li).is_some()));
-    // Per light with a buffer, the packet of an even chunk waiting for its pair.
-    let mut held: Vec<Option<BufferJob>> = scene.lights.iter().map(|_| None).collect();
+    let buffers = (0..scene.lights.len()).any(|li| buffer(li).is_some());
+    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some), buffers);
+    // Per light (when any has a buffer), the packet of an even chunk waiting for its pair.
+    let mut held: Vec<Option<BufferJob>> = if buffers { vec![None; scene.lights.len()] } else { Vec::new() };
     let mut chunk = 0usize;
     let mut base = 0;
     while base < nee.len() {
