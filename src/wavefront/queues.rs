@@ -122,6 +122,27 @@ pub struct RayRows {
     pub media: [MediumStack; LANES],
 }
 
+impl RayRows {
+    /// Lane `l` as one ray (`tmax = inf`, as [`RayQueue::push_rows`] stores it).
+    #[inline(always)]
+    pub fn item(&self, l: usize) -> RayItem {
+        RayItem {
+            o: Vec3::new(self.o[0][l], self.o[1][l], self.o[2][l]),
+            d: Vec3::new(self.d[0][l], self.d[1][l], self.d[2][l]),
+            tmax: f32::INFINITY,
+            time: self.time[l],
+            lambda: self.lambda[l],
+            throughput: Vec3::new(self.throughput[0][l], self.throughput[1][l], self.throughput[2][l]),
+            path: self.path[l],
+            branch: self.branch[l],
+            depth: self.depth[l],
+            diffuse: self.diffuse[l],
+            flags: self.flags[l],
+            media: self.media[l],
+        }
+    }
+}
+
 /// Rays in flight (camera rays, or the secondary rays of one bounce).
 #[derive(Default)]
 pub struct RayQueue {

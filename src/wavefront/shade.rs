@@ -16,7 +16,7 @@ use crate::optics::{
 };
 use crate::sample::{hash_combine, random_f32, sample_2d, stream_key, Sampler2d};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture};
-use crate::simd::{f32x8, gather8, mask_from_bits, u32x8, Vec3x8, LANES};
+use crate::simd::{f32x8, gather8, lane_bits, mask_from_bits, u32x8, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
@@ -626,50 +626,70 @@ impl Ctx<'_> {
         next.push_rows(k, &rows);
     }
 
-    /// Up to 8 mirror or dielectric hits (`idx`, ray indices; one kind per chunk): the hit geometry
-    /// (spheres in 8 lanes), then lane by lane the medium bookkeeping (is the surface a real interface,
-    /// between which indices), then the directions, reflectance and spawn points of all lanes as 8-lane
-    /// arithmetic ([`fresnel_refract_x8`], [`reflect_x8`], [`offset_ray_origin_scaled_x8`], each
-    /// bit-identical to its scalar twin), then the children lane by lane. Thin sheets and Schlick's
-    /// approximation take the scalar [`Ctx::dielectric`]. Same rays, in the same order, as shading the
-    /// hits one by one.
+    /// Up to 8 mirror or dielectric hits (`idx`, ray indices; one kind per chunk): the ray fields as lane
+    /// arrays straight from the queue, the hit geometry (spheres in 8 lanes), then lane by lane the
+    /// medium bookkeeping (is the surface a real interface, between which indices), then the directions,
+    /// reflectance and spawn points of all lanes as 8-lane arithmetic ([`fresnel_refract_x8`],
+    /// [`reflect_x8`], [`offset_ray_origin_scaled_x8`], each bit-identical to its scalar twin), and the
+    /// one child of each mirror, roulette-branched interface and null crossing as lane rows, selected
+    /// in 8 lanes and queued as one block when every lane has its child (the usual case). Thin sheets,
+    /// Schlick's approximation and split branching (two children) take the scalar code per lane. Same
+    /// rays, in the same order, as shading the hits one by one.
     // Out of line (one call per 8 hits): keeps it a separate entry in profiles.
     #[inline(never)]
     fn specular_x8(&self, rays: &RayQueue, hits: &HitQueue, idx: &[u32], paths: &PathTable, next: &mut RayQueue) {
         let (scene, profile) = (self.scene, self.profile);
         let m = idx.len();
-        let geo = surface_hits_x8(scene, (1 << m) - 1, |l| HitRay::of(rays, hits, idx[l] as usize));
-        let mut r = [RayItem::default(); LANES];
-        let (mut pixel, mut sample) = ([0u32; LANES], [0u32; LANES]);
+        let live = (1u32 << m) - 1;
+        let geo = surface_hits_x8(scene, live, |l| HitRay::of(rays, hits, idx[l] as usize));
+        // Lanes past `m` repeat the chunk's last ray (their results are discarded).
+        let i0 = idx[0] as usize;
+        let run = m == LANES && idx[LANES - 1] as usize == i0 + LANES - 1;
+        let at = |l: usize| idx[l.min(m - 1)] as usize;
+        let dir = [gather8(&rays.dx, run, i0, at), gather8(&rays.dy, run, i0, at), gather8(&rays.dz, run, i0, at)];
+        let mut thr = [gather8(&rays.tr, run, i0, at), gather8(&rays.tg, run, i0, at), gather8(&rays.tb, run, i0, at)];
+        let path = gather8(&rays.path, run, i0, at);
+        let branch = gather8(&rays.branch, run, i0, at);
+        let depth = gather8(&rays.depth, run, i0, at);
+        let media = gather8(&rays.media, run, i0, at);
+        let (pixel, sample) = (path.map(|p| paths.pixel[p as usize]), path.map(|p| paths.sample[p as usize]));
+        let lambda = if rays.with_lambda { gather8(&rays.lambda, run, i0, at) } else { [0.0; LANES] };
         let mut eta = [1.0f32; LANES];
-        let mut stack = [MediumStack::default(); LANES];
-        let mut tint = [Vec3::ZERO; LANES];
+        // The media on the far side of the surface (children that cross it).
+        let mut stack = media;
+        let mut tint = [[1.0f32; LANES]; 3];
         // Lanes by what they do: pass straight through (a null or index-matched crossing), reflect
-        // (mirrors), reflect and refract (real interfaces), take the scalar path; lanes in none of
+        // (mirrors), reflect or refract (real interfaces), take the scalar path; lanes in none of
         // them are at the depth limit.
         let (mut pass, mut mirror, mut real, mut scalar) = (0u32, 0u32, 0u32, 0u32);
         let disp = scene.features.dispersion;
         for (l, &i) in idx.iter().enumerate() {
-            let i = i as usize;
-            r[l] = rays.get(i);
-            absorb(scene, &mut r[l], hits.t[i]);
-            (pixel[l], sample[l]) = (paths.pixel[r[l].path as usize], paths.sample[r[l].path as usize]);
             let (h, bit) = (&geo[l], 1 << l);
-            let deeper = (r[l].depth as u32) < profile.max_depth;
+            if media[l] != MediumStack::default() {
+                // Inside a medium: Beer-Lambert along the segment just travelled.
+                let mut r = rays.get(i as usize);
+                absorb(scene, &mut r, hits.t[i as usize]);
+                for (t, c) in thr.iter_mut().zip(r.throughput.to_array()) {
+                    t[l] = c;
+                }
+            }
+            let deeper = (depth[l] as u32) < profile.max_depth;
             match &scene.materials[h.material as usize] {
                 Material::Mirror { tint: t } => {
                     if deeper {
                         mirror |= bit;
-                        tint[l] = *t;
+                        for (row, c) in tint.iter_mut().zip(t.to_array()) {
+                            row[l] = c;
+                        }
                     }
                 }
                 Material::Dielectric(d) if d.thin || d.schlick => scalar |= bit,
                 // As `dielectric`: null crossings are not bounces (no depth check for them).
                 Material::Dielectric(_) => {
-                    let c = medium::cross(scene, r[l].media, h.material, h.front);
+                    let c = medium::cross(scene, media[l], h.material, h.front);
                     stack[l] = c.stack;
                     let (n1, n2) = if c.is_real() {
-                        (ior_of(scene, c.before, r[l].lambda, disp), ior_of(scene, c.after, r[l].lambda, disp))
+                        (ior_of(scene, c.before, lambda[l], disp), ior_of(scene, c.after, lambda[l], disp))
                     } else {
                         (1.0, 1.0)
                     };
@@ -683,12 +703,12 @@ impl Ctx<'_> {
                 _ => unreachable!("specular_x8 is given mirror and dielectric hits only"),
             }
         }
-        // All lanes in 8-lane arithmetic (lanes past `m` shade a zero hit; discarded).
+        // All lanes in 8-lane arithmetic.
         let v3 = |f: &dyn Fn(usize) -> Vec3| {
             let a: [Vec3; LANES] = std::array::from_fn(f);
             Vec3x8::new(f32x8::from(a.map(|v| v.x)), f32x8::from(a.map(|v| v.y)), f32x8::from(a.map(|v| v.z)))
         };
-        let d = v3(&|l| r[l].d);
+        let d = Vec3x8::from_rows(&dir);
         let (p, nf) = (v3(&|l| geo[l].p), v3(&|l| geo[l].n_facing));
         let scale = f32x8::from(geo.map(|h| h.error_scale));
         // -normalize(d), as glam rounds it.
@@ -699,53 +719,119 @@ impl Ctx<'_> {
         let p_refl = offset_ray_origin_scaled_x8(p, nf, scale);
         let p_trans = offset_ray_origin_scaled_x8(p, Vec3x8::new(-nf.x, -nf.y, -nf.z), scale);
         let (fres, tir) = (fres.to_array(), tir.to_bitmask());
-        // As lane rows once (`Vec3x8::lane` in the loop below would spill all 8 lanes per call).
+        // Under split branching a real interface has two children: the scalar code's, lane by lane.
+        let (real, split) = if profile.branching == Branching::Roulette { (real, 0) } else { (0, real) };
+        // The Fresnel coin of each lane (roulette branching), in one branch-free loop; the transmitted
+        // lanes (`interface_children`: a refracted direction exists and the coin passes reflectance).
+        let mut trans = 0u32;
+        if real != 0 {
+            let coin: [f32; LANES] = std::array::from_fn(|l| self.fresnel_coin(pixel[l], branch[l], sample[l], depth[l]));
+            trans = real & !tir & lane_bits(|l| coin[l] >= fres[l]);
+        }
+        // Each vector lane's one child: crossing (transmitted or passed) or reflected.
+        let across = trans | pass;
+        let child_d = Vec3x8::select(mask_from_bits(trans), refr, Vec3x8::select(mask_from_bits(pass), d, refl));
+        let mut rows = RayRows {
+            o: Vec3x8::select(mask_from_bits(across), p_trans, p_refl).rows(),
+            d: child_d.rows(),
+            // (x 1 off mirrors: exact.)
+            throughput: (Vec3x8::from_rows(&thr) * Vec3x8::from_rows(&tint)).rows(),
+            time: if rays.with_time { gather8(&rays.time, run, i0, at) } else { [0.0; LANES] },
+            lambda,
+            path,
+            branch,
+            depth,
+            diffuse: gather8(&rays.diffuse, run, i0, at),
+            flags: gather8(&rays.flags, run, i0, at),
+            media,
+        };
+        let mut kept = pass;
+        for l in 0..m {
+            let bit = 1 << l;
+            if across & bit != 0 {
+                rows.media[l] = stack[l];
+            }
+            if (mirror | real) & bit == 0 {
+                continue;
+            }
+            // A bounce (`next_of`), then `spawn`'s roulette on the child.
+            rows.depth[l] += 1;
+            let which = if mirror & bit != 0 {
+                0
+            } else if trans & bit != 0 {
+                rows.flags[l] = self.refracted_flags(rows.flags[l]);
+                2
+            } else {
+                1
+            };
+            if trans & bit == 0 {
+                rows.flags[l] = FLAG_SPECULAR;
+            }
+            let t = Vec3::new(rows.throughput[0][l], rows.throughput[1][l], rows.throughput[2][l]);
+            if let Some(q) = self.survival(t, rows.diffuse[l], rows.branch[l], rows.depth[l], pixel[l], sample[l], which) {
+                if q < 1.0 {
+                    for row in &mut rows.throughput {
+                        row[l] /= q;
+                    }
+                }
+                kept |= bit;
+            }
+        }
+        // Every child a prefix of the lanes (usually all of them): one block.
+        if scalar | split == 0 && kept & (kept + 1) == 0 {
+            next.push_rows(kept.count_ones() as usize, &rows);
+            return;
+        }
         let (p_refl, p_trans, refl, refr) = (p_refl.rows(), p_trans.rows(), refl.rows(), refr.rows());
         let lane = |rows: &[[f32; LANES]; 3], l: usize| Vec3::new(rows[0][l], rows[1][l], rows[2][l]);
-        // The Fresnel coin of each lane (roulette branching), in one branch-free loop.
-        let mut coin = [0.0f32; LANES];
-        if real != 0 && profile.branching == Branching::Roulette {
-            for l in 0..LANES {
-                coin[l] = self.fresnel_coin(pixel[l], r[l].branch, sample[l], r[l].depth);
+        for (l, &i) in idx.iter().enumerate() {
+            let bit = 1 << l;
+            if kept & bit != 0 {
+                next.push(&rows.item(l));
+            } else if (scalar | split) & bit != 0 {
+                // The ray as shading found it (absorbed throughput).
+                let r = RayItem { throughput: Vec3::new(thr[0][l], thr[1][l], thr[2][l]), ..rays.get(i as usize) };
+                if scalar & bit != 0 {
+                    let Material::Dielectric(d) = &scene.materials[geo[l].material as usize] else { unreachable!() };
+                    self.dielectric(d, &r, &geo[l], pixel[l], sample[l], next);
+                } else {
+                    let t = (tir & bit == 0).then(|| (lane(&p_trans, l), lane(&refr, l), stack[l], self.refracted_flags(r.flags)));
+                    let coin = || self.fresnel_coin(pixel[l], r.branch, sample[l], r.depth);
+                    self.interface_children(&r, fres[l], (lane(&p_refl, l), lane(&refl, l)), t, coin, pixel[l], sample[l], next);
+                }
             }
         }
-        for l in 0..m {
-            let (rl, bit) = (&r[l], 1 << l);
-            let (o_refl, o_trans) = (lane(&p_refl, l), lane(&p_trans, l));
-            if pass & bit != 0 {
-                next.push(&passed(rl, o_trans, stack[l]));
-            } else if scalar & bit != 0 {
-                let Material::Dielectric(d) = &scene.materials[geo[l].material as usize] else { unreachable!() };
-                self.dielectric(d, rl, &geo[l], pixel[l], sample[l], next);
-            } else if mirror & bit != 0 {
-                let child =
-                    RayItem { o: o_refl, d: lane(&refl, l), throughput: rl.throughput * tint[l], flags: FLAG_SPECULAR, ..next_of(rl) };
-                self.spawn(next, child, pixel[l], sample[l], 0);
-            } else if real & bit != 0 {
-                let trans = (tir & bit == 0).then(|| (o_trans, lane(&refr, l), stack[l], self.refracted_flags(rl)));
-                self.interface_children(rl, fres[l], (o_refl, lane(&refl, l)), trans, || coin[l], pixel[l], sample[l], next);
+    }
+
+    /// Whether a child of throughput `t` survives the unbiased Russian roulette on low throughput, and
+    /// its survival probability (divide the throughput by it when below 1); `which` keys the child kind.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn survival(&self, t: Vec3, diffuse: u16, branch: u32, depth: u16, pixel: u32, sample: u32, which: u32) -> Option<f32> {
+        let m = t.max_element();
+        if m.is_nan() || m <= 0.0 {
+            return None;
+        }
+        let cutoff = self.profile.throughput_cutoff;
+        let q = if diffuse > 1 { m.min(0.95) } else { (m / cutoff).min(1.0) };
+        if q < 1.0 {
+            let key = hash_combine(branch_stream(pixel, branch), sample as u64);
+            if random_f32(self.seed, key, dims::ROULETTE + depth as u32 * 4 + which, 0) >= q {
+                return None;
             }
         }
+        Some(q)
     }
 
     /// Queue a child ray, after an unbiased Russian roulette on low throughput.
     #[inline]
     fn spawn(&self, next: &mut RayQueue, mut child: RayItem, pixel: u32, sample: u32, which: u32) {
-        let m = child.throughput.max_element();
-        if m.is_nan() || m <= 0.0 {
-            return;
-        }
-        let cutoff = self.profile.throughput_cutoff;
-        let diffuse_rr = child.diffuse > 1;
-        let q = if diffuse_rr { m.min(0.95) } else { (m / cutoff).min(1.0) };
-        if q < 1.0 {
-            let key = hash_combine(branch_stream(pixel, child.branch), sample as u64);
-            if random_f32(self.seed, key, dims::ROULETTE + child.depth as u32 * 4 + which, 0) >= q {
-                return;
+        if let Some(q) = self.survival(child.throughput, child.diffuse, child.branch, child.depth, pixel, sample, which) {
+            if q < 1.0 {
+                child.throughput /= q;
             }
-            child.throughput /= q;
+            next.push(&child);
         }
-        next.push(&child);
     }
 
     /// A smooth dielectric surface: a null crossing passes the ray on unchanged; a real interface reflects
@@ -788,7 +874,7 @@ impl Ctx<'_> {
             let rr = if r1 < 1.0 { 2.0 * r1 / (1.0 + r1) } else { 1.0 };
             (rr, Some((r.d, stack, r.flags)))
         } else {
-            (fres(cos_i, eta), refract(wo, hit.n_facing, eta).map(|dir| (dir, stack, self.refracted_flags(r))))
+            (fres(cos_i, eta), refract(wo, hit.n_facing, eta).map(|dir| (dir, stack, self.refracted_flags(r.flags))))
         };
         let f = if trans.is_none() { 1.0 } else { f };
         let refl = (hit.spawn(hit.n_facing), reflect(wo, hit.n_facing));
@@ -800,9 +886,9 @@ impl Ctx<'_> {
     /// already carried light through the interface to diffuse points: a diffuse path that reaches a light
     /// through it must not count it again, so only then it keeps its own.
     #[inline(always)]
-    fn refracted_flags(&self, r: &RayItem) -> u8 {
+    fn refracted_flags(&self, flags: u8) -> u8 {
         if self.profile.transmissive_shadows {
-            r.flags
+            flags
         } else {
             FLAG_SPECULAR
         }
