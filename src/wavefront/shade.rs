@@ -97,6 +97,96 @@ fn sphere_hits_x8(naive: Vec3x8, d: Vec3x8, sc: &[[f32; LANES]; 3], sr: &[f32; L
     (ps, n, d.dot_unfused(n).simd_lt(f32x8::ZERO))
 }
 
+/// [`surface_hit`]'s geometry of up to 8 hits as lane rows (lanes past those given are unspecified).
+#[derive(Clone, Copy)]
+struct HitRows {
+    p: Vec3x8,
+    n_facing: Vec3x8,
+    error_scale: f32x8,
+    /// Lanes whose ray arrives on the outside.
+    front: u32,
+    material: [u32; LANES],
+    /// Sphere lanes, and among them the static spheres' (their centre does not move with time).
+    sph: u32,
+    still: u32,
+}
+
+/// [`surface_hit`] of hits `idx` of a queue (`m` lanes), for rays `o + t d` (lane rows) at `times`
+/// hitting `prims`: spheres and flat prims (planes, quads, disks: the common cases) in 8 lanes with
+/// the same operations, other shapes one at a time.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn hit_rows_x8(
+    scene: &Scene,
+    hits: &HitQueue,
+    idx: &[u32],
+    o: Vec3x8,
+    d: Vec3x8,
+    t: &[f32; LANES],
+    times: &[f32; LANES],
+    prims: &[u32; LANES],
+) -> HitRows {
+    let mut p = [[0.0f32; LANES]; 3];
+    let mut nf = [[0.0f32; LANES]; 3];
+    let mut scale = [0.0f32; LANES];
+    let mut material = [0u32; LANES];
+    let (mut sph, mut still, mut pla, mut front) = (0u32, 0u32, 0u32, 0u32);
+    let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
+    for (l, &i) in idx.iter().enumerate() {
+        let g = &scene.prim_geo[prims[l] as usize];
+        if g.r > 0.0 {
+            sph |= 1 << l;
+            still |= ((g.motion == Vec3::ZERO) as u32) << l;
+            let c = g.v + g.motion * times[l];
+            for k in 0..3 {
+                sc[k][l] = c[k];
+            }
+            sr[l] = g.r;
+            material[l] = g.material;
+        } else if g.r == -1.0 {
+            // Flat prims: their outward normal here.
+            pla |= 1 << l;
+            for (row, c) in nf.iter_mut().zip(g.v.to_array()) {
+                row[l] = c;
+            }
+            material[l] = g.material;
+        } else {
+            // (`surface_hit` reads the ray's origin, direction and time only.)
+            let r = RayItem { o: o.lane(l), d: d.lane(l), time: times[l], ..RayItem::default() };
+            let i = i as usize;
+            let hit = surface_hit(scene, &r, t[l], prims[l], hits.leaf[i], hits.flip[i]);
+            for k in 0..3 {
+                (p[k][l], nf[k][l]) = (hit.p[k], hit.n_facing[k]);
+            }
+            (scale[l], material[l]) = (hit.error_scale, hit.material);
+            front |= (hit.front as u32) << l;
+        }
+    }
+    let (mut pv, mut nv, mut sv) = (Vec3x8::from_rows(&p), Vec3x8::from_rows(&nf), f32x8::from(scale));
+    // o + t d, as `surface_hit` computes it (unfused).
+    let naive = o + d.scale(f32x8::from(*t));
+    if pla != 0 {
+        // The point o + t d, whose error scales with the origin's largest coordinate, and the normal
+        // turned to face the ray.
+        let n = nv;
+        let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
+        let mask = mask_from_bits(pla);
+        pv = Vec3x8::select(mask, naive, pv);
+        nv = Vec3x8::select(mask, Vec3x8::select(ahead, n, Vec3x8::new(-n.x, -n.y, -n.z)), n);
+        sv = mask.select(o.x.abs().max(o.y.abs().max(o.z.abs())), sv);
+        front |= ahead.to_bitmask() & pla;
+    }
+    if sph != 0 {
+        let (ps, n, ahead) = sphere_hits_x8(naive, d, &sc, &sr);
+        let mask = mask_from_bits(sph);
+        pv = Vec3x8::select(mask, ps, pv);
+        nv = Vec3x8::select(mask, Vec3x8::select(ahead, n, Vec3x8::new(-n.x, -n.y, -n.z)), nv);
+        sv = mask.select(f32x8::ZERO, sv);
+        front |= ahead.to_bitmask() & sph;
+    }
+    HitRows { p: pv, n_facing: nv, error_scale: sv, front, material, sph, still }
+}
+
 /// One hit for [`surface_hits_x8`]: the ray's origin, direction and time, the hit distance, primitive,
 /// CSG leaf and flip (as the intersect stage records them).
 #[derive(Clone, Copy, Debug)]
@@ -409,22 +499,13 @@ impl Ctx<'_> {
         let media = gather8(&rays.media, run, i0, at);
         let prims = gather8(&hits.prim, run, i0, at);
 
-        let mut p = [[0.0f32; LANES]; 3];
-        let mut nf = [[0.0f32; LANES]; 3];
+        let geo = hit_rows_x8(scene, hits, idx, Vec3x8::from_rows(&ro), Vec3x8::from_rows(&rd), &rt, &times, &prims);
         let mut tex_a = [[0.0f32; LANES]; 3];
         let mut tex_b = [[0.0f32; LANES]; 3];
         let mut tex_scale = [1.0f32; LANES];
-        let mut scale = [0.0f32; LANES];
         let mut keys = [0u64; LANES];
         let mut samples = [0u32; LANES];
         let mut pixels = [0u32; LANES];
-        // Spheres (the common case) take their geometry in 8 lanes below: lanes in `sph`, with their
-        // centre moved to the ray's time, and radius.
-        let mut sph = 0u32;
-        // Static sphere lanes (their shadow rays from outside cannot meet the sphere again).
-        let mut still = 0u32;
-        let mut pla = 0u32;
-        let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
         let mut shift = [[0.0f32; LANES]; 3];
         // Lanes with a checker texture (the others take their constant colour). The time shift is kept
         // even without motion: `motion * 0` can be -0, and a centre plus -0 is what `surface_hit`
@@ -440,42 +521,8 @@ impl Ctx<'_> {
                     t[l] = c;
                 }
             }
-            let g = &scene.prim_geo[prims[l] as usize];
-            let sh = g.motion * times[l];
-            let material = if g.r > 0.0 {
-                sph |= 1 << l;
-                still |= ((g.motion == Vec3::ZERO) as u32) << l;
-                let c = g.v + sh;
-                for k in 0..3 {
-                    sc[k][l] = c[k];
-                }
-                sr[l] = g.r;
-                g.material
-            } else if g.r == -1.0 {
-                // Flat prims (planes, quads, disks: the other common case) in 8 lanes below too;
-                // their outward normal here.
-                pla |= 1 << l;
-                for (row, c) in nf.iter_mut().zip(g.v.to_array()) {
-                    row[l] = c;
-                }
-                g.material
-            } else {
-                // (`surface_hit` reads the ray's origin, direction and time only.)
-                let r = RayItem {
-                    o: Vec3::new(ro[0][l], ro[1][l], ro[2][l]),
-                    d: Vec3::new(rd[0][l], rd[1][l], rd[2][l]),
-                    time: times[l],
-                    ..RayItem::default()
-                };
-                let hit = surface_hit(scene, &r, rt[l], prims[l], hits.leaf[i], hits.flip[i]);
-                for k in 0..3 {
-                    (p[k][l], nf[k][l]) = (hit.p[k], hit.n_facing[k]);
-                }
-                scale[l] = hit.error_scale;
-                hit.material
-            };
             let (pixel, sample) = (paths.pixel[path[l] as usize], paths.sample[path[l] as usize]);
-            let Material::Lambert { albedo } = &scene.materials[material as usize] else {
+            let Material::Lambert { albedo } = &scene.materials[geo.material[l] as usize] else {
                 unreachable!("lambert_x8 is given Lambert hits only")
             };
             let key = last_point.get((pixel, branch[l], depth[l]), || point_key(pixel, branch[l], depth[l]));
@@ -489,6 +536,7 @@ impl Ctx<'_> {
                 // their constant below).
                 Texture::Checker { a, b, scale } => {
                     checker |= 1 << l;
+                    let sh = scene.prim_geo[prims[l] as usize].motion * times[l];
                     for c in 0..3 {
                         (tex_a[c][l], tex_b[c][l], shift[c][l]) = (a[c], b[c], sh[c]);
                     }
@@ -499,54 +547,30 @@ impl Ctx<'_> {
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
         let v3 = Vec3x8::from_rows;
-        let (o, d) = (v3(&ro), v3(&rd));
-        // o + t d, as `surface_hit` computes it (unfused).
-        let naive = o + d.scale(v(&rt));
-        if pla != 0 {
-            // `surface_hit` of flat prims, 8 lanes, the same operations: the point o + t d, whose error
-            // scales with the origin's largest coordinate, and the normal turned to face the ray.
-            let n = v3(&nf);
-            let front = d.dot_unfused(n).simd_lt(f32x8::ZERO);
-            let n_facing = Vec3x8::select(front, n, Vec3x8::new(-n.x, -n.y, -n.z));
-            let mask = mask_from_bits(pla);
-            let (pv, nv) = (Vec3x8::select(mask, naive, v3(&p)), Vec3x8::select(mask, n_facing, n));
-            (p, nf) = (pv.rows(), nv.rows());
-            scale = mask.select(o.x.abs().max(o.y.abs().max(o.z.abs())), v(&scale)).to_array();
-        }
-        let mut own = [NONE; LANES];
-        if sph != 0 {
-            // (Other lanes' results are discarded by the select below.)
-            let (ps, n, front) = sphere_hits_x8(naive, d, &sc, &sr);
-            let outside = bytemuck::cast::<f32x8, u32x8>(mask_from_bits(sph & still) & front);
-            own = ((u32x8::from(prims) & outside) | (u32x8::splat(NONE) & !outside)).to_array();
-            let neg = Vec3x8::new(-n.x, -n.y, -n.z);
-            let n_facing = Vec3x8::select(front, n, neg);
-            let mask = mask_from_bits(sph);
-            let (pv, nv) = (Vec3x8::select(mask, ps, v3(&p)), Vec3x8::select(mask, n_facing, v3(&nf)));
-            (p, nf) = (pv.rows(), nv.rows());
-            scale = mask.select(f32x8::ZERO, v(&scale)).to_array();
-        }
+        // Shadow rays from outside a static sphere cannot meet it again.
+        let outside = mask_from_bits(geo.sph & geo.still & geo.front);
+        let own = ((u32x8::from(prims) & bytemuck::cast::<f32x8, u32x8>(outside)) | (u32x8::splat(NONE) & !bytemuck::cast::<f32x8, u32x8>(outside))).to_array();
+        let (pv, nv) = (geo.p, geo.n_facing);
         // Albedo (checker or constant) and the path weight, 8 lanes. Texture lookups happen in the
         // primitive's frame at the ray's time.
         let albedo = if checker == 0 {
             v3(&tex_a)
         } else {
-            let eval = checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), v3(&p) - v3(&shift));
+            let eval = checker_eval_x8(v3(&tex_a), v3(&tex_b), v(&tex_scale), pv - v3(&shift));
             Vec3x8::select(mask_from_bits(checker), eval, v3(&tex_a))
         };
         let wv = v3(&thr) * albedo;
         let w = wv.rows();
-        let (pv, nv) = (v3(&p), v3(&nf));
         // The light is sampled from the hit point itself: the spawn offset is only there to keep the
         // shadow ray off this surface, it must not move the shading point.
-        let off = offset_ray_origin_scaled_x8(pv, nv, v(&scale));
+        let off = offset_ray_origin_scaled_x8(pv, nv, geo.error_scale);
         let (ox, oy, oz) = (off.x.to_array(), off.y.to_array(), off.z.to_array());
         if !scene.lights.is_empty() {
             let inv_pi = f32x8::splat(FRAC_1_PI);
             let wr = [v(&w[0]) * inv_pi, v(&w[1]) * inv_pi, v(&w[2]) * inv_pi].map(|x| x.to_array());
             nee.push_rows(
                 m,
-                NeeRows { p: &p, o: [&ox, &oy, &oz], n: &nf, w: &wr, path: &path, key: &keys, sample: &samples, time: &times, own: &own },
+                NeeRows { p: &pv.rows(), o: [&ox, &oy, &oz], n: &nv.rows(), w: &wr, path: &path, key: &keys, sample: &samples, time: &times, own: &own },
             );
         }
         if profile.diffuse_depth == 0 {
@@ -640,13 +664,16 @@ impl Ctx<'_> {
     fn specular_x8(&self, rays: &RayQueue, hits: &HitQueue, idx: &[u32], paths: &PathTable, next: &mut RayQueue) {
         let (scene, profile) = (self.scene, self.profile);
         let m = idx.len();
-        let live = (1u32 << m) - 1;
-        let geo = surface_hits_x8(scene, live, |l| HitRay::of(rays, hits, idx[l] as usize));
         // Lanes past `m` repeat the chunk's last ray (their results are discarded).
         let i0 = idx[0] as usize;
         let run = m == LANES && idx[LANES - 1] as usize == i0 + LANES - 1;
         let at = |l: usize| idx[l.min(m - 1)] as usize;
+        let org = [gather8(&rays.ox, run, i0, at), gather8(&rays.oy, run, i0, at), gather8(&rays.oz, run, i0, at)];
         let dir = [gather8(&rays.dx, run, i0, at), gather8(&rays.dy, run, i0, at), gather8(&rays.dz, run, i0, at)];
+        let times = if rays.with_time { gather8(&rays.time, run, i0, at) } else { [0.0; LANES] };
+        let d = Vec3x8::from_rows(&dir);
+        let (t, prims) = (gather8(&hits.t, run, i0, at), gather8(&hits.prim, run, i0, at));
+        let geo = hit_rows_x8(scene, hits, idx, Vec3x8::from_rows(&org), d, &t, &times, &prims);
         let mut thr = [gather8(&rays.tr, run, i0, at), gather8(&rays.tg, run, i0, at), gather8(&rays.tb, run, i0, at)];
         let path = gather8(&rays.path, run, i0, at);
         let branch = gather8(&rays.branch, run, i0, at);
@@ -664,21 +691,21 @@ impl Ctx<'_> {
         let (mut pass, mut mirror, mut real, mut scalar) = (0u32, 0u32, 0u32, 0u32);
         let disp = scene.features.dispersion;
         for (l, &i) in idx.iter().enumerate() {
-            let (h, bit) = (&geo[l], 1 << l);
+            let (material, bit) = (geo.material[l], 1 << l);
             if media[l] != MediumStack::default() {
                 // Inside a medium: Beer-Lambert along the segment just travelled.
                 let mut r = rays.get(i as usize);
-                absorb(scene, &mut r, hits.t[i as usize]);
+                absorb(scene, &mut r, t[l]);
                 for (t, c) in thr.iter_mut().zip(r.throughput.to_array()) {
                     t[l] = c;
                 }
             }
             let deeper = (depth[l] as u32) < profile.max_depth;
-            match &scene.materials[h.material as usize] {
-                Material::Mirror { tint: t } => {
+            match &scene.materials[material as usize] {
+                Material::Mirror { tint: k } => {
                     if deeper {
                         mirror |= bit;
-                        for (row, c) in tint.iter_mut().zip(t.to_array()) {
+                        for (row, c) in tint.iter_mut().zip(k.to_array()) {
                             row[l] = c;
                         }
                     }
@@ -686,7 +713,7 @@ impl Ctx<'_> {
                 Material::Dielectric(d) if d.thin || d.schlick => scalar |= bit,
                 // As `dielectric`: null crossings are not bounces (no depth check for them).
                 Material::Dielectric(_) => {
-                    let c = medium::cross(scene, media[l], h.material, h.front);
+                    let c = medium::cross(scene, media[l], material, geo.front & bit != 0);
                     stack[l] = c.stack;
                     let (n1, n2) = if c.is_real() {
                         (ior_of(scene, c.before, lambda[l], disp), ior_of(scene, c.after, lambda[l], disp))
@@ -704,13 +731,7 @@ impl Ctx<'_> {
             }
         }
         // All lanes in 8-lane arithmetic.
-        let v3 = |f: &dyn Fn(usize) -> Vec3| {
-            let a: [Vec3; LANES] = std::array::from_fn(f);
-            Vec3x8::new(f32x8::from(a.map(|v| v.x)), f32x8::from(a.map(|v| v.y)), f32x8::from(a.map(|v| v.z)))
-        };
-        let d = Vec3x8::from_rows(&dir);
-        let (p, nf) = (v3(&|l| geo[l].p), v3(&|l| geo[l].n_facing));
-        let scale = f32x8::from(geo.map(|h| h.error_scale));
+        let (p, nf, scale) = (geo.p, geo.n_facing, geo.error_scale);
         // -normalize(d), as glam rounds it.
         let rcp = f32x8::ONE / d.dot_unfused(d).sqrt();
         let wo = Vec3x8::new(-(d.x * rcp), -(d.y * rcp), -(d.z * rcp));
@@ -736,7 +757,7 @@ impl Ctx<'_> {
             d: child_d.rows(),
             // (x 1 off mirrors: exact.)
             throughput: (Vec3x8::from_rows(&thr) * Vec3x8::from_rows(&tint)).rows(),
-            time: if rays.with_time { gather8(&rays.time, run, i0, at) } else { [0.0; LANES] },
+            time: times,
             lambda,
             path,
             branch,
@@ -792,8 +813,10 @@ impl Ctx<'_> {
                 // The ray as shading found it (absorbed throughput).
                 let r = RayItem { throughput: Vec3::new(thr[0][l], thr[1][l], thr[2][l]), ..rays.get(i as usize) };
                 if scalar & bit != 0 {
-                    let Material::Dielectric(d) = &scene.materials[geo[l].material as usize] else { unreachable!() };
-                    self.dielectric(d, &r, &geo[l], pixel[l], sample[l], next);
+                    let Material::Dielectric(d) = &scene.materials[geo.material[l] as usize] else { unreachable!() };
+                    let i = i as usize;
+                    let hit = surface_hit(scene, &r, t[l], prims[l], hits.leaf[i], hits.flip[i]);
+                    self.dielectric(d, &r, &hit, pixel[l], sample[l], next);
                 } else {
                     let t = (tir & bit == 0).then(|| (lane(&p_trans, l), lane(&refr, l), stack[l], self.refracted_flags(r.flags)));
                     let coin = || self.fresnel_coin(pixel[l], r.branch, sample[l], r.depth);
