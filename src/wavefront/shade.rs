@@ -549,7 +549,9 @@ impl Ctx<'_> {
         let v3 = Vec3x8::from_rows;
         // Shadow rays from outside a static sphere cannot meet it again.
         let outside = mask_from_bits(geo.sph & geo.still & geo.front);
-        let own = ((u32x8::from(prims) & bytemuck::cast::<f32x8, u32x8>(outside)) | (u32x8::splat(NONE) & !bytemuck::cast::<f32x8, u32x8>(outside))).to_array();
+        let own = ((u32x8::from(prims) & bytemuck::cast::<f32x8, u32x8>(outside))
+            | (u32x8::splat(NONE) & !bytemuck::cast::<f32x8, u32x8>(outside)))
+        .to_array();
         let (pv, nv) = (geo.p, geo.n_facing);
         // Albedo (checker or constant) and the path weight, 8 lanes. Texture lookups happen in the
         // primitive's frame at the ray's time.
@@ -570,7 +572,17 @@ impl Ctx<'_> {
             let wr = [v(&w[0]) * inv_pi, v(&w[1]) * inv_pi, v(&w[2]) * inv_pi].map(|x| x.to_array());
             nee.push_rows(
                 m,
-                NeeRows { p: &pv.rows(), o: [&ox, &oy, &oz], n: &nv.rows(), w: &wr, path: &path, key: &keys, sample: &samples, time: &times, own: &own },
+                NeeRows {
+                    p: &pv.rows(),
+                    o: [&ox, &oy, &oz],
+                    n: &nv.rows(),
+                    w: &wr,
+                    path: &path,
+                    key: &keys,
+                    sample: &samples,
+                    time: &times,
+                    own: &own,
+                },
             );
         }
         if profile.diffuse_depth == 0 {
@@ -739,63 +751,88 @@ impl Ctx<'_> {
         let (fres, refr, tir) = fresnel_refract_x8(wo, nf, f32x8::from(eta));
         let p_refl = offset_ray_origin_scaled_x8(p, nf, scale);
         let p_trans = offset_ray_origin_scaled_x8(p, Vec3x8::new(-nf.x, -nf.y, -nf.z), scale);
-        let (fres, tir) = (fres.to_array(), tir.to_bitmask());
-        // Under split branching a real interface has two children: the scalar code's, lane by lane.
+        let (fres_v, fres, tir) = (fres, fres.to_array(), tir.to_bitmask());
+        // Real interfaces: one child picked by the Fresnel coin (roulette branching) or both, weighted
+        // (split: `real` then holds none of them).
         let (real, split) = if profile.branching == Branching::Roulette { (real, 0) } else { (0, real) };
-        // The Fresnel coin of each lane (roulette branching), in one branch-free loop; the transmitted
-        // lanes (`interface_children`: a refracted direction exists and the coin passes reflectance).
+        // The Fresnel coin of each lane, in one branch-free loop; the transmitted lanes
+        // (`interface_children`: a refracted direction exists and the coin passes reflectance).
         let mut trans = 0u32;
         if real != 0 {
             let coin: [f32; LANES] = std::array::from_fn(|l| self.fresnel_coin(pixel[l], branch[l], sample[l], depth[l]));
             trans = real & !tir & lane_bits(|l| coin[l] >= fres[l]);
         }
-        // Each vector lane's one child: crossing (transmitted or passed) or reflected.
+        // Each lane's (first) child: crossing (transmitted or passed) or reflected; a split lane's
+        // reflected child carries the reflectance of its throughput (x 1 elsewhere, and off mirrors: exact).
         let across = trans | pass;
         let child_d = Vec3x8::select(mask_from_bits(trans), refr, Vec3x8::select(mask_from_bits(pass), d, refl));
+        let weight = mask_from_bits(split).select(fres_v, f32x8::ONE);
+        let thr_v = Vec3x8::from_rows(&thr);
+        let flags = gather8(&rays.flags, run, i0, at);
         let mut rows = RayRows {
             o: Vec3x8::select(mask_from_bits(across), p_trans, p_refl).rows(),
             d: child_d.rows(),
-            // (x 1 off mirrors: exact.)
-            throughput: (Vec3x8::from_rows(&thr) * Vec3x8::from_rows(&tint)).rows(),
+            throughput: (thr_v * Vec3x8::from_rows(&tint)).scale(weight).rows(),
             time: times,
             lambda,
             path,
             branch,
-            depth,
+            depth: depth.map(|k| k + 1),
             diffuse: gather8(&rays.diffuse, run, i0, at),
-            flags: gather8(&rays.flags, run, i0, at),
+            flags: [FLAG_SPECULAR; LANES],
             media,
         };
-        let mut kept = pass;
+        // Split lanes' transmitted children.
+        let mut second = None;
+        if split != 0 {
+            let mut t = rows;
+            (t.o, t.d, t.throughput) = (p_trans.rows(), refr.rows(), thr_v.scale(f32x8::ONE - fres_v).rows());
+            (t.flags, t.media) = (flags.map(|f| self.refracted_flags(f)), stack);
+            second = Some(t);
+        }
+        let (mut kept, mut kept2) = (pass, 0u32);
+        let roulette = |t: &mut [[f32; LANES]; 3], l: usize, branch: u32, depth: u16, which: u32| {
+            let thr = Vec3::new(t[0][l], t[1][l], t[2][l]);
+            let q = self.survival(thr, rows.diffuse[l], branch, depth, pixel[l], sample[l], which);
+            if let Some(q) = q.filter(|&q| q < 1.0) {
+                for row in t.iter_mut() {
+                    row[l] /= q;
+                }
+            }
+            q.is_some()
+        };
         for l in 0..m {
             let bit = 1 << l;
             if across & bit != 0 {
                 rows.media[l] = stack[l];
             }
-            if (mirror | real) & bit == 0 {
-                continue;
-            }
-            // A bounce (`next_of`), then `spawn`'s roulette on the child.
-            rows.depth[l] += 1;
-            let which = if mirror & bit != 0 {
-                0
-            } else if trans & bit != 0 {
-                rows.flags[l] = self.refracted_flags(rows.flags[l]);
-                2
-            } else {
-                1
-            };
-            if trans & bit == 0 {
-                rows.flags[l] = FLAG_SPECULAR;
-            }
-            let t = Vec3::new(rows.throughput[0][l], rows.throughput[1][l], rows.throughput[2][l]);
-            if let Some(q) = self.survival(t, rows.diffuse[l], rows.branch[l], rows.depth[l], pixel[l], sample[l], which) {
-                if q < 1.0 {
-                    for row in &mut rows.throughput {
-                        row[l] /= q;
+            if pass & bit != 0 {
+                // Not a bounce (`passed`): the parent's depth and flags.
+                (rows.depth[l], rows.flags[l]) = (depth[l], flags[l]);
+            } else if split & bit != 0 {
+                // Both children (`interface_children`), each after `spawn`'s roulette.
+                rows.branch[l] = child_branch(branch[l], depth[l], 1);
+                if fres[l] > 0.0 && roulette(&mut rows.throughput, l, rows.branch[l], depth[l] + 1, 1) {
+                    kept |= bit;
+                }
+                if let Some(t) = second.as_mut().filter(|_| tir & bit == 0 && fres[l] < 1.0) {
+                    if roulette(&mut t.throughput, l, branch[l], depth[l] + 1, 2) {
+                        kept2 |= bit;
                     }
                 }
-                kept |= bit;
+            } else if (mirror | real) & bit != 0 {
+                // A bounce (`next_of`), then `spawn`'s roulette on the child.
+                let which = if mirror & bit != 0 {
+                    0
+                } else if trans & bit != 0 {
+                    rows.flags[l] = self.refracted_flags(flags[l]);
+                    2
+                } else {
+                    1
+                };
+                if roulette(&mut rows.throughput, l, branch[l], depth[l] + 1, which) {
+                    kept |= bit;
+                }
             }
         }
         // Every child a prefix of the lanes (usually all of them): one block.
@@ -803,25 +840,20 @@ impl Ctx<'_> {
             next.push_rows(kept.count_ones() as usize, &rows);
             return;
         }
-        let (p_refl, p_trans, refl, refr) = (p_refl.rows(), p_trans.rows(), refl.rows(), refr.rows());
-        let lane = |rows: &[[f32; LANES]; 3], l: usize| Vec3::new(rows[0][l], rows[1][l], rows[2][l]);
         for (l, &i) in idx.iter().enumerate() {
             let bit = 1 << l;
             if kept & bit != 0 {
                 next.push(&rows.item(l));
-            } else if (scalar | split) & bit != 0 {
+            } else if scalar & bit != 0 {
                 // The ray as shading found it (absorbed throughput).
                 let r = RayItem { throughput: Vec3::new(thr[0][l], thr[1][l], thr[2][l]), ..rays.get(i as usize) };
-                if scalar & bit != 0 {
-                    let Material::Dielectric(d) = &scene.materials[geo.material[l] as usize] else { unreachable!() };
-                    let i = i as usize;
-                    let hit = surface_hit(scene, &r, t[l], prims[l], hits.leaf[i], hits.flip[i]);
-                    self.dielectric(d, &r, &hit, pixel[l], sample[l], next);
-                } else {
-                    let t = (tir & bit == 0).then(|| (lane(&p_trans, l), lane(&refr, l), stack[l], self.refracted_flags(r.flags)));
-                    let coin = || self.fresnel_coin(pixel[l], r.branch, sample[l], r.depth);
-                    self.interface_children(&r, fres[l], (lane(&p_refl, l), lane(&refl, l)), t, coin, pixel[l], sample[l], next);
-                }
+                let Material::Dielectric(d) = &scene.materials[geo.material[l] as usize] else { unreachable!() };
+                let i = i as usize;
+                let hit = surface_hit(scene, &r, t[l], prims[l], hits.leaf[i], hits.flip[i]);
+                self.dielectric(d, &r, &hit, pixel[l], sample[l], next);
+            }
+            if let Some(t) = second.as_ref().filter(|_| kept2 & bit != 0) {
+                next.push(&t.item(l));
             }
         }
     }
