@@ -132,7 +132,23 @@ fn hit_rows_x8(
     let mut material = [0u32; LANES];
     let (mut sph, mut still, mut pla, mut front) = (0u32, 0u32, 0u32, 0u32);
     let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
-    for (l, &i) in idx.iter().enumerate() {
+    // Eight hits on one sphere or flat prim (the usual chunk: coherent rays, sorted by material):
+    // the prim's record once, as vectors (lane-by-lane stores would stall the vector loads after them).
+    let g = &scene.prim_geo[prims[0] as usize];
+    let uniform = idx.len() == LANES && u32x8::from(*prims).simd_eq(u32x8::splat(prims[0])).all() && (g.r > 0.0 || g.r == -1.0);
+    if uniform {
+        material = [g.material; LANES];
+        if g.r > 0.0 {
+            (sph, still) = (u32::MAX >> (32 - LANES), if g.motion == Vec3::ZERO { u32::MAX >> (32 - LANES) } else { 0 });
+            // The centre at each ray's time, as the lane loop below computes it.
+            sc = (Vec3x8::splat(g.v) + Vec3x8::splat(g.motion).scale(f32x8::from(*times))).rows();
+            sr = [g.r; LANES];
+        } else {
+            pla = u32::MAX >> (32 - LANES);
+            nf = Vec3x8::splat(g.v).rows();
+        }
+    }
+    for (l, &i) in idx.iter().enumerate().filter(|_| !uniform) {
         let g = &scene.prim_geo[prims[l] as usize];
         if g.r > 0.0 {
             sph |= 1 << l;
