@@ -109,6 +109,8 @@ struct HitRows {
     /// Sphere lanes, and among them the static spheres' (their centre does not move with time).
     sph: u32,
     still: u32,
+    /// All 8 lanes hit one sphere or flat prim.
+    uniform: bool,
 }
 
 /// [`surface_hit`] of hits `idx` of a queue (`m` lanes), for rays `o + t d` (lane rows) at `times`
@@ -200,7 +202,7 @@ fn hit_rows_x8(
         sv = mask.select(f32x8::ZERO, sv);
         front |= ahead.to_bitmask() & sph;
     }
-    HitRows { p: pv, n_facing: nv, error_scale: sv, front, material, sph, still }
+    HitRows { p: pv, n_facing: nv, error_scale: sv, front, material, sph, still, uniform }
 }
 
 /// One hit for [`surface_hits_x8`]: the ray's origin, direction and time, the hit distance, primitive,
@@ -519,47 +521,70 @@ impl Ctx<'_> {
         let mut tex_a = [[0.0f32; LANES]; 3];
         let mut tex_b = [[0.0f32; LANES]; 3];
         let mut tex_scale = [1.0f32; LANES];
-        let mut keys = [0u64; LANES];
-        let mut samples = [0u32; LANES];
-        let mut pixels = [0u32; LANES];
         let mut shift = [[0.0f32; LANES]; 3];
+        // Each lane's pixel and sample index: one load each when the paths are consecutive (camera
+        // hits in queue order).
+        let consecutive = m == LANES && path[LANES - 1] == path[0] + LANES as u32 - 1;
+        let (p0, at_path) = (path[0] as usize, |l: usize| path[l] as usize);
+        let (pixels, samples) = (gather8(&paths.pixel, consecutive, p0, at_path), gather8(&paths.sample, consecutive, p0, at_path));
+        // The point keys: one when the chunk is one pixel's samples at one vertex (from 8 samples per
+        // pixel on, the usual case), else each lane's (consecutive lanes usually share it).
+        let one = |l: usize| (pixels[l], branch[l], depth[l]);
+        let keys = if (1..LANES).all(|l| one(l) == one(0)) {
+            [last_point.get(one(0), || point_key(pixels[0], branch[0], depth[0])); LANES]
+        } else {
+            std::array::from_fn(|l| last_point.get(one(l), || point_key(pixels[l], branch[l], depth[l])))
+        };
         // Lanes with a checker texture (the others take their constant colour). The time shift is kept
         // even without motion: `motion * 0` can be -0, and a centre plus -0 is what `surface_hit`
         // computes.
         let mut checker = 0u32;
+        let albedo_of = |l: usize| {
+            let Material::Lambert { albedo } = &scene.materials[geo.material[l] as usize] else {
+                unreachable!("lambert_x8 is given Lambert hits only")
+            };
+            *albedo
+        };
+        if geo.uniform {
+            // One prim, one texture: its constants as vectors.
+            match albedo_of(0) {
+                Texture::Constant(a) => tex_a = Vec3x8::splat(a).rows(),
+                Texture::Checker { a, b, scale } => {
+                    checker = (1 << m) - 1;
+                    (tex_a, tex_b, tex_scale) = (Vec3x8::splat(a).rows(), Vec3x8::splat(b).rows(), [scale; LANES]);
+                    shift = Vec3x8::splat(scene.prim_geo[prims[0] as usize].motion).scale(f32x8::from(times)).rows();
+                }
+            }
+        } else {
+            for l in 0..m {
+                match albedo_of(l) {
+                    Texture::Constant(a) => {
+                        for c in 0..3 {
+                            tex_a[c][l] = a[c];
+                        }
+                    }
+                    // The second colour, scale and frame shift only for checker lanes (the others take
+                    // their constant below).
+                    Texture::Checker { a, b, scale } => {
+                        checker |= 1 << l;
+                        let sh = scene.prim_geo[prims[l] as usize].motion * times[l];
+                        for c in 0..3 {
+                            (tex_a[c][l], tex_b[c][l], shift[c][l]) = (a[c], b[c], sh[c]);
+                        }
+                        tex_scale[l] = scale;
+                    }
+                }
+            }
+        }
         for (l, &i) in idx.iter().enumerate() {
-            let i = i as usize;
             if media[l] != MediumStack::default() {
                 // Inside a medium: Beer-Lambert along the segment just travelled.
-                let mut r = rays.get(i);
+                let mut r = rays.get(i as usize);
                 absorb(scene, &mut r, rt[l]);
                 for (t, c) in thr.iter_mut().zip(r.throughput.to_array()) {
                     t[l] = c;
                 }
             }
-            let (pixel, sample) = (paths.pixel[path[l] as usize], paths.sample[path[l] as usize]);
-            let Material::Lambert { albedo } = &scene.materials[geo.material[l] as usize] else {
-                unreachable!("lambert_x8 is given Lambert hits only")
-            };
-            let key = last_point.get((pixel, branch[l], depth[l]), || point_key(pixel, branch[l], depth[l]));
-            match *albedo {
-                Texture::Constant(a) => {
-                    for c in 0..3 {
-                        tex_a[c][l] = a[c];
-                    }
-                }
-                // The second colour, scale and frame shift only for checker lanes (the others take
-                // their constant below).
-                Texture::Checker { a, b, scale } => {
-                    checker |= 1 << l;
-                    let sh = scene.prim_geo[prims[l] as usize].motion * times[l];
-                    for c in 0..3 {
-                        (tex_a[c][l], tex_b[c][l], shift[c][l]) = (a[c], b[c], sh[c]);
-                    }
-                    tex_scale[l] = scale;
-                }
-            }
-            (keys[l], samples[l], pixels[l]) = (key, sample, pixel);
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
         let v3 = Vec3x8::from_rows;
@@ -707,7 +732,9 @@ impl Ctx<'_> {
         let branch = gather8(&rays.branch, run, i0, at);
         let depth = gather8(&rays.depth, run, i0, at);
         let media = gather8(&rays.media, run, i0, at);
-        let (pixel, sample) = (path.map(|p| paths.pixel[p as usize]), path.map(|p| paths.sample[p as usize]));
+        let consecutive = m == LANES && path[LANES - 1] == path[0] + LANES as u32 - 1;
+        let (p0, at_path) = (path[0] as usize, |l: usize| path[l] as usize);
+        let (pixel, sample) = (gather8(&paths.pixel, consecutive, p0, at_path), gather8(&paths.sample, consecutive, p0, at_path));
         let lambda = if rays.with_lambda { gather8(&rays.lambda, run, i0, at) } else { [0.0; LANES] };
         let mut eta = [1.0f32; LANES];
         // The media on the far side of the surface (children that cross it).
