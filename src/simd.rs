@@ -141,6 +141,14 @@ pub fn gather8<T: Copy>(v: &[T], run: bool, first: usize, at: impl Fn(usize) -> 
     }
 }
 
+/// Whether `v` is 8 consecutive values `v[0], v[0] + 1, ..` (ids that [`gather8`] can load as a run;
+/// ids may repeat, so the ends alone do not tell).
+#[inline(always)]
+pub fn consecutive8(v: &[u32; LANES]) -> bool {
+    let step = u32x8::from([0, 1, 2, 3, 4, 5, 6, 7]);
+    u32x8::from(*v).simd_eq(u32x8::splat(v[0]) + step).all()
+}
+
 /// Three `f32x8`: 8 vectors in structure-of-arrays form (96 bytes, 32-byte aligned).
 #[derive(Clone, Copy, Debug)]
 pub struct Vec3x8 {

@@ -16,7 +16,7 @@ use crate::optics::{
 };
 use crate::sample::{hash_combine, random_f32, sample_2d, stream_key, Sampler2d};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture};
-use crate::simd::{f32x8, gather8, lane_bits, mask_from_bits, u32x8, Vec3x8, LANES};
+use crate::simd::{consecutive8, f32x8, gather8, lane_bits, mask_from_bits, u32x8, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
@@ -524,7 +524,7 @@ impl Ctx<'_> {
         let mut shift = [[0.0f32; LANES]; 3];
         // Each lane's pixel and sample index: one load each when the paths are consecutive (camera
         // hits in queue order).
-        let consecutive = m == LANES && path[LANES - 1] == path[0] + LANES as u32 - 1;
+        let consecutive = m == LANES && consecutive8(&path);
         let (p0, at_path) = (path[0] as usize, |l: usize| path[l] as usize);
         let (pixels, samples) = (gather8(&paths.pixel, consecutive, p0, at_path), gather8(&paths.sample, consecutive, p0, at_path));
         // The point keys: one when the chunk is one pixel's samples at one vertex (from 8 samples per
@@ -732,7 +732,7 @@ impl Ctx<'_> {
         let branch = gather8(&rays.branch, run, i0, at);
         let depth = gather8(&rays.depth, run, i0, at);
         let media = gather8(&rays.media, run, i0, at);
-        let consecutive = m == LANES && path[LANES - 1] == path[0] + LANES as u32 - 1;
+        let consecutive = m == LANES && consecutive8(&path);
         let (p0, at_path) = (path[0] as usize, |l: usize| path[l] as usize);
         let (pixel, sample) = (gather8(&paths.pixel, consecutive, p0, at_path), gather8(&paths.sample, consecutive, p0, at_path));
         let lambda = if rays.with_lambda { gather8(&rays.lambda, run, i0, at) } else { [0.0; LANES] };
@@ -1178,5 +1178,97 @@ mod tests {
         }
         // Enough children for the comparison to mean something.
         assert!(compared > 500_000, "{compared}");
+    }
+
+    /// Every field of every request of a NEE queue, floats as bits.
+    fn nee_bits(q: &NeeQueue) -> Vec<String> {
+        let f = |v: &Vec<f32>, i: usize| v[i].to_bits();
+        (0..q.len())
+            .map(|i| {
+                let rows = [&q.px, &q.py, &q.pz, &q.ox, &q.oy, &q.oz, &q.nx, &q.ny, &q.nz, &q.wr, &q.wg, &q.wb, &q.time];
+                format!("{:?} {} {} {} {}", rows.map(|v| f(v, i)), q.path[i], q.key[i], q.sample[i], q.own[i])
+            })
+            .collect()
+    }
+
+    /// `lambert_x8`'s fast paths (whole chunks of one prim, one texture and one point key; pixels and
+    /// samples of consecutive paths as one load; runs of consecutive rays) give the requests and
+    /// diffuse rays its lane-by-lane path gives (chunks of one hit), bit for bit and in the same order:
+    /// five bounces of scenes with checker textures, spheres, boxes, CSG, glass (whose split branching
+    /// gives two rays one path, so that path ids repeat within a chunk) and motion, with and without
+    /// diffuse bounces.
+    #[test]
+    fn lambert_x8_chunks_equal_single_hits() {
+        let (mut compared, mut uniform) = (0usize, 0usize);
+        for name in ["showcase", "bench_spheres", "cornell", "glass", "motion", "csg"] {
+            let scene = crate::scene::load_scene(std::path::Path::new(&format!("scenes/{name}.toml"))).unwrap();
+            for variant in 0..3 {
+                let mut profile = Profile::builtin("bench");
+                (profile.spp, profile.max_depth) = ([8, 2, 16][variant], 4);
+                if variant == 1 {
+                    profile.branching = Branching::Split;
+                }
+                if variant == 2 {
+                    (profile.diffuse_depth, profile.throughput_cutoff) = (2, 0.3);
+                }
+                let ctx = Ctx { scene: &scene, profile: &profile, seed: 9, diffuse: Sampler2d::new(profile.diffuse_strategy, profile.spp) };
+                let (mut paths, mut rays) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
+                // Tiles of 16 x 16 pixels across the image.
+                for (fx, fy) in [(0.25, 0.5), (0.5, 0.5), (0.75, 0.5), (0.5, 0.3), (0.5, 0.7), (0.3, 0.8), (0.7, 0.8)] {
+                    let (x0, y0) = ((scene.width as f32 * fx) as u32 - 8, (scene.height as f32 * fy) as u32 - 8);
+                    generate(&scene, &profile, 9, Tile { x0, y0, x1: x0 + 16, y1: y0 + 16 }, 0..profile.spp, &mut paths, &mut rays);
+                }
+                let (mut hits, mut cands, mut arena, mut order) =
+                    (HitQueue::default(), CsgCandidates::default(), CsgArena::new(), Vec::new());
+                for _bounce in 0..5 {
+                    if rays.is_empty() {
+                        break;
+                    }
+                    rays.pad();
+                    intersect(&scene, &rays, &mut hits, &mut cands);
+                    if scene.features.csg {
+                        csg_merge(&scene, &rays, &mut cands, &mut hits, &mut arena);
+                    }
+                    let lambert: Vec<u32> = (0..rays.len())
+                        .filter(|&i| {
+                            let kind = match (hits.prim[i], hits.leaf[i]) {
+                                (NONE, _) => return false,
+                                (p, NONE) => scene.prim_kind[p as usize],
+                                (_, leaf) => scene.leaf_kind[leaf as usize],
+                            };
+                            kind == MaterialKind::Lambert
+                        })
+                        .map(|i| i as u32)
+                        // Under split branching, some hits left out too (any increasing subset is valid
+                        // input): with the repeated path ids, runs whose ends alone look consecutive.
+                        .filter(|&i| variant != 1 || i % 5 != 3)
+                        .collect();
+                    let with = || RayQueue::new(rays.with_time, rays.with_lambda);
+                    let (mut nee_a, mut nee_b, mut next_a, mut next_b) = (NeeQueue::default(), NeeQueue::default(), with(), with());
+                    let (mut memo_a, mut memo_b) = (KeyMemo::default(), KeyMemo::default());
+                    for chunk in lambert.chunks(LANES) {
+                        let one_prim = chunk.len() == LANES && chunk.iter().all(|&i| hits.prim[i as usize] == hits.prim[chunk[0] as usize]);
+                        uniform += one_prim as usize;
+                        ctx.lambert_x8(&rays, &hits, chunk, &mut paths, &mut nee_a, &mut next_a, &mut memo_a);
+                        for i in chunk {
+                            ctx.lambert_x8(&rays, &hits, std::slice::from_ref(i), &mut paths, &mut nee_b, &mut next_b, &mut memo_b);
+                        }
+                    }
+                    let (a, b) = (nee_bits(&nee_a), nee_bits(&nee_b));
+                    assert_eq!(a.len(), b.len(), "{name} variant {variant}: request counts differ");
+                    for (k, (x, y)) in a.iter().zip(&b).enumerate() {
+                        assert_eq!(x, y, "{name} variant {variant}: request {k} differs");
+                    }
+                    assert_eq!(bits(&next_a), bits(&next_b), "{name} variant {variant}: diffuse rays differ");
+                    compared += a.len() + next_a.len();
+                    // On to the next bounce, as the renderer goes.
+                    let (mut next, mut nee) = (with(), NeeQueue::default());
+                    shade(&scene, &profile, 9, &rays, &hits, &mut order, ShadeOut { paths: &mut paths, next: &mut next, nee: &mut nee });
+                    rays = next;
+                }
+            }
+        }
+        // Enough requests, and enough whole chunks of one prim, for the comparison to mean something.
+        assert!(compared > 200_000 && uniform > 10_000, "{compared} compared, {uniform} uniform chunks");
     }
 }
