@@ -128,29 +128,36 @@ fn hit_rows_x8(
     times: &[f32; LANES],
     prims: &[u32; LANES],
 ) -> HitRows {
-    let mut p = [[0.0f32; LANES]; 3];
-    let mut nf = [[0.0f32; LANES]; 3];
-    let mut scale = [0.0f32; LANES];
-    let mut material = [0u32; LANES];
-    let (mut sph, mut still, mut pla, mut front) = (0u32, 0u32, 0u32, 0u32);
-    let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
+    // o + t d, as `surface_hit` computes it (unfused).
+    let naive = o + d.scale(f32x8::from(*t));
+    let flip = |ahead: f32x8, n: Vec3x8| Vec3x8::select(ahead, n, Vec3x8::new(-n.x, -n.y, -n.z));
     // Eight hits on one sphere or flat prim (the usual chunk: coherent rays, sorted by material):
     // the prim's record once, as vectors (lane-by-lane stores would stall the vector loads after them).
     let g = &scene.prim_geo[prims[0] as usize];
     let uniform = idx.len() == LANES && u32x8::from(*prims).simd_eq(u32x8::splat(prims[0])).all() && (g.r > 0.0 || g.r == -1.0);
     if uniform {
-        material = [g.material; LANES];
+        let (all, material) = (u32::MAX >> (32 - LANES), [g.material; LANES]);
         if g.r > 0.0 {
-            (sph, still) = (u32::MAX >> (32 - LANES), if g.motion == Vec3::ZERO { u32::MAX >> (32 - LANES) } else { 0 });
             // The centre at each ray's time, as the lane loop below computes it.
-            sc = (Vec3x8::splat(g.v) + Vec3x8::splat(g.motion).scale(f32x8::from(*times))).rows();
-            sr = [g.r; LANES];
-        } else {
-            pla = u32::MAX >> (32 - LANES);
-            nf = Vec3x8::splat(g.v).rows();
+            let sc = (Vec3x8::splat(g.v) + Vec3x8::splat(g.motion).scale(f32x8::from(*times))).rows();
+            let (p, n, ahead) = sphere_hits_x8(naive, d, &sc, &[g.r; LANES]);
+            let still = if g.motion == Vec3::ZERO { all } else { 0 };
+            let front = ahead.to_bitmask();
+            return HitRows { p, n_facing: flip(ahead, n), error_scale: f32x8::ZERO, front, material, sph: all, still, uniform };
         }
+        let n = Vec3x8::splat(g.v);
+        let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
+        let error_scale = o.x.abs().max(o.y.abs().max(o.z.abs()));
+        return HitRows { p: naive, n_facing: flip(ahead, n), error_scale, front: ahead.to_bitmask(), material, sph: 0, still: 0, uniform };
     }
-    for (l, &i) in idx.iter().enumerate().filter(|_| !uniform) {
+    let mut p = [[0.0f32; LANES]; 3];
+    let mut nf = [[0.0f32; LANES]; 3];
+    let mut scale = [0.0f32; LANES];
+    let mut material = [0u32; LANES];
+    let (mut sph, mut still, mut pla, mut front) = (0u32, 0u32, 0u32, 0u32);
+    let mut sc = [[0.0f32; LANES]; 3];
+    let mut sr = [1.0f32; LANES];
+    for (l, &i) in idx.iter().enumerate() {
         let g = &scene.prim_geo[prims[l] as usize];
         if g.r > 0.0 {
             sph |= 1 << l;
@@ -181,8 +188,6 @@ fn hit_rows_x8(
         }
     }
     let (mut pv, mut nv, mut sv) = (Vec3x8::from_rows(&p), Vec3x8::from_rows(&nf), f32x8::from(scale));
-    // o + t d, as `surface_hit` computes it (unfused).
-    let naive = o + d.scale(f32x8::from(*t));
     if pla != 0 {
         // The point o + t d, whose error scales with the origin's largest coordinate, and the normal
         // turned to face the ray.
@@ -190,7 +195,7 @@ fn hit_rows_x8(
         let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
         let mask = mask_from_bits(pla);
         pv = Vec3x8::select(mask, naive, pv);
-        nv = Vec3x8::select(mask, Vec3x8::select(ahead, n, Vec3x8::new(-n.x, -n.y, -n.z)), n);
+        nv = Vec3x8::select(mask, flip(ahead, n), n);
         sv = mask.select(o.x.abs().max(o.y.abs().max(o.z.abs())), sv);
         front |= ahead.to_bitmask() & pla;
     }
@@ -198,7 +203,7 @@ fn hit_rows_x8(
         let (ps, n, ahead) = sphere_hits_x8(naive, d, &sc, &sr);
         let mask = mask_from_bits(sph);
         pv = Vec3x8::select(mask, ps, pv);
-        nv = Vec3x8::select(mask, Vec3x8::select(ahead, n, Vec3x8::new(-n.x, -n.y, -n.z)), nv);
+        nv = Vec3x8::select(mask, flip(ahead, n), nv);
         sv = mask.select(f32x8::ZERO, sv);
         front |= ahead.to_bitmask() & sph;
     }
