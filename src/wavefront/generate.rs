@@ -114,7 +114,7 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
             if f.motion { stream_key(seed, stream, dims::TIME) } else { 0 },
             if f.dispersion { stream_key(seed, stream, dims::WAVELENGTH) } else { 0 },
         ];
-        paths.push_pixel(pixel, samples.clone());
+        paths.push_ids(pixel, samples.clone());
         // Whole packets of this pixel's samples (from 8 samples per pixel on) are filled as vectors:
         // the same lanes as below, without lane-by-lane stores that stall the vector loads after them.
         let mut first = samples.start;
@@ -136,8 +136,12 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         for s in first..samples.end {
             let b = &mut bufs[cur];
             (b.cx[k], b.cy[k], b.index[k]) = (x as f32 + 0.5, y as f32 + 0.5, s);
-            for (lane_keys, key) in b.keys.iter_mut().zip(pk) {
-                lane_keys[k] = key;
+            // (The keys of dimensions the scene does not use stay unread.)
+            b.keys[0][k] = pk[0];
+            if f.lens || f.motion || f.dispersion {
+                for (lane_keys, key) in b.keys.iter_mut().zip(pk).skip(1) {
+                    lane_keys[k] = key;
+                }
             }
             k += 1;
             if k == LANES {
@@ -154,6 +158,7 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     if k > 0 {
         emit(k, &bufs[cur], &mut next_path, rays);
     }
+    paths.zero_radiance();
 }
 
 /// Eight lanes of camera samples waiting to become rays: pixel centres, the pixels' stream keys (area,

@@ -497,13 +497,34 @@ impl PathTable {
     #[inline]
     pub fn push_pixel(&mut self, pixel: u32, samples: std::ops::Range<u32>) -> u32 {
         let first = self.pixel.len() as u32;
-        let n = samples.len();
-        self.pixel.extend(std::iter::repeat_n(pixel, n));
-        self.sample.extend(samples);
-        for v in [&mut self.lr, &mut self.lg, &mut self.lb] {
-            v.resize(v.len() + n, 0.0);
-        }
+        self.push_ids(pixel, samples);
+        self.zero_radiance();
         first
+    }
+
+    /// The pixel and sample index of new paths (their radiance comes with [`PathTable::zero_radiance`]):
+    /// [`PathTable::push_pixel`] for many pixels, with one fill of the radiance for all of them.
+    #[inline]
+    pub fn push_ids(&mut self, pixel: u32, samples: std::ops::Range<u32>) {
+        let n = samples.len();
+        if n == 4 {
+            // (At 4 samples per pixel, fixed-size copies: an extend of 4 is a loop.)
+            let s = samples.start;
+            self.pixel.extend_from_slice(&[pixel; 4]);
+            self.sample.extend_from_slice(&[s, s + 1, s + 2, s + 3]);
+        } else {
+            self.pixel.extend(std::iter::repeat_n(pixel, n));
+            self.sample.extend(samples);
+        }
+    }
+
+    /// Zero radiance for the paths pushed by [`PathTable::push_ids`] since the last call.
+    #[inline]
+    pub fn zero_radiance(&mut self) {
+        let n = self.pixel.len();
+        for v in [&mut self.lr, &mut self.lg, &mut self.lb] {
+            v.resize(n, 0.0);
+        }
     }
     #[inline]
     pub fn add(&mut self, path: u32, c: Vec3) {
