@@ -353,9 +353,17 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
     }
     let mut fill = counts;
     let (buckets, sorted) = order.split_at_mut(n);
-    for (i, &b) in buckets.iter().enumerate() {
-        sorted[fill[b as usize]] = i as u32;
-        fill[b as usize] += 1;
+    // Run by run (consecutive rays mostly share a kind): each run's indices as one ascending block.
+    let mut i = 0;
+    while i < n {
+        let b = buckets[i];
+        let len = buckets[i..].iter().position(|&x| x != b).unwrap_or(n - i);
+        let at = fill[b as usize];
+        for (k, slot) in sorted[at..at + len].iter_mut().enumerate() {
+            *slot = (i + k) as u32;
+        }
+        fill[b as usize] += len;
+        i += len;
     }
     let order = &*sorted;
 
