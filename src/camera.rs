@@ -56,7 +56,7 @@ impl Camera {
     /// bits equal those of [`Camera::ray`].
     #[inline]
     pub fn pinhole_dirs_x8(&self, x: f32x8, y: f32x8) -> Vec3x8 {
-        normalize_x8(self.pinhole_dir_x8(x, y))
+        self.pinhole_dir_x8(x, y).normalize()
     }
 
     /// Eight lanes of [`Camera::pinhole_dir`] (same operations, same bits).
@@ -77,12 +77,12 @@ impl Camera {
         let d = self.pinhole_dir_x8(x, y);
         let pos = Vec3x8::splat(self.position);
         if self.lens_radius <= 0.0 {
-            return (pos, normalize_x8(d));
+            return (pos, d.normalize());
         }
         let focus = pos + d.scale(f32x8::splat(self.focus_distance));
         let off = Vec3x8::splat(self.right).scale(lens[0]) + Vec3x8::splat(self.up).scale(lens[1]);
         let o = pos + off.scale(f32x8::splat(self.lens_radius));
-        (o, normalize_x8(focus - o))
+        (o, (focus - o).normalize())
     }
 
     /// A camera ray through image point (x, y); `lens` is a point on the unit disk (ignored for a pinhole).
@@ -116,13 +116,6 @@ impl Camera {
     pub fn time(&self, u: f32) -> f32 {
         self.shutter[0] + (self.shutter[1] - self.shutter[0]) * u
     }
-}
-
-/// `v * (1 / |v|)` lane by lane, as glam's `Vec3::normalize` rounds it (no FMA).
-#[inline(always)]
-fn normalize_x8(d: Vec3x8) -> Vec3x8 {
-    let inv_len = f32x8::ONE / (d.x * d.x + d.y * d.y + d.z * d.z).sqrt();
-    d.scale(inv_len)
 }
 
 #[cfg(test)]

@@ -199,6 +199,17 @@ impl Vec3x8 {
     pub fn select(mask: f32x8, a: Self, b: Self) -> Self {
         Self { x: mask.select(a.x, b.x), y: mask.select(a.y, b.y), z: mask.select(a.z, b.z) }
     }
+    /// `self / |self|` as glam's `normalize` rounds it (times the reciprocal of the length).
+    #[inline(always)]
+    pub fn normalize(self) -> Self {
+        self.scale(f32x8::ONE / self.dot_unfused(self).sqrt())
+    }
+    /// glam's `normalize_or`, lane-wise: `fallback` where the reciprocal length is not finite and positive.
+    #[inline(always)]
+    pub fn normalize_or(self, fallback: Self) -> Self {
+        let rcp = f32x8::ONE / self.dot_unfused(self).sqrt();
+        Self::select(rcp.is_finite() & rcp.simd_gt(f32x8::ZERO), self.scale(rcp), fallback)
+    }
     #[inline(always)]
     pub fn cross(self, o: Self) -> Self {
         Self { x: self.y * o.z - self.z * o.y, y: self.z * o.x - self.x * o.z, z: self.x * o.y - self.y * o.x }

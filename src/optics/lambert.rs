@@ -59,15 +59,20 @@ pub fn sample_hemisphere_cos_x8(n: Vec3x8, u: [f32x8; 2]) -> Vec3x8 {
     let r = u[0].max(f32x8::ZERO).min(one).sqrt();
     let (s, c) = (f32x8::splat(TAU) * u[1]).sin_cos();
     let z = (one - u[0]).max(f32x8::ZERO).sqrt();
-    // `onb`, lane-wise: sign = copysign(1, n.z).
+    let (t, bt) = onb_x8(n);
+    t.scale(r * c) + bt.scale(r * s) + n.scale(z)
+}
+
+/// [`onb`] lane by lane, the same operations (sign = copysign(1, n.z)).
+#[inline(always)]
+pub fn onb_x8(n: Vec3x8) -> (Vec3x8, Vec3x8) {
+    let one = f32x8::ONE;
     let sign = bytemuck::cast::<u32x8, f32x8>(
         (bytemuck::cast::<f32x8, u32x8>(n.z) & u32x8::splat(0x8000_0000)) | bytemuck::cast::<f32x8, u32x8>(one),
     );
     let a = -one / (sign + n.z);
     let b = n.x * n.y * a;
-    let t = Vec3x8::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    let bt = Vec3x8::new(b, sign + n.y * n.y * a, -n.y);
-    t.scale(r * c) + bt.scale(r * s) + n.scale(z)
+    (Vec3x8::new(one + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3x8::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 #[cfg(test)]

@@ -11,10 +11,10 @@ use crate::geometry::{
     refine_sphere_point_x8,
 };
 use crate::optics::{
-    beer_lambert, fresnel_dielectric, fresnel_refract_x8, fresnel_schlick, reflect, reflect_x8, refract, sample_ggx_reflect,
-    sample_ggx_reflect_weight, sample_hemisphere_cos_x8,
+    beer_lambert, fresnel_dielectric, fresnel_refract_x8, fresnel_schlick, reflect, reflect_x8, refract, sample_ggx_reflect_weight_x8,
+    sample_ggx_reflect_x8, sample_hemisphere_cos_x8,
 };
-use crate::sample::{hash_combine, random_f32, sample_2d, stream_key, Sampler2d};
+use crate::sample::{hash_combine, random_f32, stream_key, Sampler2d};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture};
 use crate::simd::{consecutive8, f32x8, gather8, lane_bits, mask_from_bits, u32x8, Vec3x8, LANES};
 use glam::Vec3;
@@ -367,7 +367,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
     }
     let order = &*sorted;
 
-    let ctx = Ctx { scene, profile, seed, diffuse: Sampler2d::new(profile.diffuse_strategy, profile.spp) };
+    let ctx = Ctx::new(scene, profile, seed);
     let ShadeOut { paths, next, nee } = out;
     // The point key of the last Lambert hit: a pixel's samples are usually consecutive and share it.
     let mut last_point = KeyMemo::default();
@@ -398,14 +398,19 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
             }
             continue;
         }
-        // Hit geometry 8 hits at a time (spheres in 8 lanes), then each hit's material.
+        if b == MaterialKind::Glossy as usize {
+            for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
+                ctx.glossy_x8(rays, hits, chunk, paths, next);
+            }
+            continue;
+        }
+        // Emitters: hit geometry 8 hits at a time (spheres in 8 lanes), then each hit's radiance.
         for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
             let geometry = surface_hits_x8(scene, (1 << chunk.len()) - 1, |l| HitRay::of(rays, hits, chunk[l] as usize));
             for (&i, &hit) in chunk.iter().zip(&geometry) {
                 let i = i as usize;
                 let mut r = rays.get(i);
                 absorb(scene, &mut r, hits.t[i]);
-                let (pixel, sample) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
                 match &scene.materials[hit.material as usize] {
                     Material::Emissive { radiance } => {
                         let is_light = scene.prims[hits.prim[i] as usize].is_light;
@@ -414,33 +419,9 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                             paths.add(r.path, r.throughput * *radiance);
                         }
                     }
-                    // Shaded 8 at a time by `Ctx::lambert_x8` and `Ctx::specular_x8`.
-                    Material::Lambert { .. } | Material::Mirror { .. } | Material::Dielectric(_) => {
-                        unreachable!("Lambert, mirror and dielectric hits are shaded 8 at a time")
-                    }
-                    Material::Glossy { tint, alpha } => {
-                        if (r.depth as u32) < profile.max_depth {
-                            let wo = -r.d.normalize();
-                            let u = sample_2d(
-                                profile.glossy_strategy,
-                                seed,
-                                branch_stream(pixel, r.branch),
-                                dims::GLOSSY + r.depth as u32,
-                                sample,
-                                profile.spp,
-                            );
-                            if let Some(wi) = sample_ggx_reflect(wo, hit.n_facing, *alpha, u) {
-                                let wgt = sample_ggx_reflect_weight(wo, hit.n_facing, wi, *alpha);
-                                let child = RayItem {
-                                    o: hit.spawn(hit.n_facing),
-                                    d: wi,
-                                    throughput: r.throughput * *tint * wgt,
-                                    flags: FLAG_SPECULAR,
-                                    ..next_of(&r)
-                                };
-                                ctx.spawn(next, child, pixel, sample, 0);
-                            }
-                        }
+                    // Shaded 8 at a time by `Ctx::lambert_x8`, `Ctx::specular_x8` and `Ctx::glossy_x8`.
+                    Material::Lambert { .. } | Material::Mirror { .. } | Material::Dielectric(_) | Material::Glossy { .. } => {
+                        unreachable!("Lambert, mirror, dielectric and glossy hits are shaded 8 at a time")
                     }
                 }
             }
@@ -489,11 +470,17 @@ struct Ctx<'a> {
     scene: &'a Scene,
     profile: &'a Profile,
     seed: u64,
-    /// The diffuse-bounce sampler (the profile's diffuse strategy over the pixel's samples).
+    /// The diffuse-bounce and glossy-lobe samplers (the profile's strategies over the pixel's samples).
     diffuse: Sampler2d,
+    glossy: Sampler2d,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    fn new(scene: &'a Scene, profile: &'a Profile, seed: u64) -> Self {
+        let sampler = |s| Sampler2d::new(s, profile.spp);
+        Ctx { scene, profile, seed, diffuse: sampler(profile.diffuse_strategy), glossy: sampler(profile.glossy_strategy) }
+    }
+
     /// Up to 8 Lambert hits (`idx`, ray indices): the geometry of each hit (shape dispatch) and its
     /// albedo lane by lane, then the next-event request's weight and shadow-ray origin as 8-lane
     /// arithmetic, appended to the request queue as rows; diffuse bounces, when the profile asks for
@@ -914,6 +901,113 @@ impl Ctx<'_> {
         }
     }
 
+    /// Up to 8 glossy (GGX) hits: the ray fields as lane arrays, the hit geometry (spheres and flat prims
+    /// in 8 lanes), the lobe sample of each lane (the glossy sampler in 8 lanes, keyed per pixel, branch
+    /// and depth), the visible-normal sample and its weight in 8 lanes ([`sample_ggx_reflect_x8`],
+    /// bit-identical to the scalar one), and the children queued as one block when every lane has one.
+    /// Same rays, in the same order, as shading the hits one by one.
+    // Out of line (one call per 8 hits): keeps it a separate entry in profiles.
+    #[inline(never)]
+    fn glossy_x8(&self, rays: &RayQueue, hits: &HitQueue, idx: &[u32], paths: &PathTable, next: &mut RayQueue) {
+        let (scene, profile) = (self.scene, self.profile);
+        let m = idx.len();
+        // Lanes past `m` repeat the chunk's last ray (their results are discarded).
+        let i0 = idx[0] as usize;
+        let run = m == LANES && idx[LANES - 1] as usize == i0 + LANES - 1;
+        let at = |l: usize| idx[l.min(m - 1)] as usize;
+        let org = [gather8(&rays.ox, run, i0, at), gather8(&rays.oy, run, i0, at), gather8(&rays.oz, run, i0, at)];
+        let dir = [gather8(&rays.dx, run, i0, at), gather8(&rays.dy, run, i0, at), gather8(&rays.dz, run, i0, at)];
+        let times = if rays.with_time { gather8(&rays.time, run, i0, at) } else { [0.0; LANES] };
+        let d = Vec3x8::from_rows(&dir);
+        let (t, prims) = (gather8(&hits.t, run, i0, at), gather8(&hits.prim, run, i0, at));
+        let geo = hit_rows_x8(scene, hits, idx, Vec3x8::from_rows(&org), d, &t, &times, &prims);
+        let mut thr = [gather8(&rays.tr, run, i0, at), gather8(&rays.tg, run, i0, at), gather8(&rays.tb, run, i0, at)];
+        let path = gather8(&rays.path, run, i0, at);
+        let branch = gather8(&rays.branch, run, i0, at);
+        let depth = gather8(&rays.depth, run, i0, at);
+        let media = gather8(&rays.media, run, i0, at);
+        let consecutive = m == LANES && consecutive8(&path);
+        let (p0, at_path) = (path[0] as usize, |l: usize| path[l] as usize);
+        let (pixel, sample) = (gather8(&paths.pixel, consecutive, p0, at_path), gather8(&paths.sample, consecutive, p0, at_path));
+        let mut tint = [[0.0f32; LANES]; 3];
+        let mut alpha = [1.0f32; LANES];
+        let mut live = 0u32;
+        for (l, &i) in idx.iter().enumerate() {
+            if media[l] != MediumStack::default() {
+                // Inside a medium: Beer-Lambert along the segment just travelled.
+                let mut r = rays.get(i as usize);
+                absorb(scene, &mut r, t[l]);
+                for (row, c) in thr.iter_mut().zip(r.throughput.to_array()) {
+                    row[l] = c;
+                }
+            }
+            let Material::Glossy { tint: k, alpha: a } = &scene.materials[geo.material[l] as usize] else {
+                unreachable!("glossy_x8 is given glossy hits only")
+            };
+            for (row, c) in tint.iter_mut().zip(k.to_array()) {
+                row[l] = c;
+            }
+            alpha[l] = *a;
+            live |= (((depth[l] as u32) < profile.max_depth) as u32) << l;
+        }
+        if live == 0 {
+            return;
+        }
+        // The lobe's stream per (pixel, branch, depth): consecutive lanes usually share it.
+        let mut memo = KeyMemo::default();
+        let keys: [u64; LANES] = std::array::from_fn(|l| {
+            let stream = || stream_key(self.seed, branch_stream(pixel[l], branch[l]), dims::GLOSSY + depth[l] as u32);
+            memo.get((pixel[l], branch[l], depth[l]), stream)
+        });
+        let u = self.glossy.sample_x8(&keys, &sample, true);
+        // -normalize(d), as glam rounds it.
+        let rcp = f32x8::ONE / d.dot_unfused(d).sqrt();
+        let wo = Vec3x8::new(-(d.x * rcp), -(d.y * rcp), -(d.z * rcp));
+        let (nf, alpha) = (geo.n_facing, f32x8::from(alpha));
+        let (wi, ok) = sample_ggx_reflect_x8(wo, nf, alpha, u);
+        let weight = sample_ggx_reflect_weight_x8(wo, nf, wi, alpha);
+        let mut rows = RayRows {
+            o: offset_ray_origin_scaled_x8(geo.p, nf, geo.error_scale).rows(),
+            d: wi.rows(),
+            throughput: (Vec3x8::from_rows(&thr) * Vec3x8::from_rows(&tint)).scale(weight).rows(),
+            time: times,
+            lambda: if rays.with_lambda { gather8(&rays.lambda, run, i0, at) } else { [0.0; LANES] },
+            path,
+            branch,
+            depth: depth.map(|k| k + 1),
+            diffuse: gather8(&rays.diffuse, run, i0, at),
+            flags: [FLAG_SPECULAR; LANES],
+            media,
+        };
+        // `spawn`'s roulette on each child.
+        let mut kept = 0u32;
+        let mut todo = live & ok.to_bitmask();
+        while todo != 0 {
+            let l = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
+            let c = Vec3::new(rows.throughput[0][l], rows.throughput[1][l], rows.throughput[2][l]);
+            if let Some(q) = self.survival(c, rows.diffuse[l], branch[l], rows.depth[l], pixel[l], sample[l], 0) {
+                if q < 1.0 {
+                    for row in &mut rows.throughput {
+                        row[l] /= q;
+                    }
+                }
+                kept |= 1 << l;
+            }
+        }
+        // Every child a prefix of the lanes (usually all of them): one block.
+        if kept & (kept + 1) == 0 {
+            next.push_rows(kept.count_ones() as usize, &rows);
+            return;
+        }
+        let mut bits = kept;
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            next.push(&rows.item(l));
+        }
+    }
+
     /// Whether a child of throughput `t` survives the unbiased Russian roulette on low throughput, and
     /// its survival probability (divide the throughput by it when below 1); `which` keys the child kind.
     #[allow(clippy::too_many_arguments)]
@@ -1135,7 +1229,7 @@ mod tests {
                     // Russian roulette on most children (`spawn`'s stream per child kind), a low depth limit.
                     (profile.throughput_cutoff, profile.max_depth) = (0.5, 2);
                 }
-                let ctx = Ctx { scene: &scene, profile: &profile, seed: 5, diffuse: Sampler2d::new(profile.diffuse_strategy, profile.spp) };
+                let ctx = Ctx::new(&scene, &profile, 5);
                 let (cx, cy) = (scene.width / 2, scene.height / 2);
                 let tile = Tile { x0: cx - 60, y0: cy - 50, x1: cx + 60, y1: cy + 50 };
                 let (mut paths, mut rays) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
@@ -1224,7 +1318,7 @@ mod tests {
                 if variant == 2 {
                     (profile.diffuse_depth, profile.throughput_cutoff) = (2, 0.3);
                 }
-                let ctx = Ctx { scene: &scene, profile: &profile, seed: 9, diffuse: Sampler2d::new(profile.diffuse_strategy, profile.spp) };
+                let ctx = Ctx::new(&scene, &profile, 9);
                 let (mut paths, mut rays) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
                 // Tiles of 16 x 16 pixels across the image.
                 for (fx, fy) in [(0.25, 0.5), (0.5, 0.5), (0.75, 0.5), (0.5, 0.3), (0.5, 0.7), (0.3, 0.8), (0.7, 0.8)] {
