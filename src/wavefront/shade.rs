@@ -1156,6 +1156,7 @@ fn passed(r: &RayItem, o: Vec3, media: MediumStack) -> RayItem {
 mod tests {
     use super::*;
     use crate::csg::CsgArena;
+    use crate::sample::Strategy;
     use crate::wavefront::csg_merge::csg_merge;
     use crate::wavefront::generate::{generate, Tile};
     use crate::wavefront::intersect::intersect;
@@ -1285,6 +1286,109 @@ mod tests {
         }
         // Enough children for the comparison to mean something.
         assert!(compared > 500_000, "{compared}");
+    }
+
+    /// One glossy hit shaded by the scalar code (`surface_hit`, `sample_2d`, `sample_ggx_reflect` and its
+    /// weight, `spawn`): what `shade` did per hit before `glossy_x8`.
+    fn scalar_glossy(ctx: &Ctx, rays: &RayQueue, hits: &HitQueue, i: usize, paths: &PathTable, next: &mut RayQueue) {
+        use crate::optics::{sample_ggx_reflect, sample_ggx_reflect_weight};
+        let mut r = rays.get(i);
+        absorb(ctx.scene, &mut r, hits.t[i]);
+        let hit = surface_hit(ctx.scene, &r, hits.t[i], hits.prim[i], hits.leaf[i], hits.flip[i]);
+        let (pixel, sample) = (paths.pixel[r.path as usize], paths.sample[r.path as usize]);
+        let Material::Glossy { tint, alpha } = &ctx.scene.materials[hit.material as usize] else { panic!("not glossy") };
+        if (r.depth as u32) < ctx.profile.max_depth {
+            let wo = -r.d.normalize();
+            let (p, dim) = (ctx.profile, dims::GLOSSY + r.depth as u32);
+            let u = crate::sample::sample_2d(p.glossy_strategy, ctx.seed, branch_stream(pixel, r.branch), dim, sample, p.spp);
+            if let Some(wi) = sample_ggx_reflect(wo, hit.n_facing, *alpha, u) {
+                let wgt = sample_ggx_reflect_weight(wo, hit.n_facing, wi, *alpha);
+                let child = RayItem {
+                    o: hit.spawn(hit.n_facing),
+                    d: wi,
+                    throughput: r.throughput * *tint * wgt,
+                    flags: FLAG_SPECULAR,
+                    ..next_of(&r)
+                };
+                ctx.spawn(next, child, pixel, sample, 0);
+            }
+        }
+    }
+
+    /// `glossy_x8` pushes the rays the scalar shading pushes, bit for bit and in the same order, on the
+    /// glossy hits of five bounces of the glossy scene (several roughnesses) and the showcase: every
+    /// lobe strategy, roulette on most children, a low depth limit; chunks of 1 to 8 hits.
+    #[test]
+    fn glossy_x8_equals_scalar_shading() {
+        let mut compared = 0usize;
+        for name in ["glossy", "showcase"] {
+            let scene = crate::scene::load_scene(std::path::Path::new(&format!("scenes/{name}.toml"))).unwrap();
+            for variant in 0..4 {
+                let mut profile = Profile::builtin("bench");
+                (profile.spp, profile.max_depth) = (4, 4);
+                profile.glossy_strategy = [Strategy::Jittered, Strategy::Random, Strategy::Sobol, Strategy::Center][variant];
+                if variant == 1 {
+                    (profile.throughput_cutoff, profile.max_depth) = (0.5, 2);
+                }
+                let ctx = Ctx::new(&scene, &profile, 7);
+                let (mut paths, mut rays) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
+                // A band across the middle of the image.
+                let cy = scene.height / 2;
+                generate(
+                    &scene,
+                    &profile,
+                    7,
+                    Tile { x0: 0, y0: cy - 40.min(cy), x1: scene.width, y1: cy + 40 },
+                    0..profile.spp,
+                    &mut paths,
+                    &mut rays,
+                );
+                let (mut hits, mut cands, mut arena, mut order) =
+                    (HitQueue::default(), CsgCandidates::default(), CsgArena::new(), Vec::new());
+                for _bounce in 0..5 {
+                    if rays.is_empty() {
+                        break;
+                    }
+                    rays.pad();
+                    intersect(&scene, &rays, &mut hits, &mut cands);
+                    if scene.features.csg {
+                        csg_merge(&scene, &rays, &mut cands, &mut hits, &mut arena);
+                    }
+                    let glossy: Vec<u32> = (0..rays.len())
+                        .filter(|&i| match (hits.prim[i], hits.leaf[i]) {
+                            (NONE, _) => false,
+                            (p, NONE) => scene.prim_kind[p as usize] == MaterialKind::Glossy,
+                            (_, leaf) => scene.leaf_kind[leaf as usize] == MaterialKind::Glossy,
+                        })
+                        .map(|i| i as u32)
+                        .collect();
+                    let with = || RayQueue::new(rays.with_time, rays.with_lambda);
+                    let (mut lanes, mut scalar) = (with(), with());
+                    let mut at = 0;
+                    for size in [8, 3, 8, 8, 1, 5, 8, 2, 7, 6, 4].into_iter().cycle() {
+                        if at >= glossy.len() {
+                            break;
+                        }
+                        let chunk = &glossy[at..(at + size).min(glossy.len())];
+                        at += chunk.len();
+                        ctx.glossy_x8(&rays, &hits, chunk, &paths, &mut lanes);
+                        for &i in chunk {
+                            scalar_glossy(&ctx, &rays, &hits, i as usize, &paths, &mut scalar);
+                        }
+                    }
+                    let (a, b) = (bits(&lanes), bits(&scalar));
+                    assert_eq!(a.len(), b.len(), "{name} variant {variant}: child counts differ");
+                    for (k, (x, y)) in a.iter().zip(&b).enumerate() {
+                        assert_eq!(x, y, "{name} variant {variant}: child {k} differs");
+                    }
+                    compared += a.len();
+                    let (mut next, mut nee) = (with(), NeeQueue::default());
+                    shade(&scene, &profile, 7, &rays, &hits, &mut order, ShadeOut { paths: &mut paths, next: &mut next, nee: &mut nee });
+                    rays = next;
+                }
+            }
+        }
+        assert!(compared > 100_000, "{compared}");
     }
 
     /// Every field of every request of a NEE queue, floats as bits.
