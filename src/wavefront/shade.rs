@@ -802,7 +802,11 @@ impl<'a> Ctx<'a> {
         // (`interface_children`: a refracted direction exists and the coin passes reflectance).
         let mut trans = 0u32;
         if real != 0 {
-            let coin: [f32; LANES] = std::array::from_fn(|l| self.fresnel_coin(pixel[l], branch[l], sample[l], depth[l]));
+            // (A plain loop: it vectorises; `array::from_fn` made it a call per lane.)
+            let mut coin = [0.0f32; LANES];
+            for l in 0..LANES {
+                coin[l] = self.fresnel_coin(pixel[l], branch[l], sample[l], depth[l]);
+            }
             trans = real & !tir & lane_bits(|l| coin[l] >= fres[l]);
         }
         // Each lane's (first) child: crossing (transmitted or passed) or reflected; a split lane's
