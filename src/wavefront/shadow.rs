@@ -196,7 +196,13 @@ pub fn shadow_with(
     arena: &mut CsgArena,
     scattered: Option<&mut Bvh8Stack>,
 ) -> (u64, u64) {
-    let mut pk = Batch::new();
+    // One batch per light in scenes of a few lights: a batch mixing lights in different directions has
+    // directions of both signs on two or three axes, and its group is then traced packet by packet
+    // (GroupBounds); a third of the showcase's were. A batch is flushed only after every lower light's
+    // (`flush_upto`), so each request's contributions are still credited in light order, then sample
+    // order, whatever the batches: the same sums as one batch.
+    let nb = if scene.lights.len() <= MAX_LIGHT_BATCHES { scene.lights.len().max(1) } else { 1 };
+    let mut batches: Vec<Box<Batch>> = (0..nb).map(|_| Batch::new()).collect();
     let mut traced = 0u64;
     let mut cleared = 0u64;
     // Jittered and Sobol light samples form one stratified set over all of a pixel's camera samples
@@ -413,12 +419,13 @@ pub fn shadow_with(
                 if lanes == 0 {
                     continue;
                 }
-                if pk.len + LANES > BATCH {
-                    traced += flush(scene, profile, &mut pk, &mut credit, arena, walk, single.as_deref_mut());
+                let bi = li.min(nb - 1);
+                if batches[bi].len + LANES > BATCH {
+                    traced += flush_upto(scene, profile, &mut batches[..=bi], &mut credit, arena, walk, single.as_deref_mut());
                 }
-                pk.append(&Rays8 { o, d: target - o, tmax: end, time, contrib: c, req }, lanes);
-                if pk.len == BATCH {
-                    traced += flush(scene, profile, &mut pk, &mut credit, arena, walk, single.as_deref_mut());
+                batches[bi].append(&Rays8 { o, d: target - o, tmax: end, time, contrib: c, req }, lanes);
+                if batches[bi].len == BATCH {
+                    traced += flush_upto(scene, profile, &mut batches[..=bi], &mut credit, arena, walk, single.as_deref_mut());
                 }
             }
             if clear | glass | opaque != 0 {
@@ -433,9 +440,7 @@ pub fn shadow_with(
             traced += resolve_buffered(scene, profile, lb, li, nee, job.take().as_ref(), None, &mut credit, arena);
         }
     }
-    if pk.len > 0 {
-        traced += flush(scene, profile, &mut pk, &mut credit, arena, walk, single);
-    }
+    traced += flush_upto(scene, profile, &mut batches, &mut credit, arena, walk, single);
     credit.to_paths(nee, paths);
     (traced, cleared)
 }
@@ -638,6 +643,26 @@ pub fn occlusion_refused(scene: &Scene, profile: &Profile, ray: &Ray8, refused: 
 /// Trace the batch's shadow rays (any hit, as one traversal group, or one ray at a time when `single`
 /// holds a stack: [`occlusion_single`]) and credit the unoccluded ones, times their transmittance where
 /// they met dielectrics they walk through. Returns rays traced (walk segments included).
+/// Lights up to which the shadow stage keeps one batch per light (more share one batch).
+const MAX_LIGHT_BATCHES: usize = 4;
+
+/// [`flush`] every non-empty batch of `batches`, in order (a light's batch after every lower light's).
+fn flush_upto(
+    scene: &Scene,
+    profile: &Profile,
+    batches: &mut [Box<Batch>],
+    credit: &mut Credit,
+    arena: &mut CsgArena,
+    walk: bool,
+    mut single: Option<&mut Bvh8Stack>,
+) -> u64 {
+    let mut traced = 0;
+    for pk in batches.iter_mut().filter(|b| b.len > 0) {
+        traced += flush(scene, profile, pk, credit, arena, walk, single.as_deref_mut());
+    }
+    traced
+}
+
 fn flush(
     scene: &Scene,
     profile: &Profile,
