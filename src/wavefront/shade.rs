@@ -915,6 +915,8 @@ impl<'a> Ctx<'a> {
     fn glossy_x8(&self, rays: &RayQueue, hits: &HitQueue, idx: &[u32], paths: &PathTable, next: &mut RayQueue) {
         let (scene, profile) = (self.scene, self.profile);
         let m = idx.len();
+        // (The same gathers as `specular_x8` and `lambert_x8`, written out in each: folded into one
+        // function returning a struct of the lane arrays, the shade stage measured 10-15% slower.)
         // Lanes past `m` repeat the chunk's last ray (their results are discarded).
         let i0 = idx[0] as usize;
         let run = m == LANES && idx[LANES - 1] as usize == i0 + LANES - 1;
@@ -1237,59 +1239,79 @@ mod tests {
                 let ctx = Ctx::new(&scene, &profile, 5);
                 let (cx, cy) = (scene.width / 2, scene.height / 2);
                 let tile = Tile { x0: cx - 60, y0: cy - 50, x1: cx + 60, y1: cy + 50 };
-                let (mut paths, mut rays) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
-                generate(&scene, &profile, 5, tile, 0..profile.spp, &mut paths, &mut rays);
-                let (mut hits, mut cands, mut arena, mut order) =
-                    (HitQueue::default(), CsgCandidates::default(), CsgArena::new(), Vec::new());
-                for _bounce in 0..5 {
-                    if rays.is_empty() {
-                        break;
-                    }
-                    rays.pad();
-                    intersect(&scene, &rays, &mut hits, &mut cands);
-                    if scene.features.csg {
-                        csg_merge(&scene, &rays, &mut cands, &mut hits, &mut arena);
-                    }
-                    let specular: Vec<u32> = (0..rays.len())
-                        .filter(|&i| {
-                            let kind = match (hits.prim[i], hits.leaf[i]) {
-                                (NONE, _) => return false,
-                                (p, NONE) => scene.prim_kind[p as usize],
-                                (_, leaf) => scene.leaf_kind[leaf as usize],
-                            };
-                            matches!(kind, MaterialKind::Mirror | MaterialKind::Dielectric)
-                        })
-                        .map(|i| i as u32)
-                        .collect();
+                bounces(&scene, &profile, 5, &[tile], |rays, hits, paths| {
                     let (mut lanes, mut scalar) =
                         (RayQueue::new(rays.with_time, rays.with_lambda), RayQueue::new(rays.with_time, rays.with_lambda));
-                    let mut at = 0;
-                    for size in [8, 3, 8, 8, 1, 5, 8, 2, 7, 6, 4].into_iter().cycle() {
-                        if at >= specular.len() {
-                            break;
-                        }
-                        let chunk = &specular[at..(at + size).min(specular.len())];
-                        at += chunk.len();
-                        ctx.specular_x8(&rays, &hits, chunk, &paths, &mut lanes);
+                    in_chunks(&hits_of(&scene, rays, hits, &[MaterialKind::Mirror, MaterialKind::Dielectric]), |chunk| {
+                        ctx.specular_x8(rays, hits, chunk, paths, &mut lanes);
                         for &i in chunk {
-                            scalar_specular(&ctx, &rays, &hits, i as usize, &paths, &mut scalar);
+                            scalar_specular(&ctx, rays, hits, i as usize, paths, &mut scalar);
                         }
-                    }
-                    let (a, b) = (bits(&lanes), bits(&scalar));
-                    assert_eq!(a.len(), b.len(), "{name} split={split}: child counts differ");
-                    for (k, (x, y)) in a.iter().zip(&b).enumerate() {
-                        assert_eq!(x, y, "{name} split={split}: child {k} differs");
-                    }
-                    compared += a.len();
-                    // On to the next bounce, as the renderer goes.
-                    let (mut next, mut nee) = (RayQueue::new(rays.with_time, rays.with_lambda), NeeQueue::default());
-                    shade(&scene, &profile, 5, &rays, &hits, &mut order, ShadeOut { paths: &mut paths, next: &mut next, nee: &mut nee });
-                    rays = next;
-                }
+                    });
+                    compared += assert_same_rays(&lanes, &scalar, &format!("{name} split={split}"));
+                });
             }
         }
         // Enough children for the comparison to mean something.
         assert!(compared > 500_000, "{compared}");
+    }
+
+    /// Five bounces of `scene` as the renderer runs them, from the camera rays of `tiles`: `check` sees
+    /// each bounce's rays, hits (CSG solved) and paths before `shade` makes the next bounce's rays.
+    fn bounces(scene: &Scene, profile: &Profile, seed: u64, tiles: &[Tile], mut check: impl FnMut(&RayQueue, &HitQueue, &mut PathTable)) {
+        let (mut paths, mut rays) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
+        for &tile in tiles {
+            generate(scene, profile, seed, tile, 0..profile.spp, &mut paths, &mut rays);
+        }
+        let (mut hits, mut cands, mut arena, mut order) = (HitQueue::default(), CsgCandidates::default(), CsgArena::new(), Vec::new());
+        for _bounce in 0..5 {
+            if rays.is_empty() {
+                break;
+            }
+            rays.pad();
+            intersect(scene, &rays, &mut hits, &mut cands);
+            if scene.features.csg {
+                csg_merge(scene, &rays, &mut cands, &mut hits, &mut arena);
+            }
+            check(&rays, &hits, &mut paths);
+            let (mut next, mut nee) = (RayQueue::new(rays.with_time, rays.with_lambda), NeeQueue::default());
+            shade(scene, profile, seed, &rays, &hits, &mut order, ShadeOut { paths: &mut paths, next: &mut next, nee: &mut nee });
+            rays = next;
+        }
+    }
+
+    /// The hits of `rays` on materials of the given kinds, in queue order.
+    fn hits_of(scene: &Scene, rays: &RayQueue, hits: &HitQueue, kinds: &[MaterialKind]) -> Vec<u32> {
+        (0..rays.len())
+            .filter(|&i| match (hits.prim[i], hits.leaf[i]) {
+                (NONE, _) => false,
+                (p, NONE) => kinds.contains(&scene.prim_kind[p as usize]),
+                (_, leaf) => kinds.contains(&scene.leaf_kind[leaf as usize]),
+            })
+            .map(|i| i as u32)
+            .collect()
+    }
+
+    /// `ids` in chunks of 1 to 8 (a fixed cycle of sizes).
+    fn in_chunks(ids: &[u32], mut chunk: impl FnMut(&[u32])) {
+        let mut at = 0;
+        for size in [8, 3, 8, 8, 1, 5, 8, 2, 7, 6, 4].into_iter().cycle() {
+            if at >= ids.len() {
+                break;
+            }
+            chunk(&ids[at..(at + size).min(ids.len())]);
+            at += size.min(ids.len() - at);
+        }
+    }
+
+    /// The two queues hold the same rays, bit for bit and in order; returns how many.
+    fn assert_same_rays(a: &RayQueue, b: &RayQueue, what: &str) -> usize {
+        let (a, b) = (bits(a), bits(b));
+        assert_eq!(a.len(), b.len(), "{what}: child counts differ");
+        for (k, (x, y)) in a.iter().zip(&b).enumerate() {
+            assert_eq!(x, y, "{what}: child {k} differs");
+        }
+        a.len()
     }
 
     /// One glossy hit shaded by the scalar code (`surface_hit`, `sample_2d`, `sample_ggx_reflect` and its
@@ -1335,61 +1357,20 @@ mod tests {
                     (profile.throughput_cutoff, profile.max_depth) = (0.5, 2);
                 }
                 let ctx = Ctx::new(&scene, &profile, 7);
-                let (mut paths, mut rays) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
                 // A band across the middle of the image.
                 let cy = scene.height / 2;
-                generate(
-                    &scene,
-                    &profile,
-                    7,
-                    Tile { x0: 0, y0: cy - 40.min(cy), x1: scene.width, y1: cy + 40 },
-                    0..profile.spp,
-                    &mut paths,
-                    &mut rays,
-                );
-                let (mut hits, mut cands, mut arena, mut order) =
-                    (HitQueue::default(), CsgCandidates::default(), CsgArena::new(), Vec::new());
-                for _bounce in 0..5 {
-                    if rays.is_empty() {
-                        break;
-                    }
-                    rays.pad();
-                    intersect(&scene, &rays, &mut hits, &mut cands);
-                    if scene.features.csg {
-                        csg_merge(&scene, &rays, &mut cands, &mut hits, &mut arena);
-                    }
-                    let glossy: Vec<u32> = (0..rays.len())
-                        .filter(|&i| match (hits.prim[i], hits.leaf[i]) {
-                            (NONE, _) => false,
-                            (p, NONE) => scene.prim_kind[p as usize] == MaterialKind::Glossy,
-                            (_, leaf) => scene.leaf_kind[leaf as usize] == MaterialKind::Glossy,
-                        })
-                        .map(|i| i as u32)
-                        .collect();
-                    let with = || RayQueue::new(rays.with_time, rays.with_lambda);
-                    let (mut lanes, mut scalar) = (with(), with());
-                    let mut at = 0;
-                    for size in [8, 3, 8, 8, 1, 5, 8, 2, 7, 6, 4].into_iter().cycle() {
-                        if at >= glossy.len() {
-                            break;
-                        }
-                        let chunk = &glossy[at..(at + size).min(glossy.len())];
-                        at += chunk.len();
-                        ctx.glossy_x8(&rays, &hits, chunk, &paths, &mut lanes);
+                let band = Tile { x0: 0, y0: cy - 40.min(cy), x1: scene.width, y1: cy + 40 };
+                bounces(&scene, &profile, 7, &[band], |rays, hits, paths| {
+                    let (mut lanes, mut scalar) =
+                        (RayQueue::new(rays.with_time, rays.with_lambda), RayQueue::new(rays.with_time, rays.with_lambda));
+                    in_chunks(&hits_of(&scene, rays, hits, &[MaterialKind::Glossy]), |chunk| {
+                        ctx.glossy_x8(rays, hits, chunk, paths, &mut lanes);
                         for &i in chunk {
-                            scalar_glossy(&ctx, &rays, &hits, i as usize, &paths, &mut scalar);
+                            scalar_glossy(&ctx, rays, hits, i as usize, paths, &mut scalar);
                         }
-                    }
-                    let (a, b) = (bits(&lanes), bits(&scalar));
-                    assert_eq!(a.len(), b.len(), "{name} variant {variant}: child counts differ");
-                    for (k, (x, y)) in a.iter().zip(&b).enumerate() {
-                        assert_eq!(x, y, "{name} variant {variant}: child {k} differs");
-                    }
-                    compared += a.len();
-                    let (mut next, mut nee) = (with(), NeeQueue::default());
-                    shade(&scene, &profile, 7, &rays, &hits, &mut order, ShadeOut { paths: &mut paths, next: &mut next, nee: &mut nee });
-                    rays = next;
-                }
+                    });
+                    compared += assert_same_rays(&lanes, &scalar, &format!("{name} variant {variant}"));
+                });
             }
         }
         assert!(compared > 100_000, "{compared}");
@@ -1427,46 +1408,25 @@ mod tests {
                     (profile.diffuse_depth, profile.throughput_cutoff) = (2, 0.3);
                 }
                 let ctx = Ctx::new(&scene, &profile, 9);
-                let (mut paths, mut rays) = (PathTable::default(), RayQueue::new(scene.features.motion, scene.features.dispersion));
                 // Tiles of 16 x 16 pixels across the image.
-                for (fx, fy) in [(0.25, 0.5), (0.5, 0.5), (0.75, 0.5), (0.5, 0.3), (0.5, 0.7), (0.3, 0.8), (0.7, 0.8)] {
+                let tiles = [(0.25, 0.5), (0.5, 0.5), (0.75, 0.5), (0.5, 0.3), (0.5, 0.7), (0.3, 0.8), (0.7, 0.8)].map(|(fx, fy)| {
                     let (x0, y0) = ((scene.width as f32 * fx) as u32 - 8, (scene.height as f32 * fy) as u32 - 8);
-                    generate(&scene, &profile, 9, Tile { x0, y0, x1: x0 + 16, y1: y0 + 16 }, 0..profile.spp, &mut paths, &mut rays);
-                }
-                let (mut hits, mut cands, mut arena, mut order) =
-                    (HitQueue::default(), CsgCandidates::default(), CsgArena::new(), Vec::new());
-                for _bounce in 0..5 {
-                    if rays.is_empty() {
-                        break;
-                    }
-                    rays.pad();
-                    intersect(&scene, &rays, &mut hits, &mut cands);
-                    if scene.features.csg {
-                        csg_merge(&scene, &rays, &mut cands, &mut hits, &mut arena);
-                    }
-                    let lambert: Vec<u32> = (0..rays.len())
-                        .filter(|&i| {
-                            let kind = match (hits.prim[i], hits.leaf[i]) {
-                                (NONE, _) => return false,
-                                (p, NONE) => scene.prim_kind[p as usize],
-                                (_, leaf) => scene.leaf_kind[leaf as usize],
-                            };
-                            kind == MaterialKind::Lambert
-                        })
-                        .map(|i| i as u32)
-                        // Under split branching, some hits left out too (any increasing subset is valid
-                        // input): with the repeated path ids, runs whose ends alone look consecutive.
-                        .filter(|&i| variant != 1 || i % 5 != 3)
-                        .collect();
+                    Tile { x0, y0, x1: x0 + 16, y1: y0 + 16 }
+                });
+                bounces(&scene, &profile, 9, &tiles, |rays, hits, paths| {
+                    // Under split branching, some hits left out too (any increasing subset is valid
+                    // input): with the repeated path ids, runs whose ends alone look consecutive.
+                    let lambert: Vec<u32> =
+                        hits_of(&scene, rays, hits, &[MaterialKind::Lambert]).into_iter().filter(|&i| variant != 1 || i % 5 != 3).collect();
                     let with = || RayQueue::new(rays.with_time, rays.with_lambda);
                     let (mut nee_a, mut nee_b, mut next_a, mut next_b) = (NeeQueue::default(), NeeQueue::default(), with(), with());
                     let (mut memo_a, mut memo_b) = (KeyMemo::default(), KeyMemo::default());
                     for chunk in lambert.chunks(LANES) {
                         let one_prim = chunk.len() == LANES && chunk.iter().all(|&i| hits.prim[i as usize] == hits.prim[chunk[0] as usize]);
                         uniform += one_prim as usize;
-                        ctx.lambert_x8(&rays, &hits, chunk, &mut paths, &mut nee_a, &mut next_a, &mut memo_a);
+                        ctx.lambert_x8(rays, hits, chunk, paths, &mut nee_a, &mut next_a, &mut memo_a);
                         for i in chunk {
-                            ctx.lambert_x8(&rays, &hits, std::slice::from_ref(i), &mut paths, &mut nee_b, &mut next_b, &mut memo_b);
+                            ctx.lambert_x8(rays, hits, std::slice::from_ref(i), paths, &mut nee_b, &mut next_b, &mut memo_b);
                         }
                     }
                     let (a, b) = (nee_bits(&nee_a), nee_bits(&nee_b));
@@ -1474,13 +1434,8 @@ mod tests {
                     for (k, (x, y)) in a.iter().zip(&b).enumerate() {
                         assert_eq!(x, y, "{name} variant {variant}: request {k} differs");
                     }
-                    assert_eq!(bits(&next_a), bits(&next_b), "{name} variant {variant}: diffuse rays differ");
-                    compared += a.len() + next_a.len();
-                    // On to the next bounce, as the renderer goes.
-                    let (mut next, mut nee) = (with(), NeeQueue::default());
-                    shade(&scene, &profile, 9, &rays, &hits, &mut order, ShadeOut { paths: &mut paths, next: &mut next, nee: &mut nee });
-                    rays = next;
-                }
+                    compared += a.len() + assert_same_rays(&next_a, &next_b, &format!("{name} variant {variant}: diffuse rays"));
+                });
             }
         }
         // Enough requests, and enough whole chunks of one prim, for the comparison to mean something.
