@@ -640,9 +640,6 @@ pub fn occlusion_refused(scene: &Scene, profile: &Profile, ray: &Ray8, refused: 
     occlusion_group(scene, profile, &mut r, &[time], arena, false).0[0].to_bitmask()
 }
 
-/// Trace the batch's shadow rays (any hit, as one traversal group, or one ray at a time when `single`
-/// holds a stack: [`occlusion_single`]) and credit the unoccluded ones, times their transmittance where
-/// they met dielectrics they walk through. Returns rays traced (walk segments included).
 /// Lights up to which the shadow stage keeps one batch per light (more share one batch).
 const MAX_LIGHT_BATCHES: usize = 4;
 
@@ -663,6 +660,9 @@ fn flush_upto(
     traced
 }
 
+/// Trace the batch's shadow rays (any hit, as one traversal group, or one ray at a time when `single`
+/// holds a stack: [`occlusion_single`]) and credit the unoccluded ones, times their transmittance where
+/// they met dielectrics they walk through. Returns rays traced (walk segments included).
 fn flush(
     scene: &Scene,
     profile: &Profile,
