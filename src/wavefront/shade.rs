@@ -210,82 +210,6 @@ fn hit_rows_x8(
     HitRows { p: pv, n_facing: nv, error_scale: sv, front, material, sph, still, uniform }
 }
 
-/// One hit for [`surface_hits_x8`]: the ray's origin, direction and time, the hit distance, primitive,
-/// CSG leaf and flip (as the intersect stage records them).
-#[derive(Clone, Copy, Debug)]
-pub struct HitRay {
-    pub o: Vec3,
-    pub d: Vec3,
-    pub time: f32,
-    pub t: f32,
-    pub prim: u32,
-    pub leaf: u32,
-    pub flip: bool,
-}
-
-impl HitRay {
-    /// Hit `i` of a queue and its hit record.
-    #[inline(always)]
-    pub fn of(rays: &RayQueue, hits: &HitQueue, i: usize) -> Self {
-        HitRay {
-            o: Vec3::new(rays.ox[i], rays.oy[i], rays.oz[i]),
-            d: Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]),
-            time: if rays.with_time { rays.time[i] } else { 0.0 },
-            t: hits.t[i],
-            prim: hits.prim[i],
-            leaf: hits.leaf[i],
-            flip: hits.flip[i],
-        }
-    }
-}
-
-/// [`surface_hit`] of the hits `hit(l)` of the lanes in `lanes` (bit `l` = lane `l`): sphere hits in 8
-/// lanes by [`sphere_hits_x8`], the others one at a time. Other lanes are unspecified.
-pub fn surface_hits_x8(scene: &Scene, lanes: u32, hit: impl Fn(usize) -> HitRay) -> [SurfaceHit; LANES] {
-    let none = SurfaceHit { p: Vec3::ZERO, n: Vec3::ZERO, n_facing: Vec3::ZERO, front: false, material: 0, error_scale: 0.0 };
-    let mut out = [none; LANES];
-    let (mut sph, mut naive, mut dir) = (0u32, [[0.0f32; LANES]; 3], [[0.0f32; LANES]; 3]);
-    let (mut sc, mut sr) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
-    let mut bits = lanes;
-    while bits != 0 {
-        let l = bits.trailing_zeros() as usize;
-        bits &= bits - 1;
-        let h = hit(l);
-        let prim = &scene.prims[h.prim as usize];
-        match prim.shape {
-            Shape::Sphere { center, radius } => {
-                sph |= 1 << l;
-                // o + t d and the centre at the ray's time, as `surface_hit` computes them.
-                let (p, c) = (h.o + h.d * h.t, center + prim.motion * h.time);
-                for k in 0..3 {
-                    (naive[k][l], dir[k][l], sc[k][l]) = (p[k], h.d[k], c[k]);
-                }
-                sr[l] = radius;
-                out[l].material = prim.material;
-            }
-            _ => {
-                let r = RayItem { o: h.o, d: h.d, time: h.time, ..RayItem::default() };
-                out[l] = surface_hit(scene, &r, h.t, h.prim, h.leaf, h.flip);
-            }
-        }
-    }
-    if sph != 0 {
-        let (p, n, front) = sphere_hits_x8(Vec3x8::from_rows(&naive), Vec3x8::from_rows(&dir), &sc, &sr);
-        let (p, n, front) = (p.rows(), n.rows(), front.to_bitmask());
-        let mut bits = sph;
-        while bits != 0 {
-            let l = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let nl = Vec3::new(n[0][l], n[1][l], n[2][l]);
-            let f = front & (1 << l) != 0;
-            let h = &mut out[l];
-            (h.p, h.n, h.front, h.error_scale) = (Vec3::new(p[0][l], p[1][l], p[2][l]), nl, f, 0.0);
-            h.n_facing = if f { nl } else { -nl };
-        }
-    }
-    out
-}
-
 /// Random-number stream of one path branch: stratified dimensions index it by sample.
 #[inline]
 pub fn branch_stream(pixel: u32, branch: u32) -> u64 {
@@ -404,18 +328,26 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
             }
             continue;
         }
-        // Emitters: hit geometry 8 hits at a time (spheres in 8 lanes), then each hit's radiance.
+        // Emitters: which side each of 8 hits arrives on (`hit_rows_x8`), then each hit's radiance.
         for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
-            let geometry = surface_hits_x8(scene, (1 << chunk.len()) - 1, |l| HitRay::of(rays, hits, chunk[l] as usize));
-            for (&i, &hit) in chunk.iter().zip(&geometry) {
+            let at = |l: usize| chunk[l.min(chunk.len() - 1)] as usize;
+            let lanes = |v: &[f32]| std::array::from_fn(|l| v[at(l)]);
+            let (o, d) = (
+                Vec3x8::from_rows(&[lanes(&rays.ox), lanes(&rays.oy), lanes(&rays.oz)]),
+                Vec3x8::from_rows(&[lanes(&rays.dx), lanes(&rays.dy), lanes(&rays.dz)]),
+            );
+            let times = if rays.with_time { lanes(&rays.time) } else { [0.0; LANES] };
+            let prims = std::array::from_fn(|l| hits.prim[at(l)]);
+            let geo = hit_rows_x8(scene, hits, chunk, o, d, &lanes(&hits.t), &times, &prims);
+            for (l, &i) in chunk.iter().enumerate() {
                 let i = i as usize;
                 let mut r = rays.get(i);
                 absorb(scene, &mut r, hits.t[i]);
-                match &scene.materials[hit.material as usize] {
+                match &scene.materials[geo.material[l] as usize] {
                     Material::Emissive { radiance } => {
                         let is_light = scene.prims[hits.prim[i] as usize].is_light;
                         // Sampled lights were already counted by next-event estimation at a diffuse vertex.
-                        if hit.front && !(is_light && r.flags & FLAG_DIFFUSE != 0) {
+                        if geo.front & (1 << l) != 0 && !(is_light && r.flags & FLAG_DIFFUSE != 0) {
                             paths.add(r.path, r.throughput * *radiance);
                         }
                     }
