@@ -641,9 +641,10 @@ impl<'a> Ctx<'a> {
     /// reflectance and spawn points of all lanes as 8-lane arithmetic ([`fresnel_refract_x8`],
     /// [`reflect_x8`], [`offset_ray_origin_scaled_x8`], each bit-identical to its scalar twin), and the
     /// one child of each mirror, roulette-branched interface and null crossing as lane rows, selected
-    /// in 8 lanes and queued as one block when every lane has its child (the usual case). Thin sheets,
-    /// Schlick's approximation and split branching (two children) take the scalar code per lane. Same
-    /// rays, in the same order, as shading the hits one by one.
+    /// in 8 lanes and queued as one block when every lane has its child (the usual case); under split
+    /// branching an interface's two children come from two row sets. Thin sheets and Schlick's
+    /// approximation take the scalar code per lane. Same rays, in the same order, as shading the hits
+    /// one by one.
     // Out of line (one call per 8 hits): keeps it a separate entry in profiles.
     #[inline(never)]
     fn specular_x8(&self, rays: &RayQueue, hits: &HitQueue, idx: &[u32], paths: &PathTable, next: &mut RayQueue) {
