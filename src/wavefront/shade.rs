@@ -465,7 +465,12 @@ impl<'a> Ctx<'a> {
         let keys = if (1..LANES).all(|l| one(l) == one(0)) {
             [last_point.get(one(0), || point_key(pixels[0], branch[0], depth[0])); LANES]
         } else {
-            std::array::from_fn(|l| last_point.get(one(l), || point_key(pixels[l], branch[l], depth[l])))
+            // (A plain loop: `array::from_fn` here was an out-of-line call per lane.)
+            let mut k = [0u64; LANES];
+            for l in 0..LANES {
+                k[l] = last_point.get(one(l), || point_key(pixels[l], branch[l], depth[l]));
+            }
+            k
         };
         // Lanes with a checker texture (the others take their constant colour). The time shift is kept
         // even without motion: `motion * 0` can be -0, and a centre plus -0 is what `surface_hit`
@@ -894,10 +899,11 @@ impl<'a> Ctx<'a> {
         }
         // The lobe's stream per (pixel, branch, depth): consecutive lanes usually share it.
         let mut memo = KeyMemo::default();
-        let keys: [u64; LANES] = std::array::from_fn(|l| {
+        let mut keys = [0u64; LANES];
+        for l in 0..LANES {
             let stream = || stream_key(self.seed, branch_stream(pixel[l], branch[l]), dims::GLOSSY + depth[l] as u32);
-            memo.get((pixel[l], branch[l], depth[l]), stream)
-        });
+            keys[l] = memo.get((pixel[l], branch[l], depth[l]), stream);
+        }
         let u = self.glossy.sample_x8(&keys, &sample, true);
         // -normalize(d), as glam rounds it.
         let rcp = f32x8::ONE / d.dot_unfused(d).sqrt();
