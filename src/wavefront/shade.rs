@@ -613,29 +613,43 @@ impl<'a> Ctx<'a> {
                 roll[l] = random_f32(seed, key, dims::ROULETTE + (depth[l] as u32 + 1) * 4, 0);
             }
         }
-        // The surviving children, compacted into rows: what `next_of` and the bounce give each.
+        // The surviving children, compacted into rows: what `next_of` and the bounce give each. Which
+        // lanes the roulette ends, and the survivors' weights (w / q: exactly w where q = 1), for all 8
+        // lanes at once, without a branch per lane (the roulette's coin is a branch no predictor
+        // learns).
+        let mut dead = 0u32;
+        for l in 0..LANES {
+            dead |= ((((play >> l) & 1 == 1) & (roll[l] >= q[l])) as u32) << l;
+        }
+        let survive = alive & !dead;
+        let qv = f32x8::from(q);
+        let thr = [(v(&w[0]) / qv).to_array(), (v(&w[1]) / qv).to_array(), (v(&w[2]) / qv).to_array()];
         let lambda = if rays.with_lambda { gather8(&rays.lambda, run, i0, at) } else { [0.0; LANES] };
         let mut rows = RayRows::default();
-        let mut k = 0;
-        let mut bits = alive;
-        while bits != 0 {
-            let l = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let mut throughput = Vec3::new(w[0][l], w[1][l], w[2][l]);
-            if play & (1 << l) != 0 {
-                if roll[l] >= q[l] {
-                    continue;
+        let k = survive.count_ones() as usize;
+        if survive & (survive + 1) == 0 {
+            // The survivors are the chunk's first lanes (every lane, usually, before the roulette
+            // plays): the rows are the lane arrays themselves.
+            rows.throughput = thr;
+            (rows.o, rows.d) = ([ox, oy, oz], [wx, wy, wz]);
+            (rows.time, rows.lambda, rows.path, rows.branch) = (times, lambda, path, branch);
+            for l in 0..LANES {
+                (rows.depth[l], rows.diffuse[l], rows.flags[l]) = (depth[l] + 1, diffuse[l] + 1, FLAG_DIFFUSE);
+            }
+            rows.media = media;
+        } else {
+            // Every lane written at the next free row, which only survivors take.
+            let mut r = 0;
+            for l in 0..LANES {
+                for c in 0..3 {
+                    rows.throughput[c][r] = thr[c][l];
                 }
-                throughput /= q[l];
+                (rows.o[0][r], rows.o[1][r], rows.o[2][r]) = (ox[l], oy[l], oz[l]);
+                (rows.d[0][r], rows.d[1][r], rows.d[2][r]) = (wx[l], wy[l], wz[l]);
+                (rows.time[r], rows.lambda[r], rows.path[r], rows.branch[r]) = (times[l], lambda[l], path[l], branch[l]);
+                (rows.depth[r], rows.diffuse[r], rows.flags[r], rows.media[r]) = (depth[l] + 1, diffuse[l] + 1, FLAG_DIFFUSE, media[l]);
+                r += ((survive >> l) & 1) as usize;
             }
-            for c in 0..3 {
-                rows.throughput[c][k] = throughput[c];
-            }
-            (rows.o[0][k], rows.o[1][k], rows.o[2][k]) = (ox[l], oy[l], oz[l]);
-            (rows.d[0][k], rows.d[1][k], rows.d[2][k]) = (wx[l], wy[l], wz[l]);
-            (rows.time[k], rows.lambda[k], rows.path[k], rows.branch[k]) = (times[l], lambda[l], path[l], branch[l]);
-            (rows.depth[k], rows.diffuse[k], rows.flags[k], rows.media[k]) = (depth[l] + 1, diffuse[l] + 1, FLAG_DIFFUSE, media[l]);
-            k += 1;
         }
         next.push_rows(k, &rows);
     }
