@@ -641,9 +641,7 @@ impl<'a> Ctx<'a> {
             // Every lane written at the next free row, which only survivors take.
             let mut r = 0;
             for l in 0..LANES {
-                for c in 0..3 {
-                    rows.throughput[c][r] = thr[c][l];
-                }
+                (rows.throughput[0][r], rows.throughput[1][r], rows.throughput[2][r]) = (thr[0][l], thr[1][l], thr[2][l]);
                 (rows.o[0][r], rows.o[1][r], rows.o[2][r]) = (ox[l], oy[l], oz[l]);
                 (rows.d[0][r], rows.d[1][r], rows.d[2][r]) = (wx[l], wy[l], wz[l]);
                 (rows.time[r], rows.lambda[r], rows.path[r], rows.branch[r]) = (times[l], lambda[l], path[l], branch[l]);
