@@ -633,8 +633,9 @@ impl<'a> Ctx<'a> {
             rows.throughput = thr;
             (rows.o, rows.d) = ([ox, oy, oz], [wx, wy, wz]);
             (rows.time, rows.lambda, rows.path, rows.branch) = (times, lambda, path, branch);
+            // (Every lane's, survivor or not: wrapping, since only survivors', below both limits, are kept.)
             for l in 0..LANES {
-                (rows.depth[l], rows.diffuse[l], rows.flags[l]) = (depth[l] + 1, diffuse[l] + 1, FLAG_DIFFUSE);
+                (rows.depth[l], rows.diffuse[l], rows.flags[l]) = (depth[l].wrapping_add(1), diffuse[l].wrapping_add(1), FLAG_DIFFUSE);
             }
             rows.media = media;
         } else {
@@ -645,7 +646,8 @@ impl<'a> Ctx<'a> {
                 (rows.o[0][r], rows.o[1][r], rows.o[2][r]) = (ox[l], oy[l], oz[l]);
                 (rows.d[0][r], rows.d[1][r], rows.d[2][r]) = (wx[l], wy[l], wz[l]);
                 (rows.time[r], rows.lambda[r], rows.path[r], rows.branch[r]) = (times[l], lambda[l], path[l], branch[l]);
-                (rows.depth[r], rows.diffuse[r], rows.flags[r], rows.media[r]) = (depth[l] + 1, diffuse[l] + 1, FLAG_DIFFUSE, media[l]);
+                let (d1, f1) = (depth[l].wrapping_add(1), diffuse[l].wrapping_add(1));
+                (rows.depth[r], rows.diffuse[r], rows.flags[r], rows.media[r]) = (d1, f1, FLAG_DIFFUSE, media[l]);
                 r += ((survive >> l) & 1) as usize;
             }
         }
