@@ -83,6 +83,10 @@ if ! "$PYTHON" -c "import mitsuba" >/dev/null 2>&1; then
   echo "SKIPPED Mitsuba 3: the Python package is not installed for $PYTHON (pip install mitsuba)"; HAVE_MITSUBA=0
 elif [ -z "$DRJIT_LIBLLVM_PATH" ] || ! [ -f "$DRJIT_LIBLLVM_PATH" ]; then
   echo "SKIPPED Mitsuba 3: no libLLVM for its llvm variant (apt-get install -y libllvm19, or set DRJIT_LIBLLVM_PATH)"; HAVE_MITSUBA=0
+elif [ "$QUALITY" = 1 ] && ! "$PYTHON" -c "import numpy" >/dev/null 2>&1; then
+  # The error comparison reads the EXRs through numpy, which `pip install mitsuba` does not bring: say so
+  # before any Mitsuba render rather than fail after them.
+  echo "$0: --quality needs numpy for $PYTHON (pip install numpy)" >&2; exit 2
 fi
 
 for kind in path direct; do
