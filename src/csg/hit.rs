@@ -1,6 +1,7 @@
 //! First boundary of a solid along rays: leaf crossings by the 8-lane kernels (one call per leaf per
 //! packet), then Roth's merge per lane (`merge.rs`).
 
+use super::fast_x8::first_boundary_x8;
 use super::interval_x8::leaf_x8;
 use super::merge::{eval_lane, for_each_boundary, lanes_with_boundaries_x8, tol_base, CsgArena, LaneJob, COINCIDENT_EPS};
 use super::program::{Csg, Solid};
@@ -56,9 +57,41 @@ pub fn first_hit(csg: &Csg, solid: u32, o: Vec3, d: Vec3, tmin: f32, tmax: f32, 
 
 /// 8 rays against one solid: leaf crossings by the 8-lane kernels (one call per leaf per packet), then the
 /// merge per active lane. Inactive lanes (`tmax <= tmin`) get `None`.
+///
+/// Lanes whose crossings near `(tmin, tmax)` are all farther apart than the coincidence tolerance are
+/// answered 8 at a time by point classification at the crossings (`fast_x8.rs`, equal to the merge bit
+/// for bit there); the others take the merge lane by lane.
 pub fn first_hit_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, out: &mut [Option<CsgHit>; 8]) {
     *out = [None; 8];
-    each_lane_x8(csg, solid, ray, tmin, arena, |job, arena| out[job.lane] = eval_lane(job, arena));
+    let Some((s, base, mask)) = prepare_lanes_x8(csg, solid, ray, tmin, arena) else {
+        return;
+    };
+    let prog = csg.program(s);
+    let mut rest = mask;
+    if let (Some(flips), true) = (s.flips, mask != 0) {
+        let cross = &arena.cross[..s.leaf_count as usize];
+        let fast = first_boundary_x8(prog, flips, cross, tmin, ray.tmax, f32x8::from(base), mask);
+        let mut found = fast.found;
+        while found != 0 {
+            let l = found.trailing_zeros() as usize;
+            found &= found - 1;
+            let bit = 1 << l;
+            out[l] = Some(CsgHit {
+                t: fast.t[l],
+                leaf: s.leaf_start + fast.leaf[l],
+                flip: fast.flip & bit != 0,
+                entering: fast.entering & bit != 0,
+            });
+        }
+        rest &= !fast.decided;
+    }
+    let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
+    while rest != 0 {
+        let lane = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        let job = LaneJob { prog, leaf_start: s.leaf_start, lane, tmin: t0[lane], tmax: t1[lane], base: base[lane] };
+        out[lane] = eval_lane(&job, arena);
+    }
 }
 
 /// Every boundary of the solid along 8 rays within `(tmin, tmax)`, lane by lane in order along the ray:

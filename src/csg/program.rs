@@ -85,6 +85,9 @@ pub(crate) struct Solid {
     /// Magnitude of the solid's coordinates: the largest |coordinate| of its bounds and of its leaves'
     /// placements. The floor of the coincidence tolerance (`merge.rs`), so that it scales with the solid.
     pub scale: f32,
+    /// Per leaf, bit `k`: its surfaces bound the solid flipped (`fast_x8::flip_bits`); `None` when the
+    /// program is beyond the 8-lane first-boundary path (every lane then takes the merge).
+    pub flips: Option<u32>,
 }
 
 /// All leaves of all solids in one array, and one postfix program per solid.
@@ -126,6 +129,7 @@ impl Csg {
             instr_count: (self.instrs.len() - instr_start) as u32,
             bounds,
             scale,
+            flips: super::fast_x8::flip_bits(&self.instrs[instr_start..]),
         });
         Ok(self.solids.len() as u32 - 1)
     }
