@@ -28,7 +28,7 @@
 //! `eval_lane` bit for bit on random programs and crossing tables built to coincide, and
 //! `tests/csg.rs` renders through both paths.
 
-use super::merge::COINCIDENT_EPS;
+use super::merge::{Ev, COINCIDENT_EPS};
 use super::program::{Instr, Op};
 use crate::simd::{f32x8, u32x8};
 
@@ -111,6 +111,102 @@ fn eval2_x8(prog: &[Instr], inside: &[f32x8], k: usize, own: (f32x8, f32x8)) -> 
     st[0]
 }
 
+/// What every query of a packet shares: which intervals are present, and the lanes decided here.
+struct Prepared {
+    /// Interval `iv` of leaf `k` is present in some lane (a convex leaf's second never is).
+    present: [[bool; 2]; FAST_LEAVES],
+    /// Per lane: interval `iv` of leaf `k` is not empty (`a < b`; NaN ends: empty).
+    valid: [[f32x8; 2]; FAST_LEAVES],
+    /// Lanes among the asked ones whose crossings that could matter are all farther than `2 T` apart.
+    decided: u32,
+}
+
+/// The checks of the module doc for the lanes `lanes`: `Prepared::decided` are the lanes whose answer
+/// point classification gives.
+#[inline(always)]
+fn prepare(cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8, lanes: u32) -> Prepared {
+    let n = cross.len();
+    debug_assert!(n <= FAST_LEAVES);
+    let (nan, inf) = (f32x8::NAN, f32x8::splat(f32::INFINITY));
+    let mut p = Prepared { present: [[false; 2]; FAST_LEAVES], valid: [[f32x8::ZERO; 2]; FAST_LEAVES], decided: 0 };
+    // Largest finite |crossing| of the present intervals: the tolerance bound T.
+    let mut big = f32x8::ZERO;
+    for k in 0..n {
+        for iv in 0..2 {
+            let (a, b) = (f32x8::from(cross[k][2 * iv]), f32x8::from(cross[k][2 * iv + 1]));
+            let ok = a.simd_lt(b);
+            p.valid[k][iv] = ok;
+            p.present[k][iv] = ok.any();
+            for v in [a, b] {
+                let finite = v.abs().simd_lt(inf);
+                big = big.max((ok & finite).select(v.abs(), f32x8::ZERO));
+            }
+        }
+    }
+    let t_big = (base + f32x8::splat(COINCIDENT_EPS) * big.min(f32x8::splat(1e30))) * f32x8::splat(1.01);
+    let two_t = t_big + t_big;
+    let (lo, hi) = (tmin - two_t, tmax + two_t);
+    // The crossings that could matter, NaN elsewhere (so that no comparison with them holds), each
+    // compared with those before it: lanes with two within 2 T may have groups of several crossings.
+    let mut near = [nan; 4 * FAST_LEAVES];
+    let mut m = 0;
+    let mut close = f32x8::ZERO;
+    for k in 0..n {
+        for iv in 0..2 {
+            if !p.present[k][iv] {
+                continue;
+            }
+            for e in 0..2 {
+                let c = f32x8::from(cross[k][2 * iv + e]);
+                let c = (p.valid[k][iv] & c.simd_gt(lo) & c.simd_lt(hi)).select(c, nan);
+                for &o in &near[..m] {
+                    close |= (c - o).abs().simd_le(two_t);
+                }
+                near[m] = c;
+                m += 1;
+            }
+        }
+        // A leaf's two intervals out of order (the kernels never give them, but the merge takes a lone
+        // leaf's list as it comes): left to the merge too.
+        if p.present[k][0] && p.present[k][1] {
+            close |= p.valid[k][0] & p.valid[k][1] & !f32x8::from(cross[k][1]).simd_lt(f32x8::from(cross[k][2]));
+        }
+    }
+    p.decided = lanes & !close.to_bitmask();
+    p
+}
+
+/// At crossing `c` of leaf `k` (lanes decided by [`prepare`]): the solid's state just after and just
+/// before it. Other leaves have no crossing at `c` in those lanes: one state serves both sides; leaf
+/// `k`'s own intervals are closed at the entry for "after", at the exit for "before" (NaN ends compare
+/// false: outside).
+#[inline(always)]
+fn states_at(prog: &[Instr], cross: &[[[f32; 8]; 4]], p: &Prepared, k: usize, c: f32x8) -> (f32x8, f32x8) {
+    let n = cross.len();
+    let mut inside = [f32x8::ZERO; FAST_LEAVES];
+    for j in 0..n {
+        if j == k {
+            continue;
+        }
+        let mut s = f32x8::ZERO;
+        for jv in 0..2 {
+            if p.present[j][jv] {
+                s |= c.simd_gt(f32x8::from(cross[j][2 * jv])) & c.simd_lt(f32x8::from(cross[j][2 * jv + 1]));
+            }
+        }
+        inside[j] = s;
+    }
+    let (mut after, mut before) = (f32x8::ZERO, f32x8::ZERO);
+    for jv in 0..2 {
+        if p.present[k][jv] {
+            let (a, b) = (f32x8::from(cross[k][2 * jv]), f32x8::from(cross[k][2 * jv + 1]));
+            after |= c.simd_ge(a) & c.simd_lt(b);
+            before |= c.simd_gt(a) & c.simd_le(b);
+        }
+    }
+    eval2_x8(prog, &inside[..n], k, (after, before))
+}
+
 /// The first boundary in `(tmin, tmax)` of the lanes `lanes`, for the lanes where point classification
 /// provably gives the merge's answer (see the module doc). `cross[k]`: leaf `k`'s crossing table
 /// (`[a0, b0, a1, b1]` over 8 lanes, NaN for an absent interval); `base`: each lane's tolerance base
@@ -124,106 +220,27 @@ pub(crate) fn first_boundary_x8(
     base: f32x8,
     lanes: u32,
 ) -> FastHits {
-    let n = cross.len();
-    debug_assert!(n <= FAST_LEAVES);
-    let nan = f32x8::NAN;
-    // Intervals present in some lane (a convex leaf's second never is: its crossings are skipped).
-    let mut present = [[false; 2]; FAST_LEAVES];
-    let mut valid = [[f32x8::ZERO; 2]; FAST_LEAVES];
-    // Largest finite |crossing| of the present intervals: the tolerance bound T.
-    let mut big = f32x8::ZERO;
-    let inf = f32x8::splat(f32::INFINITY);
-    for k in 0..n {
-        for iv in 0..2 {
-            let (a, b) = (f32x8::from(cross[k][2 * iv]), f32x8::from(cross[k][2 * iv + 1]));
-            let ok = a.simd_lt(b);
-            valid[k][iv] = ok;
-            present[k][iv] = ok.any();
-            for v in [a, b] {
-                let finite = v.abs().simd_lt(inf);
-                big = big.max((ok & finite).select(v.abs(), f32x8::ZERO));
-            }
-        }
-    }
-    let t_big = (base + f32x8::splat(COINCIDENT_EPS) * big.min(f32x8::splat(1e30))) * f32x8::splat(1.01);
-    let two_t = t_big + t_big;
-    let (lo, hi) = (tmin - two_t, tmax + two_t);
-    // The crossings that could matter, NaN elsewhere (so that no comparison with them holds).
-    let mut near = [nan; 4 * FAST_LEAVES];
-    let mut m = 0;
-    for k in 0..n {
-        for iv in 0..2 {
-            if !present[k][iv] {
-                continue;
-            }
-            for e in 0..2 {
-                let c = f32x8::from(cross[k][2 * iv + e]);
-                let keep = valid[k][iv] & c.simd_gt(lo) & c.simd_lt(hi);
-                near[m] = keep.select(c, nan);
-                m += 1;
-            }
-        }
-    }
-    // Lanes with two of them within 2 T: the merge's groups there may hold several crossings.
-    let mut close = f32x8::ZERO;
-    for i in 0..m {
-        for j in i + 1..m {
-            close |= (near[i] - near[j]).abs().simd_le(two_t);
-        }
-    }
-    // A leaf's two intervals out of order (the kernels never give them, but the merge takes a lone
-    // leaf's list as it comes): left to the merge too.
-    for k in 0..n {
-        if present[k][0] && present[k][1] {
-            close |= valid[k][0] & valid[k][1] & !f32x8::from(cross[k][1]).simd_lt(f32x8::from(cross[k][2]));
-        }
-    }
-    let decided = lanes & !close.to_bitmask();
-    let mut out = FastHits { decided, ..FastHits::default() };
-    if decided == 0 {
+    let p = prepare(cross, tmin, tmax, base, lanes);
+    let mut out = FastHits { decided: p.decided, ..FastHits::default() };
+    if p.decided == 0 {
         return out;
     }
-    // Each crossing in (tmin, tmax): the solid's state just before and just after it.
-    let active = crate::simd::mask_from_bits(decided);
-    let mut best = inf;
-    let mut leaf = u32x8::splat(0);
-    let mut entering = f32x8::ZERO;
-    let mut inside = [f32x8::ZERO; FAST_LEAVES];
-    for k in 0..n {
+    // The nearest crossing in (tmin, tmax) where the state flips.
+    let active = crate::simd::mask_from_bits(p.decided);
+    let inf = f32x8::splat(f32::INFINITY);
+    let (mut best, mut leaf, mut entering) = (inf, u32x8::splat(0), f32x8::ZERO);
+    for k in 0..cross.len() {
         for iv in 0..2 {
-            if !present[k][iv] {
+            if !p.present[k][iv] {
                 continue;
             }
             for e in 0..2 {
                 let c = f32x8::from(cross[k][2 * iv + e]);
-                let cand = active & valid[k][iv] & c.simd_gt(tmin) & c.simd_lt(tmax) & c.simd_lt(best);
+                let cand = active & p.valid[k][iv] & c.simd_gt(tmin) & c.simd_lt(tmax) & c.simd_lt(best);
                 if !cand.any() {
                     continue;
                 }
-                // Other leaves have no crossing at `c` in the lanes decided here: one state for both
-                // sides. Leaf `k`'s own intervals: closed at the entry for "after", at the exit for
-                // "before" (NaN ends compare false: outside).
-                for j in 0..n {
-                    if j == k {
-                        continue;
-                    }
-                    let mut s = f32x8::ZERO;
-                    for jv in 0..2 {
-                        if present[j][jv] {
-                            s |= c.simd_gt(f32x8::from(cross[j][2 * jv])) & c.simd_lt(f32x8::from(cross[j][2 * jv + 1]));
-                        }
-                    }
-                    inside[j] = s;
-                }
-                let (mut after, mut before) = (f32x8::ZERO, f32x8::ZERO);
-                for jv in 0..2 {
-                    if present[k][jv] {
-                        let (a, b) = (f32x8::from(cross[k][2 * jv]), f32x8::from(cross[k][2 * jv + 1]));
-                        after |= c.simd_ge(a) & c.simd_lt(b);
-                        before |= c.simd_gt(a) & c.simd_le(b);
-                    }
-                }
-                let (ra, rb) = eval2_x8(prog, &inside[..n], k, (after, before));
+                let (ra, rb) = states_at(prog, cross, &p, k, c);
                 let hit = cand & (ra ^ rb);
                 if hit.any() {
                     best = hit.select(c, best);
@@ -233,7 +250,7 @@ pub(crate) fn first_boundary_x8(
             }
         }
     }
-    let found = best.simd_lt(inf).to_bitmask() & decided;
+    let found = best.simd_lt(inf).to_bitmask() & p.decided;
     out.found = found;
     out.t = best.to_array();
     out.leaf = leaf.to_array();
@@ -246,13 +263,67 @@ pub(crate) fn first_boundary_x8(
     out
 }
 
+/// Every boundary in `(tmin, tmax)` of the lanes `lanes` that point classification decides, lane by
+/// lane in order along the ray: `visit(lane, t, leaf, flip, entering)` (`leaf` within the solid).
+/// Returns the decided lanes; the others are the caller's (the merge's). Arguments as for
+/// [`first_boundary_x8`]; `scratch` holds the boundaries found before they are sorted.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn for_each_boundary_x8(
+    prog: &[Instr],
+    flips: u32,
+    cross: &[[[f32; 8]; 4]],
+    tmin: f32x8,
+    tmax: f32x8,
+    base: f32x8,
+    lanes: u32,
+    scratch: &mut Vec<Ev>,
+    mut visit: impl FnMut(usize, f32, u32, bool, bool),
+) -> u32 {
+    let p = prepare(cross, tmin, tmax, base, lanes);
+    if p.decided == 0 {
+        return 0;
+    }
+    // Every flip of every lane, tagged (lane << 8 | leaf << 1 | entering), then sorted by lane and
+    // distance (distinct within a decided lane).
+    scratch.clear();
+    let active = crate::simd::mask_from_bits(p.decided);
+    for k in 0..cross.len() {
+        for iv in 0..2 {
+            if !p.present[k][iv] {
+                continue;
+            }
+            for e in 0..2 {
+                let c = f32x8::from(cross[k][2 * iv + e]);
+                let cand = active & p.valid[k][iv] & c.simd_gt(tmin) & c.simd_lt(tmax);
+                if !cand.any() {
+                    continue;
+                }
+                let (ra, rb) = states_at(prog, cross, &p, k, c);
+                let mut bits = (cand & (ra ^ rb)).to_bitmask();
+                let (ca, ra) = (c.to_array(), ra.to_bitmask());
+                while bits != 0 {
+                    let l = bits.trailing_zeros();
+                    bits &= bits - 1;
+                    scratch.push(Ev { t: ca[l as usize], tag: l << 8 | (k as u32) << 1 | (ra >> l) & 1 });
+                }
+            }
+        }
+    }
+    scratch.sort_unstable_by(|a, b| (a.tag >> 8).cmp(&(b.tag >> 8)).then(a.t.total_cmp(&b.t)));
+    for e in scratch.iter() {
+        let k = (e.tag >> 1) & 0x7f;
+        visit((e.tag >> 8) as usize, e.t, k, flips & (1 << k) != 0, e.tag & 1 != 0);
+    }
+    p.decided
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::csg::merge::{eval_lane, CsgArena, LaneJob};
+    use crate::csg::merge::{eval_lane, for_each_boundary, CsgArena, LaneJob};
 
     /// Wherever the 8-lane path decides a lane, its answer is `eval_lane`'s bit for bit (distance, leaf,
-    /// flip, entering, or no boundary): random postfix programs of 1 to 9 leaves and every operator,
+    /// flip, entering, or no boundary), and its list of every boundary is `for_each_boundary`'s: random postfix programs of 1 to 9 leaves and every operator,
     /// over crossings drawn from a small set of values (so that crossings coincide exactly and within
     /// the tolerance, and the path must leave those lanes to the merge) mixed with spread ones, with
     /// absent, infinite and NaN intervals and second intervals. It must also decide most lanes whose
@@ -262,7 +333,8 @@ mod tests {
         let mut f = crate::sample::hash::test_uniforms(0x0fa5_7c56);
         let values = [-3.0f32, 0.0, 0.5, 1.0, 1.0 + 2e-6, 1.0 + 3e-5, 2.0, 2.0 - 1e-6, 4.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
         let mut arena = CsgArena::new();
-        let (mut decided, mut left, mut found, mut spread_left, mut spread_all) = (0usize, 0usize, 0usize, 0usize, 0usize);
+        let (mut decided, mut left, mut found, mut spread_left, mut spread_all, mut several) =
+            (0usize, 0usize, 0usize, 0usize, 0usize, 0usize);
         for case in 0..30000 {
             let n = 1 + case % 9;
             let mut prog = Vec::new();
@@ -306,8 +378,16 @@ mod tests {
             let tmax: [f32; 8] = std::array::from_fn(|l| if f() < 0.3 { f32::INFINITY } else { tmin[l].max(-5.0) + 0.1 + 6.0 * f() });
             let base: [f32; 8] = std::array::from_fn(|_| [1e-5f32, 1e-3, 0.0][(f() * 3.0) as usize % 3]);
             let lanes = (0..8).filter(|&l| tmax[l] > tmin[l]).fold(0u32, |m, l| m | 1 << l);
-            let got = first_boundary_x8(&prog, flips, &cross, f32x8::from(tmin), f32x8::from(tmax), f32x8::from(base), lanes);
+            let (t0, t1, b) = (f32x8::from(tmin), f32x8::from(tmax), f32x8::from(base));
+            let got = first_boundary_x8(&prog, flips, &cross, t0, t1, b, lanes);
             assert_eq!(got.decided & !lanes, 0);
+            // Every boundary, per lane in the order visited.
+            let mut all: [Vec<(u32, u32, bool, bool)>; 8] = Default::default();
+            let mut scratch = Vec::new();
+            let all_decided = for_each_boundary_x8(&prog, flips, &cross, t0, t1, b, lanes, &mut scratch, |l, t, k, flip, entering| {
+                all[l].push((t.to_bits(), k, flip, entering))
+            });
+            assert_eq!(all_decided, got.decided);
             arena.cross = cross.clone();
             for l in 0..8 {
                 if lanes & (1 << l) == 0 {
@@ -327,9 +407,16 @@ mod tests {
                 let want = want.map(|h| (h.t.to_bits(), h.leaf, h.flip, h.entering));
                 assert_eq!(have, want, "case {case} lane {l}: {prog:?} tmin {} tmax {} base {}", tmin[l], tmax[l], base[l]);
                 found += want.is_some() as usize;
+                let mut every = Vec::new();
+                for_each_boundary(&job, &mut arena, |h| every.push((h.t.to_bits(), h.leaf, h.flip, h.entering)));
+                assert_eq!(all[l], every, "case {case} lane {l}: every boundary, {prog:?}");
+                several += (every.len() > 1) as usize;
             }
         }
-        assert!(decided > 60_000 && found > 20_000 && left > 20_000, "{decided} decided ({found} with a boundary), {left} left");
+        assert!(
+            decided > 60_000 && found > 20_000 && several > 5_000 && left > 20_000,
+            "{decided} decided ({found} with a boundary, {several} with several), {left} left"
+        );
         // Spread crossings rarely come within 2 T (T ~ 1e-3 at most here); the lanes left are mostly
         // those with a leaf's intervals out of order.
         assert!(spread_left * 10 < spread_all, "{spread_left} of {spread_all} spread lanes left to the merge");

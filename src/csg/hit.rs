@@ -1,10 +1,10 @@
 //! First boundary of a solid along rays: leaf crossings by the 8-lane kernels (one call per leaf per
 //! packet), then Roth's merge per lane (`merge.rs`).
 
-use super::fast_x8::first_boundary_x8;
+use super::fast_x8::{first_boundary_x8, for_each_boundary_x8};
 use super::interval_x8::leaf_x8;
 use super::merge::{eval_lane, for_each_boundary, lanes_with_boundaries_x8, tol_base, CsgArena, LaneJob, COINCIDENT_EPS};
-use super::program::{Csg, Solid};
+use super::program::{Csg, Instr, Solid};
 use crate::simd::{f32x8, Ray8, Vec3x8};
 use glam::Vec3;
 
@@ -85,20 +85,29 @@ pub fn first_hit_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
         }
         rest &= !fast.decided;
     }
-    let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
-    while rest != 0 {
-        let lane = rest.trailing_zeros() as usize;
-        rest &= rest - 1;
-        let job = LaneJob { prog, leaf_start: s.leaf_start, lane, tmin: t0[lane], tmax: t1[lane], base: base[lane] };
-        out[lane] = eval_lane(&job, arena);
-    }
+    each_lane(s, prog, &base, tmin, ray.tmax, rest, arena, |job, arena| out[job.lane] = eval_lane(job, arena));
 }
 
 /// Every boundary of the solid along 8 rays within `(tmin, tmax)`, lane by lane in order along the ray:
 /// `visit(lane, hit)` (the same leaf kernels and merge as [`first_hit_x8`], whose hit is each lane's first
 /// here). Inactive lanes (`tmax <= tmin`) are skipped.
+///
+/// Lanes decided by point classification (as in [`first_hit_x8`]) are visited first, each in order;
+/// the others then take the merge.
 pub fn crossings_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, mut visit: impl FnMut(usize, CsgHit)) {
-    each_lane_x8(csg, solid, ray, tmin, arena, |job, arena| for_each_boundary(job, arena, |h| visit(job.lane, h)));
+    let Some((s, base, mask)) = prepare_lanes_x8(csg, solid, ray, tmin, arena) else {
+        return;
+    };
+    let prog = csg.program(s);
+    let mut rest = mask;
+    if let (Some(flips), true) = (s.flips, mask != 0) {
+        let CsgArena { cross, tmp, .. } = arena;
+        let cross = &cross[..s.leaf_count as usize];
+        rest &= !for_each_boundary_x8(prog, flips, cross, tmin, ray.tmax, f32x8::from(base), mask, tmp, |l, t, k, flip, entering| {
+            visit(l, CsgHit { t, leaf: s.leaf_start + k, flip, entering })
+        });
+    }
+    each_lane(s, prog, &base, tmin, ray.tmax, rest, arena, |job, arena| for_each_boundary(job, arena, |h| visit(job.lane, h)));
 }
 
 /// The active lanes (`tmax > tmin`) whose merge may have a boundary in `(tmin, tmax)`, by the 8-lane
@@ -124,18 +133,22 @@ fn prepare_lanes_x8<'a>(csg: &'a Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena
     Some((s, base, mask & may))
 }
 
-/// The crossing table of a packet against one solid, then `f` for each active lane (`tmax > tmin`).
+/// `f` with each lane of `lanes` as a merge job (the lanes the 8-lane path left).
 #[inline(always)]
-fn each_lane_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut CsgArena, mut f: impl FnMut(&LaneJob, &mut CsgArena)) {
-    let Some((s, base, mask)) = prepare_lanes_x8(csg, solid, ray, tmin, arena) else {
-        return;
-    };
-    let prog = csg.program(s);
-    let (t0, t1) = (tmin.to_array(), ray.tmax.to_array());
-    for lane in 0..8 {
-        if mask & (1 << lane) != 0 {
-            let job = LaneJob { prog, leaf_start: s.leaf_start, lane, tmin: t0[lane], tmax: t1[lane], base: base[lane] };
-            f(&job, arena);
-        }
+fn each_lane(
+    s: &Solid,
+    prog: &[Instr],
+    base: &[f32; 8],
+    tmin: f32x8,
+    tmax: f32x8,
+    mut lanes: u32,
+    arena: &mut CsgArena,
+    mut f: impl FnMut(&LaneJob, &mut CsgArena),
+) {
+    let (t0, t1) = (tmin.to_array(), tmax.to_array());
+    while lanes != 0 {
+        let lane = lanes.trailing_zeros() as usize;
+        lanes &= lanes - 1;
+        f(&LaneJob { prog, leaf_start: s.leaf_start, lane, tmin: t0[lane], tmax: t1[lane], base: base[lane] }, arena);
     }
 }
