@@ -131,9 +131,9 @@ fn prepare(cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8, lanes
     let mut p = Prepared { present: [[false; 2]; FAST_LEAVES], valid: [[f32x8::ZERO; 2]; FAST_LEAVES], decided: 0 };
     // Largest finite |crossing| of the present intervals: the tolerance bound T.
     let mut big = f32x8::ZERO;
-    for k in 0..n {
+    for (k, ck) in cross.iter().enumerate() {
         for iv in 0..2 {
-            let (a, b) = (f32x8::from(cross[k][2 * iv]), f32x8::from(cross[k][2 * iv + 1]));
+            let (a, b) = (f32x8::from(ck[2 * iv]), f32x8::from(ck[2 * iv + 1]));
             let ok = a.simd_lt(b);
             p.valid[k][iv] = ok;
             p.present[k][iv] = ok.any();
@@ -151,13 +151,13 @@ fn prepare(cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8, lanes
     let mut near = [nan; 4 * FAST_LEAVES];
     let mut m = 0;
     let mut close = f32x8::ZERO;
-    for k in 0..n {
+    for (k, ck) in cross.iter().enumerate() {
         for iv in 0..2 {
             if !p.present[k][iv] {
                 continue;
             }
             for e in 0..2 {
-                let c = f32x8::from(cross[k][2 * iv + e]);
+                let c = f32x8::from(ck[2 * iv + e]);
                 let c = (p.valid[k][iv] & c.simd_gt(lo) & c.simd_lt(hi)).select(c, nan);
                 for &o in &near[..m] {
                     close |= (c - o).abs().simd_le(two_t);
@@ -169,7 +169,7 @@ fn prepare(cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8, lanes
         // A leaf's two intervals out of order (the kernels never give them, but the merge takes a lone
         // leaf's list as it comes): left to the merge too.
         if p.present[k][0] && p.present[k][1] {
-            close |= p.valid[k][0] & p.valid[k][1] & !f32x8::from(cross[k][1]).simd_lt(f32x8::from(cross[k][2]));
+            close |= p.valid[k][0] & p.valid[k][1] & !f32x8::from(ck[1]).simd_lt(f32x8::from(ck[2]));
         }
     }
     p.decided = lanes & !close.to_bitmask();

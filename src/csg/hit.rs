@@ -134,6 +134,7 @@ fn prepare_lanes_x8<'a>(csg: &'a Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena
 }
 
 /// `f` with each lane of `lanes` as a merge job (the lanes the 8-lane path left).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn each_lane(
     s: &Solid,
