@@ -111,6 +111,20 @@ fn eval2_x8(prog: &[Instr], inside: &[f32x8], k: usize, own: (f32x8, f32x8)) -> 
     st[0]
 }
 
+/// A packet's query: the solid's program and [`flip_bits`], each leaf `k`'s crossing table `cross[k]`
+/// (`[a0, b0, a1, b1]` over 8 lanes, NaN for an absent interval), the lanes' `(tmin, tmax)` and
+/// tolerance bases (`tol_base`), and the lanes asked. The program must have passed [`flip_bits`].
+#[derive(Clone, Copy)]
+pub(crate) struct Query<'a> {
+    pub prog: &'a [Instr],
+    pub flips: u32,
+    pub cross: &'a [[[f32; 8]; 4]],
+    pub tmin: f32x8,
+    pub tmax: f32x8,
+    pub base: f32x8,
+    pub lanes: u32,
+}
+
 /// What every query of a packet shares: which intervals are present, and the lanes decided here.
 struct Prepared {
     /// Interval `iv` of leaf `k` is present in some lane (a convex leaf's second never is).
@@ -124,7 +138,8 @@ struct Prepared {
 /// The checks of the module doc for the lanes `lanes`: `Prepared::decided` are the lanes whose answer
 /// point classification gives.
 #[inline(always)]
-fn prepare(cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8, lanes: u32) -> Prepared {
+fn prepare(q: &Query) -> Prepared {
+    let Query { cross, tmin, tmax, base, lanes, .. } = *q;
     let n = cross.len();
     debug_assert!(n <= FAST_LEAVES);
     let (nan, inf) = (f32x8::NAN, f32x8::splat(f32::INFINITY));
@@ -149,23 +164,16 @@ fn prepare(cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8, lanes
     // The crossings that could matter, NaN elsewhere (so that no comparison with them holds), each
     // compared with those before it: lanes with two within 2 T may have groups of several crossings.
     let mut near = [nan; 4 * FAST_LEAVES];
-    let mut m = 0;
-    let mut close = f32x8::ZERO;
-    for (k, ck) in cross.iter().enumerate() {
-        for iv in 0..2 {
-            if !p.present[k][iv] {
-                continue;
-            }
-            for e in 0..2 {
-                let c = f32x8::from(ck[2 * iv + e]);
-                let c = (p.valid[k][iv] & c.simd_gt(lo) & c.simd_lt(hi)).select(c, nan);
-                for &o in &near[..m] {
-                    close |= (c - o).abs().simd_le(two_t);
-                }
-                near[m] = c;
-                m += 1;
-            }
+    let (mut close, mut m) = (f32x8::ZERO, 0);
+    for_present_crossings(cross, &p, |k, iv, c| {
+        let c = (p.valid[k][iv] & c.simd_gt(lo) & c.simd_lt(hi)).select(c, nan);
+        for &o in &near[..m] {
+            close |= (c - o).abs().simd_le(two_t);
         }
+        near[m] = c;
+        m += 1;
+    });
+    for (k, ck) in cross.iter().enumerate() {
         // A leaf's two intervals out of order (the kernels never give them, but the merge takes a lone
         // leaf's list as it comes): left to the merge too.
         if p.present[k][0] && p.present[k][1] {
@@ -207,49 +215,72 @@ fn states_at(prog: &[Instr], cross: &[[[f32; 8]; 4]], p: &Prepared, k: usize, c:
     eval2_x8(prog, &inside[..n], k, (after, before))
 }
 
+/// For each crossing `c` of leaf `k` in `(tmin, min(tmax, below(state)))` in a lane [`prepare`] decided,
+/// where the solid's state flips: `f(state, k, c, lanes, after)` (`lanes`: the lanes where it does,
+/// `after`: the state just after `c`, all-ones lanes inside).
+#[inline(always)]
+fn each_flip<S>(
+    q: &Query,
+    p: &Prepared,
+    state: &mut S,
+    below: impl Fn(&S) -> f32x8,
+    mut f: impl FnMut(&mut S, usize, f32x8, f32x8, f32x8),
+) {
+    let Query { prog, cross, tmin, tmax, .. } = *q;
+    let active = crate::simd::mask_from_bits(p.decided);
+    for_present_crossings(cross, p, |k, iv, c| {
+        let cand = active & p.valid[k][iv] & c.simd_gt(tmin) & c.simd_lt(tmax) & c.simd_lt(below(state));
+        if !cand.any() {
+            return;
+        }
+        let (ra, rb) = states_at(prog, cross, p, k, c);
+        let hit = cand & (ra ^ rb);
+        if hit.any() {
+            f(state, k, c, hit, ra);
+        }
+    });
+}
+
+/// `f(leaf, interval, crossing)` for the crossings of the intervals present in some lane, leaf by leaf
+/// (internal iteration: a `flat_map` iterator here was an out-of-line call per crossing, +15
+/// instructions per ray on peer (a)).
+#[inline(always)]
+fn for_present_crossings(cross: &[[[f32; 8]; 4]], p: &Prepared, mut f: impl FnMut(usize, usize, f32x8)) {
+    for (k, ck) in cross.iter().enumerate() {
+        for iv in 0..2 {
+            if p.present[k][iv] {
+                f(k, iv, f32x8::from(ck[2 * iv]));
+                f(k, iv, f32x8::from(ck[2 * iv + 1]));
+            }
+        }
+    }
+}
+
 /// The first boundary in `(tmin, tmax)` of the lanes `lanes`, for the lanes where point classification
-/// provably gives the merge's answer (see the module doc). `cross[k]`: leaf `k`'s crossing table
-/// (`[a0, b0, a1, b1]` over 8 lanes, NaN for an absent interval); `base`: each lane's tolerance base
-/// (`tol_base`); `flips`: [`flip_bits`] of `prog`. The program must have passed [`flip_bits`].
-pub(crate) fn first_boundary_x8(
-    prog: &[Instr],
-    flips: u32,
-    cross: &[[[f32; 8]; 4]],
-    tmin: f32x8,
-    tmax: f32x8,
-    base: f32x8,
-    lanes: u32,
-) -> FastHits {
-    let p = prepare(cross, tmin, tmax, base, lanes);
+/// provably gives the merge's answer (see the module doc).
+pub(crate) fn first_boundary_x8(q: &Query) -> FastHits {
+    let flips = q.flips;
+    let p = prepare(q);
     let mut out = FastHits { decided: p.decided, ..FastHits::default() };
     if p.decided == 0 {
         return out;
     }
-    // The nearest crossing in (tmin, tmax) where the state flips.
-    let active = crate::simd::mask_from_bits(p.decided);
+    // The nearest crossing in (tmin, tmax) where the state flips (crossings past the nearest flip so
+    // far are not classified).
     let inf = f32x8::splat(f32::INFINITY);
-    let (mut best, mut leaf, mut entering) = (inf, u32x8::splat(0), f32x8::ZERO);
-    for k in 0..cross.len() {
-        for iv in 0..2 {
-            if !p.present[k][iv] {
-                continue;
-            }
-            for e in 0..2 {
-                let c = f32x8::from(cross[k][2 * iv + e]);
-                let cand = active & p.valid[k][iv] & c.simd_gt(tmin) & c.simd_lt(tmax) & c.simd_lt(best);
-                if !cand.any() {
-                    continue;
-                }
-                let (ra, rb) = states_at(prog, cross, &p, k, c);
-                let hit = cand & (ra ^ rb);
-                if hit.any() {
-                    best = hit.select(c, best);
-                    leaf = bytemuck::cast::<f32x8, u32x8>(hit).select(u32x8::splat(k as u32), leaf);
-                    entering = hit.select(ra, entering);
-                }
-            }
-        }
-    }
+    let mut near = (inf, u32x8::splat(0), f32x8::ZERO);
+    each_flip(
+        q,
+        &p,
+        &mut near,
+        |n| n.0,
+        |(best, leaf, entering), k, c, hit, ra| {
+            *best = hit.select(c, *best);
+            *leaf = bytemuck::cast::<f32x8, u32x8>(hit).select(u32x8::splat(k as u32), *leaf);
+            *entering = hit.select(ra, *entering);
+        },
+    );
+    let (best, leaf, entering) = near;
     let found = best.simd_lt(inf).to_bitmask() & p.decided;
     out.found = found;
     out.t = best.to_array();
@@ -265,50 +296,32 @@ pub(crate) fn first_boundary_x8(
 
 /// Every boundary in `(tmin, tmax)` of the lanes `lanes` that point classification decides, lane by
 /// lane in order along the ray: `visit(lane, t, leaf, flip, entering)` (`leaf` within the solid).
-/// Returns the decided lanes; the others are the caller's (the merge's). Arguments as for
-/// [`first_boundary_x8`]; `scratch` holds the boundaries found before they are sorted.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn for_each_boundary_x8(
-    prog: &[Instr],
-    flips: u32,
-    cross: &[[[f32; 8]; 4]],
-    tmin: f32x8,
-    tmax: f32x8,
-    base: f32x8,
-    lanes: u32,
-    scratch: &mut Vec<Ev>,
-    mut visit: impl FnMut(usize, f32, u32, bool, bool),
-) -> u32 {
-    let p = prepare(cross, tmin, tmax, base, lanes);
+/// Returns the decided lanes; the others are the caller's (the merge's). `scratch` holds the
+/// boundaries found before they are sorted.
+pub(crate) fn for_each_boundary_x8(q: &Query, scratch: &mut Vec<Ev>, mut visit: impl FnMut(usize, f32, u32, bool, bool)) -> u32 {
+    let flips = q.flips;
+    let p = prepare(q);
     if p.decided == 0 {
         return 0;
     }
     // Every flip of every lane, tagged (lane << 8 | leaf << 1 | entering), then sorted by lane and
     // distance (distinct within a decided lane).
     scratch.clear();
-    let active = crate::simd::mask_from_bits(p.decided);
-    for k in 0..cross.len() {
-        for iv in 0..2 {
-            if !p.present[k][iv] {
-                continue;
+    let inf = f32x8::splat(f32::INFINITY);
+    each_flip(
+        q,
+        &p,
+        scratch,
+        |_| inf,
+        |scratch, k, c, hit, ra| {
+            let (mut bits, ca, ra) = (hit.to_bitmask(), c.to_array(), ra.to_bitmask());
+            while bits != 0 {
+                let l = bits.trailing_zeros();
+                bits &= bits - 1;
+                scratch.push(Ev { t: ca[l as usize], tag: l << 8 | (k as u32) << 1 | (ra >> l) & 1 });
             }
-            for e in 0..2 {
-                let c = f32x8::from(cross[k][2 * iv + e]);
-                let cand = active & p.valid[k][iv] & c.simd_gt(tmin) & c.simd_lt(tmax);
-                if !cand.any() {
-                    continue;
-                }
-                let (ra, rb) = states_at(prog, cross, &p, k, c);
-                let mut bits = (cand & (ra ^ rb)).to_bitmask();
-                let (ca, ra) = (c.to_array(), ra.to_bitmask());
-                while bits != 0 {
-                    let l = bits.trailing_zeros();
-                    bits &= bits - 1;
-                    scratch.push(Ev { t: ca[l as usize], tag: l << 8 | (k as u32) << 1 | (ra >> l) & 1 });
-                }
-            }
-        }
-    }
+        },
+    );
     scratch.sort_unstable_by(|a, b| (a.tag >> 8).cmp(&(b.tag >> 8)).then(a.t.total_cmp(&b.t)));
     for e in scratch.iter() {
         let k = (e.tag >> 1) & 0x7f;
@@ -321,6 +334,7 @@ pub(crate) fn for_each_boundary_x8(
 mod tests {
     use super::*;
     use crate::csg::merge::{eval_lane, for_each_boundary, CsgArena, LaneJob};
+    use crate::csg::program::random_postfix;
 
     /// Wherever the 8-lane path decides a lane, its answer is `eval_lane`'s bit for bit (distance, leaf,
     /// flip, entering, or no boundary), and its list of every boundary is `for_each_boundary`'s: random postfix programs of 1 to 9 leaves and every operator,
@@ -337,18 +351,7 @@ mod tests {
             (0usize, 0usize, 0usize, 0usize, 0usize, 0usize);
         for case in 0..30000 {
             let n = 1 + case % 9;
-            let mut prog = Vec::new();
-            let (mut pushed, mut depth) = (0, 0);
-            while pushed < n || depth > 1 {
-                if pushed < n && (depth < 2 || f() < 0.5) {
-                    prog.push(Instr::Leaf(pushed as u32));
-                    pushed += 1;
-                    depth += 1;
-                } else {
-                    prog.push(Instr::Op([Op::Union, Op::Intersection, Op::Difference][(f() * 3.0) as usize % 3]));
-                    depth -= 1;
-                }
-            }
+            let prog = random_postfix(n, &mut f);
             let Some(flips) = flip_bits(&prog) else { continue };
             // Half the cases draw from the small set (coincidences), half spread values.
             let spread = case % 2 == 0;
@@ -379,14 +382,14 @@ mod tests {
             let base: [f32; 8] = std::array::from_fn(|_| [1e-5f32, 1e-3, 0.0][(f() * 3.0) as usize % 3]);
             let lanes = (0..8).filter(|&l| tmax[l] > tmin[l]).fold(0u32, |m, l| m | 1 << l);
             let (t0, t1, b) = (f32x8::from(tmin), f32x8::from(tmax), f32x8::from(base));
-            let got = first_boundary_x8(&prog, flips, &cross, t0, t1, b, lanes);
+            let q = Query { prog: &prog, flips, cross: &cross, tmin: t0, tmax: t1, base: b, lanes };
+            let got = first_boundary_x8(&q);
             assert_eq!(got.decided & !lanes, 0);
             // Every boundary, per lane in the order visited.
             let mut all: [Vec<(u32, u32, bool, bool)>; 8] = Default::default();
             let mut scratch = Vec::new();
-            let all_decided = for_each_boundary_x8(&prog, flips, &cross, t0, t1, b, lanes, &mut scratch, |l, t, k, flip, entering| {
-                all[l].push((t.to_bits(), k, flip, entering))
-            });
+            let all_decided =
+                for_each_boundary_x8(&q, &mut scratch, |l, t, k, flip, entering| all[l].push((t.to_bits(), k, flip, entering)));
             assert_eq!(all_decided, got.decided);
             arena.cross = cross.clone();
             for l in 0..8 {

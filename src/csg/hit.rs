@@ -1,7 +1,7 @@
 //! First boundary of a solid along rays: leaf crossings by the 8-lane kernels (one call per leaf per
 //! packet), then Roth's merge per lane (`merge.rs`).
 
-use super::fast_x8::{first_boundary_x8, for_each_boundary_x8};
+use super::fast_x8::{first_boundary_x8, for_each_boundary_x8, Query};
 use super::interval_x8::leaf_x8;
 use super::merge::{eval_lane, for_each_boundary, lanes_with_boundaries_x8, tol_base, CsgArena, LaneJob, COINCIDENT_EPS};
 use super::program::{Csg, Instr, Solid};
@@ -70,7 +70,7 @@ pub fn first_hit_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
     let mut rest = mask;
     if let (Some(flips), true) = (s.flips, mask != 0) {
         let cross = &arena.cross[..s.leaf_count as usize];
-        let fast = first_boundary_x8(prog, flips, cross, tmin, ray.tmax, f32x8::from(base), mask);
+        let fast = first_boundary_x8(&Query { prog, flips, cross, tmin, tmax: ray.tmax, base: f32x8::from(base), lanes: mask });
         let mut found = fast.found;
         while found != 0 {
             let l = found.trailing_zeros() as usize;
@@ -103,9 +103,8 @@ pub fn crossings_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
     if let (Some(flips), true) = (s.flips, mask != 0) {
         let CsgArena { cross, tmp, .. } = arena;
         let cross = &cross[..s.leaf_count as usize];
-        rest &= !for_each_boundary_x8(prog, flips, cross, tmin, ray.tmax, f32x8::from(base), mask, tmp, |l, t, k, flip, entering| {
-            visit(l, CsgHit { t, leaf: s.leaf_start + k, flip, entering })
-        });
+        let q = Query { prog, flips, cross, tmin, tmax: ray.tmax, base: f32x8::from(base), lanes: mask };
+        rest &= !for_each_boundary_x8(&q, tmp, |l, t, k, flip, entering| visit(l, CsgHit { t, leaf: s.leaf_start + k, flip, entering }));
     }
     each_lane(s, prog, &base, tmin, ray.tmax, rest, arena, |job, arena| for_each_boundary(job, arena, |h| visit(job.lane, h)));
 }

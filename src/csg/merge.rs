@@ -333,6 +333,7 @@ fn merge_lane(job: &LaneJob, arena: &mut CsgArena) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::csg::program::random_postfix;
 
     /// The 8-lane pre-test never drops a lane whose merge has a boundary in `(tmin, tmax)`: random postfix
     /// programs (1 to 7 leaves, every operator, nested both ways) over crossings drawn from a small set of
@@ -348,20 +349,7 @@ mod tests {
         let (mut dropped, mut kept, mut with_boundary) = (0, 0, 0);
         for case in 0..20000 {
             let n = 1 + case % 7;
-            // A random postfix program: leaves pushed in order, an operator whenever two lists wait and
-            // a coin says so (or the leaves ran out).
-            let mut prog = Vec::new();
-            let (mut pushed, mut depth) = (0, 0);
-            while pushed < n || depth > 1 {
-                if pushed < n && (depth < 2 || f() < 0.5) {
-                    prog.push(Instr::Leaf(pushed as u32));
-                    pushed += 1;
-                    depth += 1;
-                } else {
-                    prog.push(Instr::Op([Op::Union, Op::Intersection, Op::Difference][(f() * 3.0) as usize % 3]));
-                    depth -= 1;
-                }
-            }
+            let prog = random_postfix(n, &mut f);
             let mut cross = vec![[[0.0f32; 8]; 4]; n];
             for c in cross.iter_mut() {
                 for iv in 0..2 {

@@ -189,6 +189,25 @@ impl Csg {
     }
 }
 
+/// A random postfix program over leaves `0..n` (in order) for tests: an operator (any of the three)
+/// whenever two lists wait and `coin` says so, or the leaves ran out; nested both ways.
+#[cfg(test)]
+pub(crate) fn random_postfix(n: usize, coin: &mut dyn FnMut() -> f32) -> Vec<Instr> {
+    let mut prog = Vec::new();
+    let (mut pushed, mut depth) = (0, 0);
+    while pushed < n || depth > 1 {
+        if pushed < n && (depth < 2 || coin() < 0.5) {
+            prog.push(Instr::Leaf(pushed as u32));
+            pushed += 1;
+            depth += 1;
+        } else {
+            prog.push(Instr::Op([Op::Union, Op::Intersection, Op::Difference][(coin() * 3.0) as usize % 3]));
+            depth -= 1;
+        }
+    }
+    prog
+}
+
 /// Evaluate a program on inside/outside leaf states.
 pub(crate) fn eval_bool(prog: &[Instr], leaf_inside: impl Fn(u32) -> bool) -> bool {
     let mut stack = [false; MAX_DEPTH + 2];
