@@ -7,6 +7,9 @@
 //! (`interval_x8.rs`, torus in `quartic.rs`), and the program combines the interval lists pairwise in time
 //! linear in the number of crossings (`merge.rs`). [`first_hit`] / [`first_hit_x8`] return the first
 //! boundary after `tmin`; [`intervals_f64`] is the f64 reference for the whole list (`reference.rs`).
+//! Packets skip the merge on lanes whose crossings are all farther apart than the coincidence tolerance:
+//! there the boundaries are the crossings where the program's value flips, found 8 lanes at once
+//! (`fast_x8.rs`), the same results bit for bit.
 //!
 //! # Conventions a caller must know
 //!
