@@ -1,5 +1,6 @@
-//! The first boundary of a solid for 8 lanes at once, by point classification at the leaf crossings,
-//! for lanes where that provably equals Roth's merge (`merge.rs`); the other lanes take the merge.
+//! The boundaries of a solid for 8 lanes at once (the first, or all in order), by point classification
+//! at the leaf crossings, for lanes where that provably equals Roth's merge (`merge.rs`); the other
+//! lanes take the merge.
 //!
 //! The merge sweeps each lane's sorted crossings one group at a time (crossings within the tolerance
 //! `tol(t)` of a group's first are one event), which is a data-dependent loop per lane: about 650-1,000
@@ -24,9 +25,10 @@
 //!   are never within a finite distance of a finite one and never inside `(tmin, tmax)`: they are
 //!   classified, not compared.
 //!
-//! So the answer is the nearest crossing in `(tmin, tmax)` where the state flips. `tests` holds this to
-//! `eval_lane` bit for bit on random programs and crossing tables built to coincide, and
-//! `tests/csg.rs` renders through both paths.
+//! So the first boundary is the nearest crossing in `(tmin, tmax)` where the state flips, and the list
+//! of all is every such crossing in order. `tests` holds both to `eval_lane` and `for_each_boundary` bit
+//! for bit on random programs and crossing tables built to coincide; `tests/csg.rs` renders solids whose
+//! rays take either path (coincident faces go to the merge).
 
 use super::merge::{Ev, COINCIDENT_EPS};
 use super::program::{Instr, Op};
@@ -42,7 +44,7 @@ const STACK: usize = 16;
 /// What [`first_boundary_x8`] decided, per lane (bit `l` = lane `l`).
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct FastHits {
-    /// Lanes decided here: each has its first boundary in `t`, `leaf`, `tag_flip`, `entering`, or none.
+    /// Lanes decided here: each has its first boundary in `t`, `leaf`, `flip`, `entering`, or none.
     pub decided: u32,
     /// Decided lanes that have a boundary in `(tmin, tmax)`.
     pub found: u32,
@@ -345,7 +347,8 @@ mod tests {
     #[test]
     fn decided_lanes_equal_the_merge() {
         let mut f = crate::sample::hash::test_uniforms(0x0fa5_7c56);
-        let values = [-3.0f32, 0.0, 0.5, 1.0, 1.0 + 2e-6, 1.0 + 3e-5, 2.0, 2.0 - 1e-6, 4.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        let values =
+            [-3.0f32, -1e-6, 0.0, 0.5, 1.0, 1.0 + 2e-6, 1.0 + 3e-5, 2.0, 2.0 - 1e-6, 4.0, 1e31, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
         let mut arena = CsgArena::new();
         let (mut decided, mut left, mut found, mut spread_left, mut spread_all, mut several) =
             (0usize, 0usize, 0usize, 0usize, 0usize, 0usize);
