@@ -1,5 +1,6 @@
-//! First boundary of a solid along rays: leaf crossings by the 8-lane kernels (one call per leaf per
-//! packet), then Roth's merge per lane (`merge.rs`).
+//! Boundaries of a solid along rays: leaf crossings by the 8-lane kernels (one call per leaf per
+//! packet), then the boundaries 8 lanes at once where point classification gives the merge's result
+//! (`fast_x8.rs`), and Roth's merge per lane elsewhere (`merge.rs`).
 
 use super::fast_x8::{first_boundary_x8, for_each_boundary_x8, Query};
 use super::interval_x8::leaf_x8;

@@ -86,7 +86,7 @@ pub(crate) struct Solid {
     /// placements. The floor of the coincidence tolerance (`merge.rs`), so that it scales with the solid.
     pub scale: f32,
     /// Per leaf, bit `k`: its surfaces bound the solid flipped (`fast_x8::flip_bits`); `None` when the
-    /// program is beyond the 8-lane first-boundary path (every lane then takes the merge).
+    /// program is beyond the 8-lane boundary path (every lane then takes the merge).
     pub flips: Option<u32>,
 }
 
