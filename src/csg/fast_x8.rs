@@ -34,9 +34,9 @@ use super::merge::{Ev, COINCIDENT_EPS};
 use super::program::{Instr, Op};
 use crate::simd::{f32x8, u32x8};
 
-/// Leaves a program may have for the 8-lane path (its `FLIP` parities are bits of a `u32`; the
-/// pairwise comparison grows with the square of the crossings).
-pub(crate) const FAST_LEAVES: usize = 16;
+/// Leaves a program may have for the 8-lane path (its `FLIP` parities are bits of a `u32`, its present
+/// intervals of a `u64`).
+pub(crate) const FAST_LEAVES: usize = 32;
 
 /// Entries of the mask stack: deeper programs take the merge (n-ary operators compile left-deep, so a
 /// stack deeper than 2 needs nesting on the right). Kept small: it is zeroed at every evaluation, and
@@ -129,12 +129,21 @@ pub(crate) struct Query<'a> {
 
 /// What every query of a packet shares: which intervals are present, and the lanes decided here.
 struct Prepared {
-    /// Interval `iv` of leaf `k` is present in some lane (a convex leaf's second never is).
-    present: [[bool; 2]; FAST_LEAVES],
-    /// Per lane: interval `iv` of leaf `k` is not empty (`a < b`; NaN ends: empty).
-    valid: [[f32x8; 2]; FAST_LEAVES],
+    /// Bit `2 k + iv`: interval `iv` of leaf `k` is present in some lane (a convex leaf's second never
+    /// is; in a solid of many leaves a packet usually meets few).
+    present: u64,
     /// Lanes among the asked ones whose crossings that could matter are all farther than `2 T` apart.
     decided: u32,
+}
+
+/// Crossings of present intervals a packet may have for the 8-lane path (more: every lane takes the
+/// merge). The pairwise comparison holds them in an array zeroed per packet, so it is kept small.
+const MAX_CROSSINGS: usize = 32;
+
+/// Per lane: interval `iv` of a leaf's crossing table is not empty (`a < b`; NaN ends: empty).
+#[inline(always)]
+fn valid(ck: &[[f32; 8]; 4], iv: usize) -> f32x8 {
+    f32x8::from(ck[2 * iv]).simd_lt(f32x8::from(ck[2 * iv + 1]))
 }
 
 /// The checks of the module doc for the lanes `lanes`: `Prepared::decided` are the lanes whose answer
@@ -142,33 +151,36 @@ struct Prepared {
 #[inline(always)]
 fn prepare(q: &Query) -> Prepared {
     let Query { cross, tmin, tmax, base, lanes, .. } = *q;
-    let n = cross.len();
-    debug_assert!(n <= FAST_LEAVES);
+    debug_assert!(cross.len() <= FAST_LEAVES);
     let (nan, inf) = (f32x8::NAN, f32x8::splat(f32::INFINITY));
-    let mut p = Prepared { present: [[false; 2]; FAST_LEAVES], valid: [[f32x8::ZERO; 2]; FAST_LEAVES], decided: 0 };
+    let mut p = Prepared { present: 0, decided: 0 };
     // Largest finite |crossing| of the present intervals: the tolerance bound T.
     let mut big = f32x8::ZERO;
     for (k, ck) in cross.iter().enumerate() {
         for iv in 0..2 {
-            let (a, b) = (f32x8::from(ck[2 * iv]), f32x8::from(ck[2 * iv + 1]));
-            let ok = a.simd_lt(b);
-            p.valid[k][iv] = ok;
-            p.present[k][iv] = ok.any();
-            for v in [a, b] {
+            let ok = valid(ck, iv);
+            if !ok.any() {
+                continue;
+            }
+            p.present |= 1 << (2 * k + iv);
+            for v in [f32x8::from(ck[2 * iv]), f32x8::from(ck[2 * iv + 1])] {
                 let finite = v.abs().simd_lt(inf);
                 big = big.max((ok & finite).select(v.abs(), f32x8::ZERO));
             }
         }
+    }
+    if 2 * p.present.count_ones() as usize > MAX_CROSSINGS {
+        return p;
     }
     let t_big = (base + f32x8::splat(COINCIDENT_EPS) * big.min(f32x8::splat(1e30))) * f32x8::splat(1.01);
     let two_t = t_big + t_big;
     let (lo, hi) = (tmin - two_t, tmax + two_t);
     // The crossings that could matter, NaN elsewhere (so that no comparison with them holds), each
     // compared with those before it: lanes with two within 2 T may have groups of several crossings.
-    let mut near = [nan; 4 * FAST_LEAVES];
+    let mut near = [nan; MAX_CROSSINGS];
     let (mut close, mut m) = (f32x8::ZERO, 0);
-    for_present_crossings(cross, &p, |k, iv, c| {
-        let c = (p.valid[k][iv] & c.simd_gt(lo) & c.simd_lt(hi)).select(c, nan);
+    for_present_crossings(cross, &p, |_, _, c, ok| {
+        let c = (ok & c.simd_gt(lo) & c.simd_lt(hi)).select(c, nan);
         for &o in &near[..m] {
             close |= (c - o).abs().simd_le(two_t);
         }
@@ -178,8 +190,8 @@ fn prepare(q: &Query) -> Prepared {
     for (k, ck) in cross.iter().enumerate() {
         // A leaf's two intervals out of order (the kernels never give them, but the merge takes a lone
         // leaf's list as it comes): left to the merge too.
-        if p.present[k][0] && p.present[k][1] {
-            close |= p.valid[k][0] & p.valid[k][1] & !f32x8::from(ck[1]).simd_lt(f32x8::from(ck[2]));
+        if (p.present >> (2 * k)) & 3 == 3 {
+            close |= valid(ck, 0) & valid(ck, 1) & !f32x8::from(ck[1]).simd_lt(f32x8::from(ck[2]));
         }
     }
     p.decided = lanes & !close.to_bitmask();
@@ -195,7 +207,7 @@ fn states_at(prog: &[Instr], cross: &[[[f32; 8]; 4]], p: &Prepared, k: usize, c:
     eval2_x8(prog, |j| {
         let (ck, (mut after, mut before)) = (&cross[j], (f32x8::ZERO, f32x8::ZERO));
         for jv in 0..2 {
-            if !p.present[j][jv] {
+            if (p.present >> (2 * j + jv)) & 1 == 0 {
                 continue;
             }
             let (a, b) = (f32x8::from(ck[2 * jv]), f32x8::from(ck[2 * jv + 1]));
@@ -224,8 +236,8 @@ fn each_flip<S>(
 ) {
     let Query { prog, cross, tmin, tmax, .. } = *q;
     let active = crate::simd::mask_from_bits(p.decided);
-    for_present_crossings(cross, p, |k, iv, c| {
-        let cand = active & p.valid[k][iv] & c.simd_gt(tmin) & c.simd_lt(tmax) & c.simd_lt(below(state));
+    for_present_crossings(cross, p, |k, _, c, ok| {
+        let cand = active & ok & c.simd_gt(tmin) & c.simd_lt(tmax) & c.simd_lt(below(state));
         if !cand.any() {
             return;
         }
@@ -237,18 +249,19 @@ fn each_flip<S>(
     });
 }
 
-/// `f(leaf, interval, crossing)` for the crossings of the intervals present in some lane, leaf by leaf
-/// (internal iteration: a `flat_map` iterator here was an out-of-line call per crossing, +15
-/// instructions per ray on peer (a)).
+/// `f(leaf, interval, crossing, valid)` for the crossings of the intervals present in some lane, leaf by
+/// leaf (`valid`: the lanes where the interval is not empty). Internal iteration: a `flat_map` iterator
+/// here was an out-of-line call per crossing, +15 instructions per ray on peer (a).
 #[inline(always)]
-fn for_present_crossings(cross: &[[[f32; 8]; 4]], p: &Prepared, mut f: impl FnMut(usize, usize, f32x8)) {
-    for (k, ck) in cross.iter().enumerate() {
-        for iv in 0..2 {
-            if p.present[k][iv] {
-                f(k, iv, f32x8::from(ck[2 * iv]));
-                f(k, iv, f32x8::from(ck[2 * iv + 1]));
-            }
-        }
+fn for_present_crossings(cross: &[[[f32; 8]; 4]], p: &Prepared, mut f: impl FnMut(usize, usize, f32x8, f32x8)) {
+    let mut bits = p.present;
+    while bits != 0 {
+        let b = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let (k, iv) = (b / 2, b % 2);
+        let (ck, ok) = (&cross[k], valid(&cross[k], iv));
+        f(k, iv, f32x8::from(ck[2 * iv]), ok);
+        f(k, iv, f32x8::from(ck[2 * iv + 1]), ok);
     }
 }
 
@@ -344,10 +357,13 @@ mod tests {
         let values =
             [-3.0f32, -1e-6, 0.0, 0.5, 1.0, 1.0 + 2e-6, 1.0 + 3e-5, 2.0, 2.0 - 1e-6, 4.0, 1e31, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
         let mut arena = CsgArena::new();
-        let (mut decided, mut left, mut found, mut spread_left, mut spread_all, mut several) =
-            (0usize, 0usize, 0usize, 0usize, 0usize, 0usize);
+        let (mut decided, mut left, mut found, mut spread_left, mut spread_all, mut several, mut decided_many) =
+            (0usize, 0usize, 0usize, 0usize, 0usize, 0usize, 0usize);
         for case in 0..30000 {
-            let n = 1 + case % 9;
+            // Every tenth case a solid of 10-31 leaves most of which the packet misses (as the pips of a
+            // die): leaf ids past 16 in the flip bits and the present-interval bits.
+            let many = case % 10 == 9;
+            let n = if many { 10 + case % 22 } else { 1 + case % 9 };
             let prog = random_postfix(n, &mut f);
             let Some(flips) = flip_bits(&prog) else { continue };
             // Half the cases draw from the small set (coincidences), half spread values.
@@ -373,6 +389,9 @@ mod tests {
                     v
                 });
                 *c = std::array::from_fn(|i| std::array::from_fn(|l| lanes[l][i]));
+                if many && f() < 0.75 {
+                    *c = [[f32::NAN; 8]; 4];
+                }
             }
             let tmin: [f32; 8] = std::array::from_fn(|_| if f() < 0.5 { 0.0 } else { pick(&mut f).clamp(-5.0, 5.0) });
             let tmax: [f32; 8] = std::array::from_fn(|l| if f() < 0.3 { f32::INFINITY } else { tmin[l].max(-5.0) + 0.1 + 6.0 * f() });
@@ -388,6 +407,10 @@ mod tests {
             let all_decided =
                 for_each_boundary_x8(&q, &mut scratch, |l, t, k, flip, entering| all[l].push((t.to_bits(), k, flip, entering)));
             assert_eq!(all_decided, got.decided);
+            // Packets with more crossings than the path holds are the merge's whole.
+            let intervals = cross.iter().map(|ck| (0..2).filter(|&iv| valid(ck, iv).any()).count()).sum::<usize>();
+            let spread = spread && 2 * intervals <= MAX_CROSSINGS;
+            assert!(2 * intervals <= MAX_CROSSINGS || got.decided == 0);
             arena.cross = cross.clone();
             for l in 0..8 {
                 if lanes & (1 << l) == 0 {
@@ -400,6 +423,7 @@ mod tests {
                     continue;
                 }
                 decided += 1;
+                decided_many += many as usize;
                 let job = LaneJob { prog: &prog, leaf_start: 0, lane: l, tmin: tmin[l], tmax: tmax[l], base: base[l] };
                 let want = eval_lane(&job, &mut arena);
                 let have = (got.found & (1 << l) != 0)
@@ -414,8 +438,8 @@ mod tests {
             }
         }
         assert!(
-            decided > 60_000 && found > 20_000 && several > 5_000 && left > 20_000,
-            "{decided} decided ({found} with a boundary, {several} with several), {left} left"
+            decided > 60_000 && found > 20_000 && several > 5_000 && left > 20_000 && decided_many > 2_000,
+            "{decided} decided ({found} with a boundary, {several} with several, {decided_many} of 10+ leaves), {left} left"
         );
         // Spread crossings rarely come within 2 T (T ~ 1e-3 at most here); the lanes left are mostly
         // those with a leaf's intervals out of order.
@@ -430,6 +454,7 @@ mod tests {
         assert_eq!(flip_bits(&prog), Some(0b0110));
         assert_eq!(flip_bits(&[L(0), L(1), O(Op::Union)]), Some(0));
         assert_eq!(flip_bits(&[L(0), O(Op::Union)]), None);
-        assert_eq!(flip_bits(&[L(16)]), None);
+        assert_eq!(flip_bits(&[L(31)]), Some(0));
+        assert_eq!(flip_bits(&[L(32)]), None);
     }
 }
