@@ -30,7 +30,7 @@
 //! for bit on random programs and crossing tables built to coincide; `tests/csg.rs` renders solids whose
 //! rays take either path (coincident faces go to the merge).
 
-use super::merge::{Ev, COINCIDENT_EPS};
+use super::merge::{tol_bound_x8, Ev};
 use super::program::{Instr, Op};
 use crate::simd::{f32x8, u32x8};
 
@@ -173,14 +173,14 @@ fn prepare(q: &Query) -> Prepared {
     if 2 * p.present.count_ones() as usize > MAX_CROSSINGS {
         return p;
     }
-    let t_big = (base + f32x8::splat(COINCIDENT_EPS) * big.min(f32x8::splat(1e30))) * f32x8::splat(1.01);
+    let t_big = tol_bound_x8(big, base);
     let two_t = t_big + t_big;
     let (lo, hi) = (tmin - two_t, tmax + two_t);
     // The crossings that could matter, NaN elsewhere (so that no comparison with them holds), each
     // compared with those before it: lanes with two within 2 T may have groups of several crossings.
     let mut near = [nan; MAX_CROSSINGS];
     let (mut close, mut m) = (f32x8::ZERO, 0);
-    for_present_crossings(cross, &p, |_, _, c, ok| {
+    for_present_crossings(cross, &p, |_, c, ok| {
         let c = (ok & c.simd_gt(lo) & c.simd_lt(hi)).select(c, nan);
         for &o in &near[..m] {
             close |= (c - o).abs().simd_le(two_t);
@@ -237,7 +237,7 @@ fn each_flip<S>(
 ) {
     let Query { prog, cross, tmin, tmax, .. } = *q;
     let active = crate::simd::mask_from_bits(p.decided);
-    for_present_crossings(cross, p, |k, _, c, ok| {
+    for_present_crossings(cross, p, |k, c, ok| {
         let cand = active & ok & c.simd_gt(tmin) & c.simd_lt(tmax) & c.simd_lt(below(state));
         if !cand.any() {
             return;
@@ -250,19 +250,19 @@ fn each_flip<S>(
     });
 }
 
-/// `f(leaf, interval, crossing, valid)` for the crossings of the intervals present in some lane, leaf by
-/// leaf (`valid`: the lanes where the interval is not empty). Internal iteration: a `flat_map` iterator
+/// `f(leaf, crossing, valid)` for the crossings of the intervals present in some lane, leaf by leaf
+/// (`valid`: the lanes where the crossing's interval is not empty). Internal iteration: a `flat_map` iterator
 /// here was an out-of-line call per crossing, +15 instructions per ray on peer (a).
 #[inline(always)]
-fn for_present_crossings(cross: &[[[f32; 8]; 4]], p: &Prepared, mut f: impl FnMut(usize, usize, f32x8, f32x8)) {
+fn for_present_crossings(cross: &[[[f32; 8]; 4]], p: &Prepared, mut f: impl FnMut(usize, f32x8, f32x8)) {
     let mut bits = p.present;
     while bits != 0 {
         let b = bits.trailing_zeros() as usize;
         bits &= bits - 1;
         let (k, iv) = (b / 2, b % 2);
         let (ck, ok) = (&cross[k], valid(&cross[k], iv));
-        f(k, iv, f32x8::from(ck[2 * iv]), ok);
-        f(k, iv, f32x8::from(ck[2 * iv + 1]), ok);
+        f(k, f32x8::from(ck[2 * iv]), ok);
+        f(k, f32x8::from(ck[2 * iv + 1]), ok);
     }
 }
 

@@ -62,6 +62,13 @@ pub(crate) fn tol_at(t: f32, base: f32) -> f32 {
     base + COINCIDENT_EPS * t.abs().min(1e30)
 }
 
+/// An upper bound of `tol_at(t, base)` over 8 lanes for every `|t| <= big`, widened by 1% against
+/// rounding: the longest group the merge can form among crossings no larger than `big`.
+#[inline(always)]
+pub(crate) fn tol_bound_x8(big: f32x8, base: f32x8) -> f32x8 {
+    (base + f32x8::splat(COINCIDENT_EPS) * big.min(f32x8::splat(1e30))) * f32x8::splat(1.01)
+}
+
 /// Last parameter of the group that starts at `t0`.
 #[inline(always)]
 pub(crate) fn group_end(t0: f32, base: f32) -> f32 {
@@ -245,7 +252,6 @@ const HULL_STACK: usize = 8;
 #[inline]
 pub(crate) fn lanes_with_boundaries_x8(prog: &[Instr], cross: &[[[f32; 8]; 4]], tmin: f32x8, tmax: f32x8, base: f32x8) -> u32 {
     let (inf, ninf) = (f32x8::splat(f32::INFINITY), f32x8::splat(f32::NEG_INFINITY));
-    let eps = f32x8::splat(COINCIDENT_EPS);
     // Largest |crossing| of the non-empty intervals of the leaves pushed so far: an operator's groups are
     // made of its operands' crossings, all from leaves already pushed.
     let mut big = f32x8::ZERO;
@@ -275,7 +281,7 @@ pub(crate) fn lanes_with_boundaries_x8(prog: &[Instr], cross: &[[[f32; 8]; 4]], 
                 }
                 sp -= 1;
                 let ((la, ha), (lb, hb)) = (st[sp - 1], st[sp]);
-                let tol = (base + eps * big.min(f32x8::splat(1e30))) * f32x8::splat(1.01);
+                let tol = tol_bound_x8(big, base);
                 let (lo, hi) = match op {
                     Op::Union => (la.min(lb), ha.max(hb)),
                     Op::Intersection => (la.max(lb) - tol, ha.min(hb) + tol),
