@@ -50,9 +50,15 @@ args_for() {
 
 for c in "${CASES[@]}"; do
   # shellcheck disable=SC2046
-  valgrind --tool=callgrind --toggle-collect='strata::wavefront::pipeline::render_unit' \
+  if ! valgrind --tool=callgrind --toggle-collect='strata::wavefront::pipeline::render_unit' \
     --callgrind-out-file="$OUT/$c.callgrind" "$BIN" render $(args_for "$c") --threads 1 --seed 1 -q \
-    -o "$OUT/$c.exr" --stats-json "$OUT/$c.json" 2>"$OUT/$c.valgrind.log"
+    -o "$OUT/$c.exr" --stats-json "$OUT/$c.json" 2>"$OUT/$c.valgrind.log"; then
+    # (Valgrind 3.19, Debian 12's, cannot decode the register form of `vmovq` with opcode D6 that LLVM
+    # emits for the point light's buffer build: the `spheres` case stops there with SIGILL.)
+    echo -e "\n## $c: valgrind failed, see $OUT/$c.valgrind.log:"
+    grep -m2 -E "Illegal|Process terminating|error" "$OUT/$c.valgrind.log" || true
+    continue
+  fi
   callgrind_annotate --inclusive=no "$OUT/$c.callgrind" >"$OUT/$c.annotate.txt" 2>/dev/null
   python3 - "$c" "$OUT/$c.json" "$OUT/$c.annotate.txt" "$TOP" <<'EOF'
 import json, re, sys

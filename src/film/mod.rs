@@ -81,10 +81,15 @@ pub fn quantize(x: f32) -> i64 {
 
 /// [`quantize`] of 8 values at once, bit-identical for every `|x| < MAX_SAMPLE_VALUE` (other lanes are
 /// unspecified): `t = trunc(y)`, then one step away from zero when `|y - t| >= 1/2` (`y - t` is exact),
-/// which is `round`; two `f64x4` halves, converted to integers by `trunc_int` (exact: integral values).
+/// which is `round`; two `f64x4` halves. The integral results become integers exactly: where every
+/// `|y| < 2^50` (every sample below 2^18, nearly all), by the bits of `r + 1.5 2^52` (whose unit in the
+/// last place is 1, so the sum is exact and its low bits are `r + 2^51`) minus those of `1.5 2^52`, two
+/// vector operations on any x86-64 (AVX2 has no f64 -> i64 conversion: `trunc_int` is scalar there);
+/// else by `trunc_int`.
 #[inline(always)]
 pub fn quantize_x8(x: &[f32; 8]) -> [i64; 8] {
-    use wide::f64x4;
+    use wide::{f64x4, i64x4};
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 * 2^52
     let mut out = [0i64; 8];
     for h in 0..2 {
         let y = f64x4::from(std::array::from_fn::<f64, 4, _>(|i| x[4 * h + i] as f64)) * f64x4::splat(FIXED_ONE);
@@ -92,7 +97,13 @@ pub fn quantize_x8(x: &[f32; 8]) -> [i64; 8] {
         let away = (y - t).abs().simd_ge(f64x4::splat(0.5));
         // +-1 with y's sign where the fraction reaches one half, else 0.
         let step = away & (f64x4::ONE | (y & f64x4::splat(-0.0)));
-        out[4 * h..4 * h + 4].copy_from_slice(&(t + step).trunc_int().to_array());
+        let r = t + step;
+        let q = if y.abs().simd_lt(f64x4::splat(1_125_899_906_842_624.0)).all() {
+            bytemuck::cast::<f64x4, i64x4>(r + f64x4::splat(MAGIC)) - i64x4::splat(MAGIC.to_bits() as i64)
+        } else {
+            r.trunc_int()
+        };
+        out[4 * h..4 * h + 4].copy_from_slice(&q.to_array());
     }
     out
 }
@@ -518,16 +529,32 @@ mod tests {
                 vals.push(v);
             }
         }
+        // Both ends of the exact integer path (every |x| < 2^18) and just past it.
+        let edge = 262_144.0f32;
+        for v in [edge.next_down(), edge, edge.next_up(), 131_072.0, 131_072.0f32.next_down()] {
+            vals.extend([v, -v]);
+        }
+        // As drawn (chunks mixing magnitudes: mostly the `trunc_int` path), then the values below
+        // 2^18 alone (every chunk on the integer-bits path), each shuffled by a fixed stride.
+        let small: Vec<f32> = vals.iter().copied().filter(|v| v.abs() < edge).collect();
         let mut ties = 0;
-        for chunk in vals.chunks_exact(8) {
-            let x: [f32; 8] = chunk.try_into().unwrap();
-            let got = quantize_x8(&x);
-            for l in 0..8 {
-                assert_eq!(got[l], quantize(x[l]), "x = {:e} ({:#x})", x[l], x[l].to_bits());
-                ties += ((x[l] as f64 * FIXED_ONE).fract().abs() == 0.5) as usize;
+        let mut fast_chunks = 0;
+        for set in [&vals, &small] {
+            for start in 0..3 {
+                let order: Vec<f32> = (0..set.len()).map(|i| set[(i * 7 + start) % set.len()]).collect();
+                for chunk in order.chunks_exact(8) {
+                    let x: [f32; 8] = chunk.try_into().unwrap();
+                    let got = quantize_x8(&x);
+                    fast_chunks += x.iter().all(|v| v.abs() < edge) as usize;
+                    for l in 0..8 {
+                        assert_eq!(got[l], quantize(x[l]), "x = {:e} ({:#x})", x[l], x[l].to_bits());
+                        ties += ((x[l] as f64 * FIXED_ONE).fract().abs() == 0.5) as usize;
+                    }
+                }
             }
         }
-        assert!(vals.len() > 10_000 && ties >= 70, "{} values, {ties} ties", vals.len());
+        assert!(vals.len() > 10_000 && small.len() > 5_000 && ties >= 70, "{} values, {} small, {ties} ties", vals.len(), small.len());
+        assert!(fast_chunks > 1_500, "{fast_chunks} chunks on the integer-bits path");
     }
 
     #[test]

@@ -178,13 +178,47 @@ impl PermuteKey {
     /// makes the position of any fixed `i` exactly uniform over keys, which cycle-walking alone is not.
     #[inline(always)]
     fn rotate(&self, i: u32, n: u32) -> u32 {
-        let offset = ((self.key.rotate_left(7) as u64 * n as u64) >> 32) as u32;
-        let j = i.wrapping_add(offset);
-        if j >= n {
-            j - n
-        } else {
-            j
-        }
+        rotate_by(i, self.offset(n), n)
+    }
+
+    /// The rotation's offset in `0..n`.
+    #[inline(always)]
+    fn offset(&self, n: u32) -> u32 {
+        ((self.key.rotate_left(7) as u64 * n as u64) >> 32) as u32
+    }
+}
+
+/// `(i + offset) % n` for `i, offset < n`, without the division.
+#[inline(always)]
+fn rotate_by(i: u32, offset: u32, n: u32) -> u32 {
+    let j = i.wrapping_add(offset);
+    if j >= n {
+        j - n
+    } else {
+        j
+    }
+}
+
+/// [`permute_pow2`] with everything that depends on the key and `n` worked out once: for many indices
+/// of one key (a pixel's samples, 8 lanes at a time). Equal to `permute_pow2(i, sh, key)`.
+#[derive(Clone, Copy, Debug)]
+pub struct PermutePow2 {
+    k: PermuteKey,
+    sh: PermuteShape,
+    offset: u32,
+}
+
+impl PermutePow2 {
+    #[inline(always)]
+    pub fn new(sh: PermuteShape, key: u32) -> PermutePow2 {
+        debug_assert!(sh.n.is_power_of_two());
+        let k = PermuteKey::new(key);
+        PermutePow2 { k, sh, offset: k.offset(sh.n) }
+    }
+
+    #[inline(always)]
+    pub fn apply(&self, i: u32) -> u32 {
+        rotate_by(self.k.scramble(i & self.sh.w, &self.sh), self.offset, self.sh.n)
     }
 }
 
@@ -193,9 +227,7 @@ impl PermuteKey {
 /// Branch-free, so 8 lanes of it vectorise. Equal to `permute(i, n, key)`.
 #[inline(always)]
 pub fn permute_pow2(i: u32, sh: &PermuteShape, key: u32) -> u32 {
-    debug_assert!(sh.n.is_power_of_two());
-    let k = PermuteKey::new(key);
-    k.rotate(k.scramble(i & sh.w, sh), sh.n)
+    PermutePow2::new(*sh, key).apply(i)
 }
 
 /// Eight lanes of [`permute`] for indices below `n` (`sh = PermuteShape::new(n)`): the cycle-walk

@@ -2,7 +2,8 @@
 //! semantics and conventions).
 
 use super::hash::{
-    permute, permute_pow2, permute_x8, random_2d_keyed, random_bits, random_f32_keyed, stream_key, PermuteShape, ONE_MINUS_EPSILON,
+    permute, permute_pow2, permute_x8, random_2d_keyed, random_bits, random_f32_keyed, stream_key, PermutePow2, PermuteShape,
+    ONE_MINUS_EPSILON,
 };
 use super::sobol::{sobol_owen_1d, sobol_owen_2d};
 use crate::simd::{f32x8, LANES};
@@ -121,14 +122,19 @@ fn jitter_in_cell_div(k: f64, n: f64, bits: u32) -> f32 {
     q.min(ONE - 1.0) as f32 * (1.0 / ONE as f32)
 }
 
-/// [`jitter_in_cell`] for `n = 2^log2n <= 2^24`: the same quotient by a shift, branch-free.
+/// [`jitter_in_cell`] for `k < n = 2^log2n <= 2^24`: the same quotient by shifts, branch-free, in 32-bit
+/// lanes but for one 32 x 32 -> 64-bit product (`vpmuludq`, which AVX2 has: a 64-bit minimum and a
+/// 64-bit integer to float conversion, which it lacks, made the 8-lane loop scalar there). Exact: `k 2^24`
+/// is a multiple of `n`, so `(k 2^24 + t) >> log2n = (k << (24 - log2n)) + (t >> log2n)`; `t < 2^24`
+/// and, for `k < n`, `q < 2^24` (`jitter_in_cell`'s clamp never acts), so `q` converts exactly.
 #[inline(always)]
 fn jitter_in_cell_pow2(k: u32, log2n: u32, bits: u32) -> f32 {
-    const ONE: u64 = 1 << 24;
-    let n = 1u64 << log2n;
-    let t = (n - 1) + (((bits >> 8) as u64 * (ONE + 1 - n)) >> 24);
-    let q = (k as u64 * ONE + t) >> log2n;
-    q.min(ONE - 1) as f32 * (1.0 / ONE as f32)
+    const ONE: u32 = 1 << 24;
+    debug_assert!(log2n <= 24 && k < 1 << log2n);
+    let n = 1u32 << log2n;
+    let t = (n - 1) + (((bits >> 8) as u64 * (ONE + 1 - n) as u64) >> 24) as u32;
+    let q = (k << (24 - log2n)) + (t >> log2n);
+    q as i32 as f32 * (1.0 / ONE as f32)
 }
 
 /// Sample `index` of an `n`-sample 2D estimate of one integral, for one `stream` and one `dim`.
@@ -206,18 +212,13 @@ impl Sampler2d {
     /// scalar stores); the other paths are one out-of-line call.
     #[inline(always)]
     pub fn sample_x8(&self, keys: &[u64; LANES], index: &[u32; LANES], permuted: bool) -> [f32x8; 2] {
-        if self.strategy == Strategy::Jittered && self.n.is_power_of_two() && self.n <= 1 << 24 {
-            let mut u = [[0.0f32; LANES]; 2];
-            let sh = PermuteShape::new(self.n);
-            let (lx, ly) = (self.nx.trailing_zeros(), self.ny.trailing_zeros());
-            let mask = self.n - 1;
-            for l in 0..LANES {
-                let s = if permuted { permute_pow2(index[l], &sh, perm_key(keys[l])) } else { index[l] & mask };
-                let h = random_bits(keys[l], index[l]);
-                u[0][l] = jitter_in_cell_pow2(s & (self.nx - 1), lx, (h >> 32) as u32);
-                u[1][l] = jitter_in_cell_pow2(s >> lx, ly, h as u32);
-            }
-            return [f32x8::from(u[0]), f32x8::from(u[1])];
+        if self.jittered_pow2() {
+            let (sh, mask) = (PermuteShape::new(self.n), self.n - 1);
+            return self.jittered_pow2_x8(
+                index,
+                |l| keys[l],
+                |l| if permuted { permute_pow2(index[l], &sh, perm_key(keys[l])) } else { index[l] & mask },
+            );
         }
         self.sample_x8_general(keys, index, permuted)
     }
@@ -227,6 +228,45 @@ impl Sampler2d {
     #[inline(never)]
     pub fn sample_x8_call(&self, keys: &[u64; LANES], index: &[u32; LANES], permuted: bool) -> [f32x8; 2] {
         self.sample_x8(keys, index, permuted)
+    }
+
+    /// [`Sampler2d::sample_x8`] of 8 samples of one set (every lane's key `key`: a pixel's samples):
+    /// the same values, with what depends on the key alone (the permutation's constants) worked out
+    /// once instead of per lane.
+    #[inline(always)]
+    pub fn sample_x8_one_key(&self, key: u64, index: &[u32; LANES], permuted: bool) -> [f32x8; 2] {
+        if self.jittered_pow2() {
+            let (perm, mask) = (PermutePow2::new(PermuteShape::new(self.n), perm_key(key)), self.n - 1);
+            return self.jittered_pow2_x8(index, |_| key, |l| if permuted { perm.apply(index[l]) } else { index[l] & mask });
+        }
+        self.sample_x8_general(&[key; LANES], index, permuted)
+    }
+
+    /// Whether the set takes the branch-free 8-lane path: jittered, of a power-of-two size up to 2^24.
+    #[inline(always)]
+    fn jittered_pow2(&self) -> bool {
+        self.strategy == Strategy::Jittered && self.n.is_power_of_two() && self.n <= 1 << 24
+    }
+
+    /// The 8-lane jittered power-of-two path: lane `l` jitters sample `index[l]` of the set keyed by
+    /// `key(l)` in stratum `stratum(l)` (the permuted or plain index).
+    #[inline(always)]
+    fn jittered_pow2_x8(&self, index: &[u32; LANES], key: impl Fn(usize) -> u64, stratum: impl Fn(usize) -> u32) -> [f32x8; 2] {
+        let mut u = [[0.0f32; LANES]; 2];
+        let (lx, ly) = (self.nx.trailing_zeros(), self.ny.trailing_zeros());
+        for l in 0..LANES {
+            let s = stratum(l);
+            let h = random_bits(key(l), index[l]);
+            u[0][l] = jitter_in_cell_pow2(s & (self.nx - 1), lx, (h >> 32) as u32);
+            u[1][l] = jitter_in_cell_pow2(s >> lx, ly, h as u32);
+        }
+        [f32x8::from(u[0]), f32x8::from(u[1])]
+    }
+
+    /// [`Sampler2d::sample_x8_one_key`] as one out-of-line call (see [`Sampler2d::sample_x8_call`]).
+    #[inline(never)]
+    pub fn sample_x8_one_key_call(&self, key: u64, index: &[u32; LANES], permuted: bool) -> [f32x8; 2] {
+        self.sample_x8_one_key(key, index, permuted)
     }
 
     /// [`Sampler2d::sample_x8`] for every set but the power-of-two jittered ones.
@@ -364,12 +404,39 @@ mod tests {
                     });
                     for permuted in [true, false] {
                         let got = s.sample_x8(&keys, &index, permuted);
+                        // The one-key form, with the first lane's key in every lane.
+                        let one = s.sample_x8_one_key(keys[0], &index, permuted);
                         for l in 0..LANES {
                             let want = if permuted { s.sample(keys[l], index[l]) } else { s.sample_unpermuted(keys[l], index[l]) };
                             let g = [got[0].to_array()[l], got[1].to_array()[l]];
                             assert_eq!(g.map(f32::to_bits), want.map(f32::to_bits), "{strategy:?} n={n} lane {l} permuted={permuted}");
+                            let want = if permuted { s.sample(keys[0], index[l]) } else { s.sample_unpermuted(keys[0], index[l]) };
+                            let g = [one[0].to_array()[l], one[1].to_array()[l]];
+                            assert_eq!(
+                                g.map(f32::to_bits),
+                                want.map(f32::to_bits),
+                                "{strategy:?} n={n} lane {l} one key, permuted={permuted}"
+                            );
                         }
                     }
+                }
+            }
+        }
+    }
+
+    /// The 32-bit shifts of `jitter_in_cell_pow2` give `jitter_in_cell`'s value bit for bit, for every
+    /// power of two up to 2^24: the first, second, middle and last two cells, the bits at both ends of
+    /// the 24 used (and the low 8, unused), and random bits.
+    #[test]
+    fn jitter_in_cell_pow2_equals_integer_division() {
+        let mut next = crate::sample::hash::test_uniforms(0x9042);
+        for log2n in 0..=24u32 {
+            let n = 1u32 << log2n;
+            let mut bits: Vec<u32> = vec![0, 1, 255, 256, 0x8000_0000, u32::MAX, u32::MAX - 255];
+            bits.extend((0..200).map(|_| (next() * 16_777_216.0) as u32).map(|b| b << 8 | (b & 0xff)));
+            for k in [0, 1, n / 2, n.saturating_sub(2), n - 1].into_iter().filter(|&k| k < n) {
+                for &b in &bits {
+                    assert_eq!(jitter_in_cell_pow2(k, log2n, b).to_bits(), jitter_in_cell(k, n, b).to_bits(), "n={n} k={k} bits={b:#x}");
                 }
             }
         }

@@ -74,13 +74,25 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     let mut pending = false;
     let mut k = 0;
     let mut next_path = paths.len() as u32;
-    // Rays (and their path ids, from `next_path` on) for the first `k` lanes of `b`.
-    let emit = |k: usize, b: &Lanes, next_path: &mut u32, rays: &mut RayQueue| {
+    // Rays (and their path ids, from `next_path` on) for the first `k` lanes of `b`; `one`: its lanes are
+    // one pixel's samples (one key per dimension, in lane 0).
+    let emit = |k: usize, b: &Lanes, one: bool, next_path: &mut u32, rays: &mut RayQueue| {
         let (keys, index, first) = (&b.keys, &b.index, *next_path);
         *next_path += k as u32;
-        let off = filter_offsets(profile.filter, area.sample_x8(&keys[0], index, true));
-        let lens = if f.lens { sample_disk_concentric_x8(lens_set.sample_x8(&keys[1], index, true)) } else { [f32x8::ZERO; 2] };
+        let sample = |set: &Sampler2d, keys: &[u64; LANES]| {
+            if one {
+                set.sample_x8_one_key(keys[0], index, true)
+            } else {
+                set.sample_x8(keys, index, true)
+            }
+        };
+        let off = filter_offsets(profile.filter, sample(&area, &keys[0]));
+        let lens = if f.lens { sample_disk_concentric_x8(sample(&lens_set, &keys[1])) } else { [f32x8::ZERO; 2] };
         let (o, d) = cam.rays_x8(f32x8::from(b.cx) + off[0], f32x8::from(b.cy) + off[1], lens);
+        if !(f.motion || f.dispersion || rays.with_time || rays.with_lambda) {
+            rays.push_new(k, &o.rows(), &d.rows(), first);
+            return;
+        }
         // New paths: branch, depth, bounce counts, flags and media all start empty (zero).
         let mut rows = RayRows {
             o: o.rows(),
@@ -120,7 +132,7 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         let mut first = samples.start;
         if k == 0 && samples.end - first >= LANES as u32 && pending {
             // (In order: the waiting packet's rays come first.)
-            emit(LANES, &bufs[cur ^ 1], &mut next_path, rays);
+            emit(LANES, &bufs[cur ^ 1], false, &mut next_path, rays);
             pending = false;
         }
         while k == 0 && samples.end - first >= LANES as u32 {
@@ -130,7 +142,7 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 keys: pk.map(|key| [key; LANES]),
                 index: std::array::from_fn(|l| first + l as u32),
             };
-            emit(LANES, &whole, &mut next_path, rays);
+            emit(LANES, &whole, true, &mut next_path, rays);
             first += LANES as u32;
         }
         for s in first..samples.end {
@@ -146,17 +158,17 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
             k += 1;
             if k == LANES {
                 if pending {
-                    emit(LANES, &bufs[cur ^ 1], &mut next_path, rays);
+                    emit(LANES, &bufs[cur ^ 1], false, &mut next_path, rays);
                 }
                 (pending, cur, k) = (true, cur ^ 1, 0);
             }
         }
     }
     if pending {
-        emit(LANES, &bufs[cur ^ 1], &mut next_path, rays);
+        emit(LANES, &bufs[cur ^ 1], false, &mut next_path, rays);
     }
     if k > 0 {
-        emit(k, &bufs[cur], &mut next_path, rays);
+        emit(k, &bufs[cur], false, &mut next_path, rays);
     }
     paths.zero_radiance();
 }

@@ -351,6 +351,8 @@ pub fn shadow_with(
                         let u = match (point, grid.get(j as usize)) {
                             (true, _) => [f32x8::splat(0.5); 2],
                             (false, Some(&u)) => u,
+                            // (One pixel's requests: one key, its constants worked out once.)
+                            (false, None) if one_pixel && li < KEY_CACHE => area.sample_x8_one_key_call(keys_li[0], &index, permuted),
                             (false, None) => area.sample_x8_call(&keys_li, &index, permuted),
                         };
                         match (light_points_x8(light, u), light) {
