@@ -89,10 +89,6 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         let off = filter_offsets(profile.filter, sample(&area, &keys[0]));
         let lens = if f.lens { sample_disk_concentric_x8(sample(&lens_set, &keys[1])) } else { [f32x8::ZERO; 2] };
         let (o, d) = cam.rays_x8(f32x8::from(b.cx) + off[0], f32x8::from(b.cy) + off[1], lens);
-        if !(f.motion || f.dispersion || rays.with_time || rays.with_lambda) {
-            rays.push_new(k, &o.rows(), &d.rows(), first);
-            return;
-        }
         // New paths: branch, depth, bounce counts, flags and media all start empty (zero).
         let mut rows = RayRows {
             o: o.rows(),

@@ -260,34 +260,6 @@ impl RayQueue {
         self.len += n;
     }
 
-    /// Append `n` (<= 8) new rays of a queue without time and wavelength: origins `o` and directions `d`
-    /// (lane rows), paths `first..first + n`, unit throughput, the rest empty (zero): what
-    /// [`RayQueue::push_rows`] stores for such a [`RayRows`], without building one.
-    #[inline(always)]
-    pub fn push_new(&mut self, n: usize, o: &[[f32; LANES]; 3], d: &[[f32; LANES]; 3], first: u32) {
-        debug_assert!(n <= LANES && !self.with_time && !self.with_lambda);
-        if self.ox.len() != self.len {
-            self.truncate_to_len();
-        }
-        for (v, x) in [&mut self.ox, &mut self.oy, &mut self.oz].into_iter().zip(o) {
-            put(v, x, n);
-        }
-        for (v, x) in [&mut self.dx, &mut self.dy, &mut self.dz].into_iter().zip(d) {
-            put(v, x, n);
-        }
-        fill(&mut self.tmax, f32::INFINITY, n);
-        for t in [&mut self.tr, &mut self.tg, &mut self.tb] {
-            fill(t, 1.0, n);
-        }
-        put(&mut self.path, &std::array::from_fn(|l| first + l as u32), n);
-        fill(&mut self.branch, 0, n);
-        fill(&mut self.depth, 0, n);
-        fill(&mut self.diffuse, 0, n);
-        fill(&mut self.flags, 0, n);
-        fill(&mut self.media, MediumStack::default(), n);
-        self.len += n;
-    }
-
     fn truncate_to_len(&mut self) {
         let n = self.len;
         macro_rules! tr { ($($f:ident),*) => { $( self.$f.truncate(n); )* }; }
