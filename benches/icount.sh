@@ -13,7 +13,9 @@
 # not run AVX-512 code, which `.cargo/config.toml`'s target-cpu=native emits on this machine.
 #
 # Usage: benches/icount.sh [--top N] [CASE...]     (default: all cases, top 12)
-# Cases: showcase spheres csg glass peer_a peer_b peer_b_direct
+# Cases: showcase spheres csg glass peer_a peer_b peer_b_direct peer_b_direct64
+#   (peer_b_direct64: the peer run's own 64 spp, a quarter of it: samples 0..16, as its work units take
+#   them; at 4 spp no packet holds 8 samples of one pixel, so the paths for those never run.)
 # Needs valgrind (apt-get install valgrind). Not run by CI or the tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,11 +24,11 @@ CASES=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --top) TOP=$2; shift 2 ;;
-    showcase|spheres|csg|glass|peer_a|peer_b|peer_b_direct) CASES+=("$1"); shift ;;
-    *) echo "usage: $0 [--top N] [showcase|spheres|csg|glass|peer_a|peer_b|peer_b_direct]..." >&2; exit 2 ;;
+    showcase|spheres|csg|glass|peer_a|peer_b|peer_b_direct|peer_b_direct64) CASES+=("$1"); shift ;;
+    *) echo "usage: $0 [--top N] [showcase|spheres|csg|glass|peer_a|peer_b|peer_b_direct|peer_b_direct64]..." >&2; exit 2 ;;
   esac
 done
-[ ${#CASES[@]} -eq 0 ] && CASES=(showcase spheres csg glass peer_a peer_b peer_b_direct)
+[ ${#CASES[@]} -eq 0 ] && CASES=(showcase spheres csg glass peer_a peer_b peer_b_direct peer_b_direct64)
 command -v valgrind >/dev/null || { echo "valgrind not found (apt-get install valgrind)" >&2; exit 1; }
 
 OUT=target/icount
@@ -45,6 +47,7 @@ args_for() {
     peer_a) echo "benches/peers/scenes/glass_csg.toml --profile benches/peers/profiles/pov_match.toml --spp 1 --light-samples 16" ;;
     peer_b) echo "benches/peers/scenes/spheres_area.toml --profile benches/peers/profiles/mitsuba_path.toml --spp 4" ;;
     peer_b_direct) echo "benches/peers/scenes/spheres_area.toml --profile benches/peers/profiles/mitsuba_direct.toml --spp 4" ;;
+    peer_b_direct64) echo "benches/peers/scenes/spheres_area.toml --profile benches/peers/profiles/mitsuba_direct.toml --samples 0..16" ;;
   esac
 }
 
