@@ -344,7 +344,7 @@ pub(crate) fn for_each_boundary_x8(q: &Query, scratch: &mut Vec<Ev>, mut visit: 
 mod tests {
     use super::*;
     use crate::csg::merge::{eval_lane, for_each_boundary, CsgArena, LaneJob};
-    use crate::csg::program::random_postfix;
+    use crate::csg::program::{random_postfix, TEST_CROSSINGS};
 
     /// Wherever the 8-lane path decides a lane, its answer is `eval_lane`'s bit for bit (distance, leaf,
     /// flip, entering, or no boundary), and its list of every boundary is `for_each_boundary`'s: random postfix programs of 1 to 9 leaves and every operator,
@@ -355,8 +355,7 @@ mod tests {
     #[test]
     fn decided_lanes_equal_the_merge() {
         let mut f = crate::sample::hash::test_uniforms(0x0fa5_7c56);
-        let values =
-            [-3.0f32, -1e-6, 0.0, 0.5, 1.0, 1.0 + 2e-6, 1.0 + 3e-5, 2.0, 2.0 - 1e-6, 4.0, 1e31, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        let values = TEST_CROSSINGS;
         let mut arena = CsgArena::new();
         let (mut decided, mut left, mut found, mut spread_left, mut spread_all, mut several, mut decided_many) =
             (0usize, 0usize, 0usize, 0usize, 0usize, 0usize, 0usize);

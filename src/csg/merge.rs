@@ -339,7 +339,7 @@ fn merge_lane(job: &LaneJob, arena: &mut CsgArena) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::csg::program::random_postfix;
+    use crate::csg::program::{random_postfix, TEST_CROSSINGS};
 
     /// The 8-lane pre-test never drops a lane whose merge has a boundary in `(tmin, tmax)`: random postfix
     /// programs (1 to 7 leaves, every operator, nested both ways) over crossings drawn from a small set of
@@ -348,8 +348,7 @@ mod tests {
     #[test]
     fn pretest_keeps_every_lane_with_a_boundary() {
         let mut f = crate::sample::hash::test_uniforms(0x4a11_b0d5);
-        let values =
-            [-3.0f32, -1e-6, 0.0, 0.5, 1.0, 1.0 + 2e-6, 1.0 + 3e-5, 2.0, 2.0 - 1e-6, 4.0, 1e31, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+        let values = TEST_CROSSINGS;
         let pick = |f: &mut dyn FnMut() -> f32| values[((f() * values.len() as f32) as usize).min(values.len() - 1)];
         let mut arena = CsgArena::new();
         let (mut dropped, mut kept, mut with_boundary) = (0, 0, 0);

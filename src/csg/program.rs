@@ -189,6 +189,12 @@ impl Csg {
     }
 }
 
+/// Crossing distances for the merge's tests: values that coincide exactly, within the merge's tolerance
+/// (`1 + 2e-6`, `2 - 1e-6`) and just beyond it (`1 + 3e-5`), and huge, infinite and NaN ones.
+#[cfg(test)]
+pub(crate) const TEST_CROSSINGS: [f32; 14] =
+    [-3.0, -1e-6, 0.0, 0.5, 1.0, 1.0 + 2e-6, 1.0 + 3e-5, 2.0, 2.0 - 1e-6, 4.0, 1e31, f32::INFINITY, f32::NEG_INFINITY, f32::NAN];
+
 /// A random postfix program over leaves `0..n` (in order) for tests: an operator (any of the three)
 /// whenever two lists wait and `coin` says so, or the leaves ran out; nested both ways.
 #[cfg(test)]
