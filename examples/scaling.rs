@@ -10,8 +10,12 @@
 //! behaviour): the same `seconds` (wall time of the render, scene loading excluded) and rays that
 //! `strata render --profile bench --stats-json` reports. Each configuration is rendered `--reps` times and
 //! the fastest run is kept, because the machine is shared and other load only ever slows a run down.
-//! Beside wall-clock rates the tables give rays per CPU-second of the render (from `/proc/self/stat`):
-//! on a loaded machine the wall time measures the load, the CPU time much less so.
+//! Beside wall-clock rates the tables give rays per worker-second: the render summary's stage seconds
+//! (each worker's time inside the stages, summed over workers), which leave out the idle time of a
+//! thread waiting for work and are exact to the microsecond (the process's CPU clock in
+//! `/proc/self/stat` ticks at 10 ms, a tenth of a 0.1 s render). Neither clock can see a host that
+//! takes a virtual CPU away: then only runs side by side in time compare, which is why the thread
+//! table alternates its 1- and 2-thread renders.
 //!
 //! Sphere scenes come from `scenes/tools/gen_bench_spheres.py N` (python3), parsed from memory with
 //! `parse_scene`: a million spheres is ~95 MB of TOML, over the 16 MiB limit of scene *files*, so no
@@ -69,47 +73,43 @@ fn profile(o: &Opts) -> Profile {
     p
 }
 
-/// CPU seconds (user + system, all threads) of this process so far, from `/proc/self/stat` (Linux; in
-/// units of USER_HZ = 100 per second); `None` elsewhere.
-fn cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
-    // Fields after the command name in parentheses: state is field 3, utime 14, stime 15.
-    let rest = &stat[stat.rfind(')')? + 2..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
-    Some(ticks / 100.0)
-}
-
-/// One render's statistics and the CPU seconds it consumed.
+/// One render's statistics.
 struct Run {
     stats: RenderStats,
-    cpu: Option<f64>,
+}
+
+impl Run {
+    /// Seconds the workers spent inside the stages, summed over workers (the render summary's stage
+    /// seconds; see the module doc).
+    fn worker_seconds(&self) -> f64 {
+        let t = &self.stats.stage_seconds;
+        t.generate + t.intersect + t.csg_merge + t.shade + t.shadow + t.accumulate
+    }
+
+    /// Rays per worker-second, in millions.
+    fn per_worker(&self) -> String {
+        m(self.stats.rays.total as f64 / self.worker_seconds())
+    }
+}
+
+fn once(scene: &Scene, o: &Opts, threads: usize) -> Run {
+    let settings = Settings { profile: profile(o), seed: 1 };
+    Run { stats: render(scene, settings, threads).1 }
 }
 
 /// The fastest of `reps` renders (all of them give the same image and ray counts).
 fn best(scene: &Scene, o: &Opts, threads: usize) -> Run {
-    let settings = Settings { profile: profile(o), seed: 1 };
-    (0..o.reps)
-        .map(|_| {
-            let c0 = cpu_seconds();
-            let stats = render(scene, settings.clone(), threads).1;
-            let cpu = c0.and_then(|c0| cpu_seconds().map(|c1| c1 - c0));
-            Run { stats, cpu }
-        })
-        .min_by(|a, b| a.stats.seconds.total_cmp(&b.stats.seconds))
-        .expect("reps >= 1")
+    (0..o.reps).map(|_| once(scene, o, threads)).min_by(|a, b| a.stats.seconds.total_cmp(&b.stats.seconds)).expect("reps >= 1")
 }
 
-/// Rays per CPU-second, in millions ("-" without a CPU clock).
-fn per_cpu(r: &Run) -> String {
-    r.cpu.filter(|&c| c > 0.0).map_or("-".into(), |c| m(r.stats.rays.total as f64 / c))
-}
-
-fn gen_spheres(n: u64) -> Result<String, String> {
+/// `gen_bench_spheres.py n` (with `--same-density`: radii scaled so that the spheres fill the same
+/// fraction of the layer as 1,000 do).
+fn gen_spheres(n: u64, same_density: bool) -> Result<String, String> {
     let script = root().join("scenes/tools/gen_bench_spheres.py");
     let out = Command::new("python3")
         .arg(&script)
         .arg(n.to_string())
+        .args(same_density.then_some("--same-density"))
         .output()
         .map_err(|e| format!("cannot run python3 {}: {e}", script.display()))?;
     if !out.status.success() {
@@ -190,25 +190,42 @@ fn run(o: &Opts) -> Result<(), String> {
 fn threads(o: &Opts) -> Result<(), String> {
     println!("## Threads\n");
     println!(
-        "| scene | rays (M) | 1 thread: s | M rays/s | M rays / CPU s | 2 threads: s | M rays/s | M rays / CPU s | \
+        "1- and 2-thread renders alternate (rep by rep), so that both see the same phases of a shared machine; \
+         the speed-up is the best 1-thread time over the best 2-thread time, and in brackets the median and \
+         range of the {} per-rep ratios.\n",
+        o.reps
+    );
+    println!(
+        "| scene | rays (M) | 1 thread: s | M rays/s | M rays / worker s | 2 threads: s | M rays/s | M rays / worker s | \
          speed-up | second thread adds |"
     );
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for file in ["bench_spheres.toml", "showcase.toml"] {
         let (scene, _) = load(file, &read_scene(file)?)?;
-        let one = best(&scene, o, 1);
-        let two = best(&scene, o, 2);
+        let mut pairs: Vec<(Run, Run)> = (0..o.reps).map(|_| (once(&scene, o, 1), once(&scene, o, 2))).collect();
+        let mut ratios: Vec<f64> = pairs.iter().map(|(a, b)| a.stats.seconds / b.stats.seconds).collect();
+        ratios.sort_by(f64::total_cmp);
+        let fastest = |v: &mut Vec<Run>| {
+            v.sort_by(|a, b| a.stats.seconds.total_cmp(&b.stats.seconds));
+            v.swap_remove(0)
+        };
+        let (mut ones, mut twos): (Vec<Run>, Vec<Run>) = pairs.drain(..).unzip();
+        let (one, two) = (fastest(&mut ones), fastest(&mut twos));
         let s = one.stats.seconds / two.stats.seconds;
+        let median = ratios[ratios.len() / 2];
         println!(
-            "| {file} | {} | {:.3} | {} | {} | {:.3} | {} | {} | {s:.2}x | {:.0}% |",
+            "| {file} | {} | {:.3} | {} | {} | {:.3} | {} | {} | {s:.2}x ({median:.2}x, {:.2}-{:.2}) | {:.0}% ({:.0}%) |",
             m(two.stats.rays.total as f64),
             one.stats.seconds,
             m(one.stats.rays_per_second),
-            per_cpu(&one),
+            one.per_worker(),
             two.stats.seconds,
             m(two.stats.rays_per_second),
-            per_cpu(&two),
-            (s - 1.0) * 100.0
+            two.per_worker(),
+            ratios[0],
+            ratios[ratios.len() - 1],
+            (s - 1.0) * 100.0,
+            (median - 1.0) * 100.0
         );
     }
 
@@ -216,27 +233,53 @@ fn threads(o: &Opts) -> Result<(), String> {
 }
 
 fn prims(o: &Opts) -> Result<(), String> {
-    println!("\n## Primitive count (bench_spheres layout, 640x480, 2 threads)\n");
-    println!("| spheres | TOML MB | parse + BVH s | render s | rays (M) | M rays/s | M rays / CPU s | CPU s per ray / same at 1e2 |");
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for same_density in [false, true] {
+        prims_table(o, same_density)?;
+    }
+    Ok(())
+}
+
+/// One primitive-count table: the bench_spheres layout with its radii (overlap grows with N) or with
+/// radii scaled to the same volume fraction (`same_density`).
+fn prims_table(o: &Opts, same_density: bool) -> Result<(), String> {
+    if same_density {
+        println!(
+            "\n## Primitive count, same density (radii x (1000 / N)^(1/3): the spheres fill the layer as 1,000 do; 640x480, 2 threads)\n"
+        );
+    } else {
+        println!("\n## Primitive count (bench_spheres layout, radii kept: overlap grows with N; 640x480, 2 threads)\n");
+    }
+    println!(
+        "| spheres | TOML MB | parse + BVH s | render s | rays (M) | M rays/s | M rays / worker s | worker s per ray / same at 1e2 \
+         | ns per ray: intersect, shade, shadow, rest |"
+    );
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---|");
     let mut base = None;
     let mut n = 100u64;
     while n <= o.max_prims {
-        let text = gen_spheres(n)?;
+        let text = gen_spheres(n, same_density)?;
         let (scene, load_s) = load(&format!("<gen_bench_spheres.py {n}>"), &text)?;
         let r = best(&scene, o, 2);
         let st = &r.stats;
         // Per ray: the ray count changes a little with N (shadow rays follow the visible surfaces).
-        let cost = r.cpu.filter(|&c| c > 0.0).unwrap_or(st.seconds) / st.rays.total as f64;
+        let cost = r.worker_seconds() / st.rays.total as f64;
         let b = *base.get_or_insert(cost);
+        // Where the time per ray goes (worker ns per traced ray; the rest is generation and accumulation).
+        let t = &st.stage_seconds;
+        let ns = |x: f64| x * 1e9 / st.rays.total as f64;
+        let rest = t.generate + t.csg_merge + t.accumulate;
         println!(
-            "| {n} | {:.1} | {load_s:.2} | {:.3} | {} | {} | {} | {:.2} |",
+            "| {n} | {:.1} | {load_s:.2} | {:.3} | {} | {} | {} | {:.2} | {:.1}, {:.1}, {:.1}, {:.1} |",
             text.len() as f64 / 1e6,
             st.seconds,
             m(st.rays.total as f64),
             m(st.rays_per_second),
-            per_cpu(&r),
-            cost / b
+            r.per_worker(),
+            cost / b,
+            ns(t.intersect),
+            ns(t.shade),
+            ns(t.shadow),
+            ns(rest)
         );
         n *= 10;
     }
@@ -246,7 +289,7 @@ fn prims(o: &Opts) -> Result<(), String> {
 
 fn resolution(o: &Opts) -> Result<(), String> {
     println!("\n## Resolution (bench_spheres.toml, 2 threads)\n");
-    println!("| resolution | pixels (M) | render s | rays (M) | M rays/s | M rays / CPU s | CPU s per M pixels |");
+    println!("| resolution | pixels (M) | render s | rays (M) | M rays/s | M rays / worker s | worker s per M pixels |");
     println!("|---|---:|---:|---:|---:|---:|---:|");
     let text = read_scene("bench_spheres.toml")?;
     for (w, h) in [(160, 120), (320, 240), (640, 480), (1280, 960), (2560, 1920)] {
@@ -260,8 +303,8 @@ fn resolution(o: &Opts) -> Result<(), String> {
             st.seconds,
             m(st.rays.total as f64),
             m(st.rays_per_second),
-            per_cpu(&r),
-            r.cpu.filter(|&c| c > 0.0).unwrap_or(st.seconds) / (px / 1e6)
+            r.per_worker(),
+            r.worker_seconds() / (px / 1e6)
         );
     }
     Ok(())

@@ -451,7 +451,8 @@ fn single_ray_closest_and_any_hit_match_brute_force() {
         for (o, d, tmax) in random_rays(&mut rng, &prims, 2500, s) {
             let (od, dd, tm64) = (o.as_dvec3(), d.as_dvec3(), tmax as f64);
             let mut best = None;
-            w.traverse_closest_single(o, d, tmax, &mut st, |p, tm| {
+            w.traverse_closest_single(o, d, tmax, &mut st, |slot, tm| {
+                let p = w.indices[slot as usize];
                 if let Some(t) = prims[p as usize].hit(od, dd).filter(|&t| t < tm64) {
                     if let Some(nt) = record(&mut best, p, t) {
                         *tm = nt;
@@ -485,7 +486,8 @@ fn packet_closest_hit_matches_brute_force() {
             }
             let mut ray = packet(o, d, tmax);
             let mut best = [None; LANES];
-            w.traverse_closest_x8(&mut ray, &mut st, |p, r| {
+            w.traverse_closest_x8(&mut ray, &mut st, |slot, r| {
+                let p = w.indices[slot as usize];
                 let mut tm = r.tmax.to_array();
                 for l in 0..LANES {
                     if let Some(t) = prims[p as usize].hit(o[l].as_dvec3(), d[l].as_dvec3()).filter(|&t| t < tmax[l] as f64) {
@@ -546,7 +548,8 @@ fn group_closest_hit_matches_brute_force() {
             }
             let mut rays: Vec<Ray8> = (0..k).map(|j| packet(o[j], d[j], tmax[j])).collect();
             let mut best = vec![[None; LANES]; k];
-            w.traverse_closest_group(&mut rays, &mut st, |p, j, r| {
+            w.traverse_closest_group(&mut rays, &mut st, |slot, j, r| {
+                let p = w.indices[slot as usize];
                 let mut tm = r.tmax.to_array();
                 for l in 0..LANES {
                     if let Some(t) = prims[p as usize].hit(o[j][l].as_dvec3(), d[j][l].as_dvec3()).filter(|&t| t < tmax[j][l] as f64) {
@@ -741,7 +744,8 @@ fn entry_distances_beyond_the_f32_range_are_entered() {
     let rays: Vec<(Vec3, Vec3)> = (0..8).map(|k| (Vec3::new(-15.0, 15.5 - k as f32, 15.5), Vec3::new(1e-9, 0.0, -0.0))).collect();
     let mut packet_best = [None; LANES];
     let mut ray = packet(std::array::from_fn(|l| rays[l].0), std::array::from_fn(|l| rays[l].1), [f32::INFINITY; LANES]);
-    w.traverse_closest_x8(&mut ray, &mut st, |p, r| {
+    w.traverse_closest_x8(&mut ray, &mut st, |slot, r| {
+        let p = w.indices[slot as usize];
         let mut tm = r.tmax.to_array();
         for (l, &(o, d)) in rays.iter().enumerate() {
             if let Some(t) = prims[p as usize].hit(o.as_dvec3(), d.as_dvec3()) {
@@ -756,7 +760,8 @@ fn entry_distances_beyond_the_f32_range_are_entered() {
         let want = brute_closest(&prims, o, d, f32::INFINITY);
         assert_eq!(want.map(|h| h.1), Some(far), "lane {l}: the far box is the only hit");
         let mut best = None;
-        w.traverse_closest_single(o, d, f32::INFINITY, &mut st, |p, tm| {
+        w.traverse_closest_single(o, d, f32::INFINITY, &mut st, |slot, tm| {
+            let p = w.indices[slot as usize];
             if let Some(nt) = prims[p as usize].hit(o.as_dvec3(), d.as_dvec3()).and_then(|t| record(&mut best, p, t)) {
                 *tm = nt;
             }

@@ -1,8 +1,21 @@
 #!/usr/bin/env python3
-"""Writes scenes/bench_spheres.toml: N spheres (default 1000) on a plane, deterministic (fixed LCG)."""
+"""Writes scenes/bench_spheres.toml: N spheres (default 1000) on a plane, deterministic (fixed LCG).
+
+Usage: gen_bench_spheres.py [N] [--same-density]
+
+The spheres keep their 40 x 40 area whatever N, so with fixed radii they overlap more and more (at
+1e6 every point of the layer lies inside ~40 spheres). --same-density scales every radius by
+(1000 / N)^(1/3): the spheres then fill the same fraction of the layer as the 1,000 of the default
+scene (the same scene, finer), and only the primitive count grows.
+"""
 import sys
 
-n = int(sys.argv[1]) if len(sys.argv) > 1 else 1000
+args = [a for a in sys.argv[1:] if not a.startswith("--")]
+flags = [a for a in sys.argv[1:] if a.startswith("--")]
+if any(f != "--same-density" for f in flags) or len(args) > 1:
+    sys.exit("usage: gen_bench_spheres.py [N] [--same-density]")
+n = int(args[0]) if args else 1000
+radius_scale = (1000.0 / n) ** (1.0 / 3.0) if "--same-density" in flags else 1.0
 state = 12345
 def rnd():
     global state
@@ -19,7 +32,7 @@ for i in range(8):
 out += ["[[shapes]]", 'type = "plane"', "point = [0, 0, 0]", "normal = [0, 1, 0]", 'material = "ground"', ""]
 side = 20.0
 for i in range(n):
-    r = 0.15 + 0.35 * rnd()
+    r = (0.15 + 0.35 * rnd()) * radius_scale
     x = (rnd() - 0.5) * 2 * side
     z = (rnd() - 0.5) * 2 * side
     y = r + 2.0 * rnd()

@@ -57,9 +57,9 @@ impl GroupBounds {
 }
 
 impl Bvh8 {
-    /// Closest-hit traversal of up to [`WIDE_GROUP`] packets together (see the module doc). `leaf(prim, j,
-    /// &mut rays[j])` has the contract of [`super::Bvh::traverse_closest_x8`]'s callback, for packet
-    /// `j`. A group without `GroupBounds` (directions of both signs on two axes) is traversed packet by
+    /// Closest-hit traversal of up to [`WIDE_GROUP`] packets together (see the module doc). `leaf(slot, j,
+    /// &mut rays[j])` has the contract of [`Bvh8::traverse_closest_x8`]'s callback (a primitive's
+    /// slot in `indices`), for packet `j`. A group without `GroupBounds` (directions of both signs on two axes) is traversed packet by
     /// packet ([`Bvh8::traverse_closest_x8`]).
     pub fn traverse_closest_group(&self, rays: &mut [Ray8], stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
         assert!(rays.len() <= WIDE_GROUP, "at most {WIDE_GROUP} packets per group");
@@ -109,13 +109,12 @@ impl Bvh8 {
                     node = e.child as usize;
                     break;
                 }
-                let prims = &self.indices[e.child as usize..(e.child + e.count) as usize];
                 let mut bits = e.lanes;
                 while bits != 0 {
                     let j = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
-                    for &p in prims {
-                        leaf(p, j, &mut rays[j]);
+                    for slot in e.child..e.child + e.count {
+                        leaf(slot, j, &mut rays[j]);
                     }
                 }
                 tmax = group_tmax(&rays[..k]);

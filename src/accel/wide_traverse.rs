@@ -246,8 +246,8 @@ fn splat_ray(o: Vec3, d: Vec3, tmax: f32) -> Ray8 {
 }
 
 impl Bvh8 {
-    /// Closest-hit traversal of one ray. `leaf(prim, &mut tmax)` is called for each primitive of each
-    /// visited leaf; it lowers `tmax` when the primitive is hit nearer (the caller records which).
+    /// Closest-hit traversal of one ray. `leaf(slot, &mut tmax)` is called for each primitive of each
+    /// visited leaf (`slot`: its position in `indices`, which holds the primitive); it lowers `tmax` when the primitive is hit nearer (the caller records which).
     /// Children whose box the ray's padded slab interval does not overlap within `[0, tmax]` are
     /// skipped, as the packet test decides for this ray's lane (see the module doc). Nothing happens
     /// when `tmax < 0` (an inactive ray).
@@ -281,8 +281,8 @@ impl Bvh8 {
                     node = e.child as usize;
                     break;
                 }
-                for &p in &self.indices[e.child as usize..(e.child + e.count) as usize] {
-                    leaf(p, &mut tmax);
+                for slot in e.child..e.child + e.count {
+                    leaf(slot, &mut tmax);
                 }
             }
         }
@@ -366,7 +366,8 @@ impl Bvh8 {
     /// lane masks). Children are pushed near-first by the smallest entry distance over their lanes; a
     /// popped entry keeps only the lanes whose `tmax` still reaches that distance. Leaves test the whole
     /// packet. The callback contract is [`super::Bvh::traverse_closest_x8`]'s (lanes with `tmax < 0`
-    /// are inactive).
+    /// are inactive), except that it is given each primitive's slot, its position in `indices` (leaf
+    /// data kept in slot order, `scene::LeafSpheres`, is then read in order).
     pub fn traverse_closest_x8(&self, ray: &mut Ray8, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, &mut Ray8)) {
         let active = ray.tmax.simd_ge(f32x8::ZERO).to_bitmask();
         if self.nodes.is_empty() || active == 0 {
@@ -408,8 +409,8 @@ impl Bvh8 {
                     (node, lanes) = (e.child as usize, live);
                     break;
                 }
-                for &p in &self.indices[e.child as usize..(e.child + e.count) as usize] {
-                    leaf(p, ray);
+                for slot in e.child..e.child + e.count {
+                    leaf(slot, ray);
                 }
                 tm = ray.tmax.to_array();
             }

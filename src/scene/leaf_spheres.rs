@@ -1,6 +1,9 @@
 //! The static spheres of the BVH's leaves as lanes: per slot of `bvh.indices` (the order in which
 //! leaves list their primitives), the sphere's centre and radius terms, so that one ray meets a
-//! whole leaf's spheres in one 8-lane kernel call ([`crate::geometry::spheres_lanes_x8`]). Slots of
+//! whole leaf's spheres in one 8-lane kernel call ([`crate::geometry::spheres_lanes_x8`]), and a packet
+//! meets a leaf's sphere from these lanes (the intersect stage's closest-hit leaves) instead of through
+//! `indices`, `bounded` and the 176-byte `Prim`: three dependent loads, each a cache miss once the scene
+//! outgrows the caches (at a million spheres they were two thirds of the leaf test's time). Slots of
 //! other primitives (and of moving spheres) are flagged, and their leaves test those one by one.
 
 use super::{Prim, Shape};
@@ -21,6 +24,9 @@ pub struct LeafSpheres {
     /// Per slot `k`: bit `j` set when slot `k + j` (j < 8) is a static sphere (its lane above holds
     /// it): a leaf's sphere lanes in one load, not a loop per leaf visit.
     pub window: Vec<u8>,
+    /// Per slot: the scene's prim id (`bounded[indices[k]]`, for every kind of prim), read in leaf
+    /// order instead of through two dependent lookups.
+    pub prim: Vec<u32>,
 }
 
 impl LeafSpheres {
@@ -35,10 +41,12 @@ impl LeafSpheres {
             r2_lo: vec![0.0; n],
             graze: vec![0.0; n],
             window: vec![0; n],
+            prim: vec![0; n],
         };
         let mut sphere = vec![false; n];
         for (k, &bi) in bvh.indices.iter().enumerate() {
-            let prim = &prims[bounded[bi as usize] as usize];
+            s.prim[k] = bounded[bi as usize];
+            let prim = &prims[s.prim[k] as usize];
             if let Shape::Sphere { center, radius } = prim.shape {
                 if prim.motion == Vec3::ZERO {
                     let c = SphereConsts::of(radius);

@@ -12,7 +12,8 @@ use super::queues::{CsgCandidates, HitQueue, RayQueue, NONE};
 use crate::accel::{intersect_aabb_x8, PacketRay, GROUP, WIDE_GROUP};
 use crate::geometry::{
     intersect_disk_f64, intersect_disk_x8, intersect_ellipsoid_f64, intersect_ellipsoid_x8, intersect_obox_f64, intersect_obox_x8,
-    intersect_plane_f64, intersect_plane_x8, intersect_quad_f64, intersect_quad_x8, intersect_sphere_f64, intersect_sphere_x8, MISS,
+    intersect_plane_f64, intersect_plane_x8, intersect_quad_f64, intersect_quad_x8, intersect_sphere_f64, intersect_sphere_x8,
+    spheres_lanes_x8, MISS,
 };
 use crate::scene::{Prim, Scene, Shape};
 use crate::simd::{f32x8, i32x8, load8, store8, Ray8, Vec3x8, LANES};
@@ -70,12 +71,18 @@ pub fn prim_t_at_x8(prim: &Prim, ray: &Ray8, time: Option<f32x8>) -> f32x8 {
 /// primitives are met (traversal order depends on the packet's other rays, hence on tiles and queues).
 #[inline(always)]
 fn prim_t_ties(prim: &Prim, ray: &mut Ray8, ids: &i32x8, time: Option<f32x8>) -> f32x8 {
+    t_ties(ray, ids, |r| prim_t_at_x8(prim, r, time))
+}
+
+/// `kernel(ray)` with `tmax` raised by one ulp on the lanes that have a hit ([`prim_t_ties`]).
+#[inline(always)]
+fn t_ties(ray: &mut Ray8, ids: &i32x8, kernel: impl FnOnce(&Ray8) -> f32x8) -> f32x8 {
     let tm = ray.tmax;
     let found = !bytemuck::cast::<i32x8, f32x8>(ids.simd_eq(i32x8::splat(NONE as i32)));
     let finite = tm.simd_lt(f32x8::splat(f32::INFINITY)) & tm.simd_gt(f32x8::ZERO);
     let up = bytemuck::cast::<i32x8, f32x8>(bytemuck::cast::<f32x8, i32x8>(tm) + i32x8::splat(1));
     ray.tmax = (found & finite).select(up, tm);
-    let t = prim_t_at_x8(prim, ray, time);
+    let t = kernel(ray);
     ray.tmax = tm;
     t
 }
@@ -235,6 +242,32 @@ fn hit_bounded(
     record(ray, ids, t, pid);
 }
 
+/// [`hit_bounded`] for the primitive in slot `slot` of the wide BVH's leaves (`bvh8.indices[slot]`): a
+/// static sphere's terms come from the slot-ordered [`LeafSpheres`](crate::scene::leaf_spheres::LeafSpheres)
+/// lanes, read in leaf order (the kernel [`spheres_lanes_x8`] with one sphere splatted is
+/// [`intersect_sphere_x8`] bit for bit), without the dependent loads of `indices`, `bounded` and the
+/// `Prim`; any other primitive takes [`hit_bounded`].
+#[inline(always)]
+fn hit_slot(
+    scene: &Scene,
+    slot: u32,
+    ray: &mut Ray8,
+    ids: &mut i32x8,
+    time: Option<f32x8>,
+    cands: &mut CsgCandidates,
+    ray_of: impl Fn(usize) -> u32,
+) {
+    let (ls, k) = (&scene.leaf_spheres, slot as usize);
+    if ls.window[k] & 1 == 0 {
+        hit_bounded(scene, scene.bvh8.indices[k], ray, ids, time, cands, ray_of);
+        return;
+    }
+    let s = f32x8::splat;
+    let c = Vec3x8::new(s(ls.cx[k]), s(ls.cy[k]), s(ls.cz[k]));
+    let t = t_ties(ray, ids, |r| spheres_lanes_x8(c, s(ls.r2[k]), s(ls.r2_lo[k]), s(ls.graze[k]), r));
+    record(ray, ids, t, ls.prim[k]);
+}
+
 /// [`intersect`] with the traversal of incoherent queues chosen by the caller (tests and benchmarks
 /// compare them).
 pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mut CsgCandidates, incoherent: Traversal) {
@@ -282,13 +315,14 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
                 record(&mut rs[j], &mut ids[j], t, pid);
             }
         }
-        let hit = |bi: u32, j: usize, ray: &mut Ray8| {
-            hit_bounded(scene, bi, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
-        };
         if wide {
-            scene.bvh8.traverse_closest_group(&mut rs[..k], &mut hits.wide_stack, hit);
+            scene.bvh8.traverse_closest_group(&mut rs[..k], &mut hits.wide_stack, |slot, j, ray| {
+                hit_slot(scene, slot, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
+            });
         } else {
-            scene.bvh.traverse_closest_group(&mut rs[..k], hit);
+            scene.bvh.traverse_closest_group(&mut rs[..k], |bi, j, ray| {
+                hit_bounded(scene, bi, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
+            });
         }
         for j in 0..k {
             let base = gbase + j * LANES;
@@ -324,8 +358,8 @@ fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQ
             let t = prim_t_ties(&scene.prims[pid as usize], &mut ray, &ids, None);
             record(&mut ray, &mut ids, t, pid);
         }
-        scene.bvh8.traverse_closest_x8(&mut ray, stack, |bi, r| {
-            hit_bounded(scene, bi, r, &mut ids, time, cands, |l| order[base + l]);
+        scene.bvh8.traverse_closest_x8(&mut ray, stack, |slot, r| {
+            hit_slot(scene, slot, r, &mut ids, time, cands, |l| order[base + l]);
         });
         let found = ids.simd_eq(none);
         let t = bytemuck::cast::<i32x8, f32x8>(found).select(f32x8::splat(f32::INFINITY), ray.tmax);
