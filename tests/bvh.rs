@@ -331,7 +331,10 @@ fn closest_hit_packets_match_brute_force() {
     for p in &sc.packets {
         let mut ray = p.ray8();
         let mut ids = [u32::MAX; LANES];
-        sc.bvh.traverse_closest_x8(&mut ray, |prim, r| leaf_closest(&sc.spheres[prim as usize], prim, r, &mut ids));
+        sc.bvh.traverse_closest_x8(&mut ray, |slot, r| {
+            let prim = sc.bvh.indices[slot as usize];
+            leaf_closest(&sc.spheres[prim as usize], prim, r, &mut ids)
+        });
         let t = ray.tmax.to_array();
         for i in 0..LANES {
             let (bid, bt) = brute_closest(&sc.spheres, p.o[i], p.d[i], p.tmax[i]);
@@ -351,7 +354,8 @@ fn any_hit_matches_brute_force_and_visits_less() {
     let (mut calls_any, mut calls_closest, mut occluded) = (0usize, 0usize, 0);
     for p in &sc.packets {
         let ray = p.ray8();
-        let occ = sc.bvh.traverse_any_x8(&ray, |prim, r| {
+        let occ = sc.bvh.traverse_any_x8(&ray, |slot, r| {
+            let prim = sc.bvh.indices[slot as usize];
             calls_any += 1;
             leaf_any(&sc.spheres[prim as usize], r)
         });
@@ -364,7 +368,8 @@ fn any_hit_matches_brute_force_and_visits_less() {
         }
         let mut ray = p.ray8();
         let mut ids = [u32::MAX; LANES];
-        sc.bvh.traverse_closest_x8(&mut ray, |prim, r| {
+        sc.bvh.traverse_closest_x8(&mut ray, |slot, r| {
+            let prim = sc.bvh.indices[slot as usize];
             calls_closest += 1;
             leaf_closest(&sc.spheres[prim as usize], prim, r, &mut ids)
         });
@@ -689,13 +694,19 @@ fn group_traversal_matches_brute_force_and_single_packets() {
     for (g, group) in groups.iter().enumerate() {
         let mut rays: Vec<Ray8> = group.iter().map(Packet::ray8).collect();
         let mut ids = vec![[u32::MAX; LANES]; group.len()];
-        bvh.traverse_closest_group(&mut rays, |prim, j, r| leaf_closest(&spheres[prim as usize], prim, r, &mut ids[j]));
+        bvh.traverse_closest_group(&mut rays, |slot, j, r| {
+            let prim = bvh.indices[slot as usize];
+            leaf_closest(&spheres[prim as usize], prim, r, &mut ids[j])
+        });
         let mut shadow: Vec<Ray8> = group.iter().map(Packet::ray8).collect();
-        let occ = bvh.traverse_any_group(&mut shadow, |prim, _, r| leaf_any(&spheres[prim as usize], r));
+        let occ = bvh.traverse_any_group(&mut shadow, |slot, _, r| leaf_any(&spheres[bvh.indices[slot as usize] as usize], r));
         for (j, p) in group.iter().enumerate() {
             let mut single = p.ray8();
             let mut sids = [u32::MAX; LANES];
-            bvh.traverse_closest_x8(&mut single, |prim, r| leaf_closest(&spheres[prim as usize], prim, r, &mut sids));
+            bvh.traverse_closest_x8(&mut single, |slot, r| {
+                let prim = bvh.indices[slot as usize];
+                leaf_closest(&spheres[prim as usize], prim, r, &mut sids)
+            });
             assert_eq!(sids, ids[j], "group {g} packet {j}: group and single-packet traversal differ");
             let t = rays[j].tmax.to_array();
             let bits = occ[j].to_bitmask();
@@ -806,11 +817,11 @@ fn group_culling_is_conservative_at_box_corners_and_edges() {
             .collect();
         let mut rays: Vec<Ray8> = group.iter().map(Packet::ray8).collect();
         let mut best = vec![[(f64::INFINITY, u32::MAX); LANES]; GROUP];
-        bvh.traverse_closest_group(&mut rays, |prim, j, r| leaf_box(&boxes, prim, r, &mut best[j]));
+        bvh.traverse_closest_group(&mut rays, |slot, j, r| leaf_box(&boxes, bvh.indices[slot as usize], r, &mut best[j]));
         for (j, p) in group.iter().enumerate() {
             let mut single = p.ray8();
             let mut sbest = [(f64::INFINITY, u32::MAX); LANES];
-            bvh.traverse_closest_x8(&mut single, |prim, r| leaf_box(&boxes, prim, r, &mut sbest));
+            bvh.traverse_closest_x8(&mut single, |slot, r| leaf_box(&boxes, bvh.indices[slot as usize], r, &mut sbest));
             for i in 0..LANES {
                 let (mut bid, mut bt) = (u32::MAX, f64::INFINITY);
                 for (k, bx) in boxes.iter().enumerate() {

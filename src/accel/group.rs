@@ -164,7 +164,7 @@ pub(super) fn group_tmax(rays: &[Ray8]) -> f32 {
 }
 
 impl Bvh {
-    /// Closest-hit traversal of up to [`GROUP`] packets together (see the module doc). `leaf(prim, j,
+    /// Closest-hit traversal of up to [`GROUP`] packets together (see the module doc). `leaf(slot, j,
     /// &mut rays[j])` has the contract of [`Bvh::traverse_closest_x8`]'s callback, for packet `j`.
     /// A group without [`GroupBounds`] (directions of both signs on two axes) is traversed packet by packet.
     pub fn traverse_closest_group(&self, rays: &mut [Ray8], mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
@@ -196,13 +196,13 @@ impl Bvh {
                     (node, first) = (descend(n, near_right, f, &mut stack, &mut sp), f);
                     continue;
                 }
-                let (prims, bmin, bmax) = self.leaf(n, count);
+                let (slots, bmin, bmax) = self.leaf(n, count);
                 for j in f..k {
                     if j != f && !intersect_aabb_x8(bmin, bmax, &pr[j], rays[j].tmax).1.any() {
                         continue;
                     }
-                    for &p in prims {
-                        leaf(p, j, &mut rays[j]);
+                    for slot in slots.clone() {
+                        leaf(slot, j, &mut rays[j]);
                     }
                 }
                 tmax = group_tmax(rays);
@@ -272,13 +272,13 @@ impl Bvh {
                         (node, first) = (descend(n, near_right, f, &mut stack, &mut sp), f);
                         continue;
                     }
-                    let (prims, bmin, bmax) = self.leaf(n, count);
+                    let (slots, bmin, bmax) = self.leaf(n, count);
                     for j in f..k {
                         if pending & (1 << j) == 0 || (j != f && !intersect_aabb_x8(bmin, bmax, &pr[j], rs[j].tmax).1.any()) {
                             continue;
                         }
-                        for &p in prims {
-                            let occ = leaf(p, j, &rs[j]) & active[j];
+                        for slot in slots.clone() {
+                            let occ = leaf(slot, j, &rs[j]) & active[j];
                             if occ.any() {
                                 occluded[j] |= occ;
                                 rs[j].tmax = occluded[j].select(off, rs[j].tmax);
@@ -304,11 +304,11 @@ impl Bvh {
 }
 
 impl Bvh {
-    /// A leaf's primitive slots and box (`count` = `n.count()`, non-zero).
+    /// A leaf's primitive slots (positions in `indices`) and box (`count` = `n.count()`, non-zero).
     #[inline(always)]
-    fn leaf(&self, n: &BvhNode, count: usize) -> (&[u32], Vec3, Vec3) {
-        let first = n.left_first as usize;
-        (&self.indices[first..first + count], Vec3::from_array(n.min), Vec3::from_array(n.max))
+    fn leaf(&self, n: &BvhNode, count: usize) -> (std::ops::Range<u32>, Vec3, Vec3) {
+        let first = n.left_first;
+        (first..first + count as u32, Vec3::from_array(n.min), Vec3::from_array(n.max))
     }
 }
 

@@ -170,8 +170,14 @@ pub fn occludes_sphere_x8(center: Vec3, radius: f32, ray: &Ray8, pk: &SpherePack
 /// of these rays). Lane-wise operations only, so each lane's verdict is the 8-lane twin's.
 #[inline(always)]
 pub fn occludes_sphere<F: Lanes>(o: [F; 3], d: [F; 3], tmax: F, center: Vec3, radius: f32, pk: &SpherePacketOf<F>) -> F {
+    occludes_sphere_consts(o, d, tmax, center, SphereConsts::of(radius), pk)
+}
+
+/// [`occludes_sphere`] from the radius terms of [`SphereConsts`] (as kept per leaf slot in
+/// `scene::LeafSpheres`): the same operations, hence the same lanes.
+#[inline(always)]
+pub fn occludes_sphere_consts<F: Lanes>(o: [F; 3], d: [F; 3], tmax: F, center: Vec3, k: SphereConsts, pk: &SpherePacketOf<F>) -> F {
     let none = F::splat(0.0);
-    let k = SphereConsts::of(radius);
     let (sx, ex) = two_sum(o[0], -F::splat(center.x));
     let (sy, ey) = two_sum(o[1], -F::splat(center.y));
     let (sz, ez) = two_sum(o[2], -F::splat(center.z));

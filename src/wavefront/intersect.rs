@@ -242,7 +242,8 @@ fn hit_bounded(
     record(ray, ids, t, pid);
 }
 
-/// [`hit_bounded`] for the primitive in slot `slot` of the wide BVH's leaves (`bvh8.indices[slot]`): a
+/// [`hit_bounded`] for the primitive in slot `slot` of the BVH's leaves (`bvh.indices[slot]`, which the
+/// wide tree keeps): a
 /// static sphere's terms come from the slot-ordered [`LeafSpheres`](crate::scene::leaf_spheres::LeafSpheres)
 /// lanes, read in leaf order (the kernel [`spheres_lanes_x8`] with one sphere splatted is
 /// [`intersect_sphere_x8`] bit for bit), without the dependent loads of `indices`, `bounded` and the
@@ -259,7 +260,7 @@ fn hit_slot(
 ) {
     let (ls, k) = (&scene.leaf_spheres, slot as usize);
     if ls.window[k] & 1 == 0 {
-        hit_bounded(scene, scene.bvh8.indices[k], ray, ids, time, cands, ray_of);
+        hit_bounded(scene, scene.bvh.indices[k], ray, ids, time, cands, ray_of);
         return;
     }
     let s = f32x8::splat;
@@ -320,8 +321,8 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
                 hit_slot(scene, slot, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
             });
         } else {
-            scene.bvh.traverse_closest_group(&mut rs[..k], |bi, j, ray| {
-                hit_bounded(scene, bi, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
+            scene.bvh.traverse_closest_group(&mut rs[..k], |slot, j, ray| {
+                hit_slot(scene, slot, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
             });
         }
         for j in 0..k {

@@ -18,7 +18,9 @@ use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, trans
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{Bvh8Stack, LightBuffer, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
-use crate::geometry::{occludes_sphere, occludes_sphere_x8, spheres_lanes_x8, SpherePacket, SpherePacketOf};
+use crate::geometry::{
+    occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, spheres_lanes_x8, SphereConsts, SpherePacket, SpherePacketOf,
+};
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
@@ -793,8 +795,18 @@ pub fn occlusion_group(
     for j in 1..k {
         pk[j] = SpherePacket::new(&rays[j]);
     }
-    let from_bvh = scene.bvh.traverse_any_group(rays, |bi, j, ray| {
-        prim_occlusion_with(scene, profile, scene.bounded[bi as usize], ray, Some(&pk[j]), times[j], arena, walk, &mut touched[j])
+    // Where no surface lets shadow rays through, a static sphere's terms come from the slot-ordered
+    // `LeafSpheres` lanes, read in leaf order (no lookups of `indices`, `bounded` and its record: cache
+    // misses in scenes larger than the caches); any other prim by its id.
+    let ls = &scene.leaf_spheres;
+    let from_bvh = scene.bvh.traverse_any_group(rays, |slot, j, ray| {
+        let k = slot as usize;
+        if !walk && ls.window[k] & 1 != 0 {
+            let consts = SphereConsts { r2: ls.r2[k], r2_lo: ls.r2_lo[k], graze: ls.graze[k] };
+            let c = Vec3::new(ls.cx[k], ls.cy[k], ls.cz[k]);
+            return occludes_sphere_consts([ray.o.x, ray.o.y, ray.o.z], [ray.d.x, ray.d.y, ray.d.z], ray.tmax, c, consts, &pk[j]);
+        }
+        prim_occlusion_with(scene, profile, ls.prim[k], ray, Some(&pk[j]), times[j], arena, walk, &mut touched[j])
     });
     for j in 0..k {
         occ[j] |= from_bvh[j];

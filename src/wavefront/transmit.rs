@@ -415,8 +415,8 @@ fn collect(scene: &Scene, ray: &Ray8, time: Option<f32x8>, arena: &mut CsgArena,
     for &pid in &scene.unbounded {
         prim_hits(pid, cr);
     }
-    scene.bvh.traverse_any_x8(ray, |bi, r| {
-        let pid = scene.bounded[bi as usize];
+    scene.bvh.traverse_any_x8(ray, |slot, r| {
+        let pid = scene.leaf_spheres.prim[slot as usize];
         let prim = &scene.prims[pid as usize];
         if let Shape::Csg { solid } = prim.shape {
             let b = &scene.bounds[pid as usize];
