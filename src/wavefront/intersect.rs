@@ -210,20 +210,19 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
 /// for packets, 0.84 primitive tests per ray alone), and a lone ray's node loop is bound by latency.
 pub const INCOHERENT: Traversal = Traversal::Wide;
 
-/// Test bounded primitive `bi` (an index into `scene.bounded`) against the packet and record its hits;
-/// a CSG solid instead records a (ray, solid) candidate for each lane whose slab interval reaches its
-/// bounds, `ray_of(lane)` naming the ray.
+/// Test bounded primitive `pid` (a prim id) against the packet and record its hits; a CSG solid
+/// instead records a (ray, solid) candidate for each lane whose slab interval reaches its bounds,
+/// `ray_of(lane)` naming the ray.
 #[inline(always)]
 fn hit_bounded(
     scene: &Scene,
-    bi: u32,
+    pid: u32,
     ray: &mut Ray8,
     ids: &mut i32x8,
     time: Option<f32x8>,
     cands: &mut CsgCandidates,
     ray_of: impl Fn(usize) -> u32,
 ) {
-    let pid = scene.bounded[bi as usize];
     let prim = &scene.prims[pid as usize];
     if let Shape::Csg { .. } = prim.shape {
         let b = &scene.bounds[pid as usize];
@@ -242,8 +241,8 @@ fn hit_bounded(
     record(ray, ids, t, pid);
 }
 
-/// [`hit_bounded`] for the primitive in slot `slot` of the BVH's leaves (`bvh.indices[slot]`, which the
-/// wide tree keeps): a
+/// [`hit_bounded`] for the primitive in slot `slot` of the BVH's leaves (its id from the slot-ordered
+/// `LeafSpheres::prim`, not through `bvh.indices` and `bounded`): a
 /// static sphere's terms come from the slot-ordered [`LeafSpheres`](crate::scene::leaf_spheres::LeafSpheres)
 /// lanes, read in leaf order (the kernel [`spheres_lanes_x8`] with one sphere splatted is
 /// [`intersect_sphere_x8`] bit for bit), without the dependent loads of `indices`, `bounded` and the
@@ -260,7 +259,7 @@ fn hit_slot(
 ) {
     let (ls, k) = (&scene.leaf_spheres, slot as usize);
     if ls.window[k] & 1 == 0 {
-        hit_bounded(scene, scene.bvh.indices[k], ray, ids, time, cands, ray_of);
+        hit_bounded(scene, ls.prim[k], ray, ids, time, cands, ray_of);
         return;
     }
     let s = f32x8::splat;
@@ -369,5 +368,70 @@ fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQ
             let i = order[base + l] as usize;
             (hit_t[i], hit_prim[i]) = (ta[l], ia[l] as u32);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sample::hash::test_uniforms;
+
+    /// `hit_slot` (static spheres from the slot-ordered lanes) must record what `hit_bounded` records
+    /// for the slot's prim through its `Prim`: the same `t` bits, ids and candidates, for every slot of
+    /// scenes with static and moving spheres, planes, boxes, quads and CSG solids, with packets aimed at
+    /// the slot's prim (hits, grazes, misses), some lanes already holding a hit at the same distance
+    /// (the tie rule) and some inactive.
+    #[test]
+    fn slot_leaves_record_what_the_prims_record() {
+        let (mut compared, mut hits, mut ties) = (0usize, 0usize, 0usize);
+        for name in ["bench_spheres", "showcase", "csg", "motion", "cornell"] {
+            let scene = crate::scene::load_scene(std::path::Path::new(&format!("scenes/{name}.toml"))).unwrap();
+            let ls = &scene.leaf_spheres;
+            let mut u = test_uniforms(0x51_07 + name.len() as u64);
+            let root = &scene.bvh.nodes[0];
+            let (lo, hi) = (Vec3::from_array(root.min), Vec3::from_array(root.max));
+            for k in 0..scene.bvh.indices.len() {
+                let pid = scene.bounded[scene.bvh.indices[k] as usize];
+                assert_eq!(ls.prim[k], pid, "{name}: slot {k}");
+                let b = &scene.bounds[pid as usize];
+                let (target, spread) = ((b.min + b.max) * 0.5, b.extent().max_element() * 0.8);
+                for _ in 0..4 {
+                    let mut o = [[0.0f32; LANES]; 3];
+                    let mut d = [[0.0f32; LANES]; 3];
+                    for l in 0..LANES {
+                        let from = lo + (hi - lo) * Vec3::new(u(), u(), u()) * 1.4 - (hi - lo) * 0.2;
+                        let to = target + (Vec3::new(u(), u(), u()) - 0.5) * spread;
+                        for a in 0..3 {
+                            (o[a][l], d[a][l]) = (from[a], to[a] - from[a]);
+                        }
+                    }
+                    let tmax = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| [f32::INFINITY, 1.5, 0.7, -1.0][(l + k) % 4]));
+                    let ray = Ray8::new(Vec3x8::from_rows(&o), Vec3x8::from_rows(&d), tmax);
+                    let time = scene.features.motion.then(|| f32x8::from(std::array::from_fn::<f32, LANES, _>(|_| u())));
+                    // Lanes with a hit already: at the distance the prim itself gives (a tie), or none.
+                    let mut probe = ray;
+                    let (mut ids0, mut none_cands) = (i32x8::splat(NONE as i32), CsgCandidates::default());
+                    hit_bounded(&scene, pid, &mut probe, &mut ids0, time, &mut none_cands, |l| l as u32);
+                    let tie = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if l % 3 == 0 { 1.0 } else { 0.0 }))
+                        .simd_gt(f32x8::ZERO)
+                        & probe.tmax.simd_lt(ray.tmax);
+                    ties += tie.to_bitmask().count_ones() as usize;
+                    let start = Ray8 { tmax: tie.select(probe.tmax, ray.tmax), ..ray };
+                    let ids_start = bytemuck::cast::<f32x8, i32x8>(tie).select(i32x8::splat(pid as i32 + 1), i32x8::splat(NONE as i32));
+                    let (mut a, mut b) = (start, start);
+                    let (mut ia, mut ib) = (ids_start, ids_start);
+                    let (mut ca, mut cb) = (CsgCandidates::default(), CsgCandidates::default());
+                    hit_bounded(&scene, pid, &mut a, &mut ia, time, &mut ca, |l| l as u32);
+                    hit_slot(&scene, k as u32, &mut b, &mut ib, time, &mut cb, |l| l as u32);
+                    let bits = |r: &Ray8| r.tmax.to_array().map(f32::to_bits);
+                    assert_eq!(bits(&a), bits(&b), "{name}: slot {k} (prim {pid}): t");
+                    assert_eq!(ia.to_array(), ib.to_array(), "{name}: slot {k} (prim {pid}): ids");
+                    assert_eq!((ca.ray, ca.prim), (cb.ray, cb.prim), "{name}: slot {k}: CSG candidates");
+                    hits += (ia.simd_ne(ids_start)).to_bitmask().count_ones() as usize;
+                    compared += LANES;
+                }
+            }
+        }
+        assert!(compared > 30_000 && hits > 3_000 && ties > 1_000, "{compared} lanes, {hits} hits, {ties} ties");
     }
 }
