@@ -97,9 +97,14 @@ fn once(scene: &Scene, o: &Opts, threads: usize) -> Run {
     Run { stats: render(scene, settings, threads).1 }
 }
 
-/// The fastest of `reps` renders (all of them give the same image and ray counts).
+/// The fastest of some renders of one configuration (all of them give the same image and ray counts).
+fn fastest(runs: impl IntoIterator<Item = Run>) -> Run {
+    runs.into_iter().min_by(|a, b| a.stats.seconds.total_cmp(&b.stats.seconds)).expect("reps >= 1")
+}
+
+/// The fastest of `reps` renders.
 fn best(scene: &Scene, o: &Opts, threads: usize) -> Run {
-    (0..o.reps).map(|_| once(scene, o, threads)).min_by(|a, b| a.stats.seconds.total_cmp(&b.stats.seconds)).expect("reps >= 1")
+    fastest((0..o.reps).map(|_| once(scene, o, threads)))
 }
 
 /// `gen_bench_spheres.py n` (with `--same-density`: radii scaled so that the spheres fill the same
@@ -202,15 +207,10 @@ fn threads(o: &Opts) -> Result<(), String> {
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for file in ["bench_spheres.toml", "showcase.toml"] {
         let (scene, _) = load(file, &read_scene(file)?)?;
-        let mut pairs: Vec<(Run, Run)> = (0..o.reps).map(|_| (once(&scene, o, 1), once(&scene, o, 2))).collect();
-        let mut ratios: Vec<f64> = pairs.iter().map(|(a, b)| a.stats.seconds / b.stats.seconds).collect();
+        let (ones, twos): (Vec<Run>, Vec<Run>) = (0..o.reps).map(|_| (once(&scene, o, 1), once(&scene, o, 2))).unzip();
+        let mut ratios: Vec<f64> = ones.iter().zip(&twos).map(|(a, b)| a.stats.seconds / b.stats.seconds).collect();
         ratios.sort_by(f64::total_cmp);
-        let fastest = |v: &mut Vec<Run>| {
-            v.sort_by(|a, b| a.stats.seconds.total_cmp(&b.stats.seconds));
-            v.swap_remove(0)
-        };
-        let (mut ones, mut twos): (Vec<Run>, Vec<Run>) = pairs.drain(..).unzip();
-        let (one, two) = (fastest(&mut ones), fastest(&mut twos));
+        let (one, two) = (fastest(ones), fastest(twos));
         let s = one.stats.seconds / two.stats.seconds;
         let median = ratios[ratios.len() / 2];
         println!(
