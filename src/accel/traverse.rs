@@ -51,8 +51,8 @@ fn near_is_right_bits(ray: &Ray8, active: f32x8) -> u32 {
 impl Bvh {
     /// Closest-hit packet traversal. `leaf(slot, &mut ray)` is called for each primitive of each
     /// visited leaf (`slot`: its position in `indices`, which holds the primitive; data a renderer keeps
-    /// in slot order is then read in leaf order); it tests the primitive against all lanes and lowers `ray.tmax` on lanes it hits
-    /// (the caller records ids). It must not change `o`, `d` or `inv_d` (they are precomputed once).
+    /// in slot order is then read in leaf order); it tests the primitive against all lanes and lowers
+    /// `ray.tmax` on lanes it hits (the caller records ids). It must not change `o`, `d` or `inv_d` (they are precomputed once).
     /// Children are visited near-first (by the sign of the summed directions of the lanes with
     /// `tmax >= 0` on the node's split axis, see the module doc); a node is skipped when no lane's
     /// slab interval overlaps `[0, tmax]` (conservatively, see `PacketRay`). Lanes with `tmax < 0`
@@ -95,10 +95,10 @@ impl Bvh {
     /// Any-hit (occlusion) packet traversal. Its loop mirrors `traverse_closest_x8` on purpose (as
     /// tinybvh keeps `Intersect` and `IsOccluded` apart): a shared walker would need the leaf callback and
     /// the node test to share the ray's `tmax` through one closure, in the hottest loop of the renderer.
-    /// Active lanes are those with `tmax > 0`. `leaf(slot,
-    /// &ray)` (a primitive's slot in `indices`, as for [`Bvh::traverse_closest_x8`]) returns the lanes the primitive occludes (all-ones lanes); in the `ray` it receives,
-    /// inactive and already occluded lanes have `tmax = -1`, so a kernel that accepts hits in
-    /// `(tmin, tmax)` ignores them without a mask. Traversal stops as soon as every active lane is
+    /// Active lanes are those with `tmax > 0`. `leaf(slot, &ray)` (a primitive's slot in `indices`, as
+    /// for [`Bvh::traverse_closest_x8`]) returns the lanes the primitive occludes (all-ones lanes); in
+    /// the `ray` it receives, inactive and already occluded lanes have `tmax = -1`, so a kernel that
+    /// accepts hits in `(tmin, tmax)` ignores them without a mask. Traversal stops as soon as every active lane is
     /// occluded. Returns the occluded mask (only active lanes can be set).
     pub fn traverse_any_x8(&self, ray: &Ray8, mut leaf: impl FnMut(u32, &Ray8) -> f32x8) -> f32x8 {
         let active = ray.tmax.simd_gt(f32x8::ZERO);

@@ -59,8 +59,8 @@ impl GroupBounds {
 impl Bvh8 {
     /// Closest-hit traversal of up to [`WIDE_GROUP`] packets together (see the module doc). `leaf(slot, j,
     /// &mut rays[j])` has the contract of [`Bvh8::traverse_closest_x8`]'s callback (a primitive's
-    /// slot in `indices`), for packet `j`. A group without `GroupBounds` (directions of both signs on two axes) is traversed packet by
-    /// packet ([`Bvh8::traverse_closest_x8`]).
+    /// slot in `indices`), for packet `j`. A group without `GroupBounds` (directions of both signs on
+    /// two axes) is traversed packet by packet ([`Bvh8::traverse_closest_x8`]).
     pub fn traverse_closest_group(&self, rays: &mut [Ray8], stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
         assert!(rays.len() <= WIDE_GROUP, "at most {WIDE_GROUP} packets per group");
         if self.nodes.is_empty() || rays.is_empty() {

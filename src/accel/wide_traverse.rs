@@ -247,7 +247,8 @@ fn splat_ray(o: Vec3, d: Vec3, tmax: f32) -> Ray8 {
 
 impl Bvh8 {
     /// Closest-hit traversal of one ray. `leaf(slot, &mut tmax)` is called for each primitive of each
-    /// visited leaf (`slot`: its position in `indices`, which holds the primitive); it lowers `tmax` when the primitive is hit nearer (the caller records which).
+    /// visited leaf (`slot`: its position in `indices`, which holds the primitive); it lowers `tmax`
+    /// when the primitive is hit nearer (the caller records which).
     /// Children whose box the ray's padded slab interval does not overlap within `[0, tmax]` are
     /// skipped, as the packet test decides for this ray's lane (see the module doc). Nothing happens
     /// when `tmax < 0` (an inactive ray).

@@ -61,6 +61,12 @@ impl LeafSpheres {
         s
     }
 
+    /// The static sphere in slot `k` (its bit in `window[k]` set): centre and radius terms.
+    #[inline(always)]
+    pub fn sphere(&self, k: usize) -> (Vec3, SphereConsts) {
+        (Vec3::new(self.cx[k], self.cy[k], self.cz[k]), SphereConsts { r2: self.r2[k], r2_lo: self.r2_lo[k], graze: self.graze[k] })
+    }
+
     /// Bits of the slots `first..first + count` (at most 8) that are static spheres.
     #[inline(always)]
     pub fn sphere_bits(&self, first: usize, count: usize) -> u32 {

@@ -241,12 +241,11 @@ fn hit_bounded(
     record(ray, ids, t, pid);
 }
 
-/// [`hit_bounded`] for the primitive in slot `slot` of the BVH's leaves (its id from the slot-ordered
-/// `LeafSpheres::prim`, not through `bvh.indices` and `bounded`): a
-/// static sphere's terms come from the slot-ordered [`LeafSpheres`](crate::scene::leaf_spheres::LeafSpheres)
-/// lanes, read in leaf order (the kernel [`spheres_lanes_x8`] with one sphere splatted is
-/// [`intersect_sphere_x8`] bit for bit), without the dependent loads of `indices`, `bounded` and the
-/// `Prim`; any other primitive takes [`hit_bounded`].
+/// [`hit_bounded`] for the primitive in slot `slot` of the BVH's leaves, from the slot-ordered
+/// [`LeafSpheres`](crate::scene::leaf_spheres::LeafSpheres) rows (read in leaf order, without the
+/// dependent loads of `indices`, `bounded` and the `Prim`): a static sphere's terms (the kernel
+/// [`spheres_lanes_x8`] with one sphere splatted is [`intersect_sphere_x8`] bit for bit), any other
+/// primitive's id for [`hit_bounded`].
 #[inline(always)]
 fn hit_slot(
     scene: &Scene,
@@ -262,9 +261,9 @@ fn hit_slot(
         hit_bounded(scene, ls.prim[k], ray, ids, time, cands, ray_of);
         return;
     }
+    let (c, sc) = ls.sphere(k);
     let s = f32x8::splat;
-    let c = Vec3x8::new(s(ls.cx[k]), s(ls.cy[k]), s(ls.cz[k]));
-    let t = t_ties(ray, ids, |r| spheres_lanes_x8(c, s(ls.r2[k]), s(ls.r2_lo[k]), s(ls.graze[k]), r));
+    let t = t_ties(ray, ids, |r| spheres_lanes_x8(Vec3x8::splat(c), s(sc.r2), s(sc.r2_lo), s(sc.graze), r));
     record(ray, ids, t, ls.prim[k]);
 }
 
@@ -315,14 +314,13 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
                 record(&mut rs[j], &mut ids[j], t, pid);
             }
         }
+        let hit = |slot: u32, j: usize, ray: &mut Ray8| {
+            hit_slot(scene, slot, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
+        };
         if wide {
-            scene.bvh8.traverse_closest_group(&mut rs[..k], &mut hits.wide_stack, |slot, j, ray| {
-                hit_slot(scene, slot, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
-            });
+            scene.bvh8.traverse_closest_group(&mut rs[..k], &mut hits.wide_stack, hit);
         } else {
-            scene.bvh.traverse_closest_group(&mut rs[..k], |slot, j, ray| {
-                hit_slot(scene, slot, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
-            });
+            scene.bvh.traverse_closest_group(&mut rs[..k], hit);
         }
         for j in 0..k {
             let base = gbase + j * LANES;
@@ -412,9 +410,7 @@ mod tests {
                     let mut probe = ray;
                     let (mut ids0, mut none_cands) = (i32x8::splat(NONE as i32), CsgCandidates::default());
                     hit_bounded(&scene, pid, &mut probe, &mut ids0, time, &mut none_cands, |l| l as u32);
-                    let tie = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if l % 3 == 0 { 1.0 } else { 0.0 }))
-                        .simd_gt(f32x8::ZERO)
-                        & probe.tmax.simd_lt(ray.tmax);
+                    let tie = crate::simd::mask_from_bits(0b0100_1001) & probe.tmax.simd_lt(ray.tmax);
                     ties += tie.to_bitmask().count_ones() as usize;
                     let start = Ray8 { tmax: tie.select(probe.tmax, ray.tmax), ..ray };
                     let ids_start = bytemuck::cast::<f32x8, i32x8>(tie).select(i32x8::splat(pid as i32 + 1), i32x8::splat(NONE as i32));

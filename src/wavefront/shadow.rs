@@ -18,9 +18,7 @@ use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, trans
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{Bvh8Stack, LightBuffer, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
-use crate::geometry::{
-    occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, spheres_lanes_x8, SphereConsts, SpherePacket, SpherePacketOf,
-};
+use crate::geometry::{occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, spheres_lanes_x8, SpherePacket, SpherePacketOf};
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
@@ -800,13 +798,12 @@ pub fn occlusion_group(
     // misses in scenes larger than the caches); any other prim by its id.
     let ls = &scene.leaf_spheres;
     let from_bvh = scene.bvh.traverse_any_group(rays, |slot, j, ray| {
-        let k = slot as usize;
-        if !walk && ls.window[k] & 1 != 0 {
-            let consts = SphereConsts { r2: ls.r2[k], r2_lo: ls.r2_lo[k], graze: ls.graze[k] };
-            let c = Vec3::new(ls.cx[k], ls.cy[k], ls.cz[k]);
+        let at = slot as usize;
+        if !walk && ls.window[at] & 1 != 0 {
+            let (c, consts) = ls.sphere(at);
             return occludes_sphere_consts([ray.o.x, ray.o.y, ray.o.z], [ray.d.x, ray.d.y, ray.d.z], ray.tmax, c, consts, &pk[j]);
         }
-        prim_occlusion_with(scene, profile, ls.prim[k], ray, Some(&pk[j]), times[j], arena, walk, &mut touched[j])
+        prim_occlusion_with(scene, profile, ls.prim[at], ray, Some(&pk[j]), times[j], arena, walk, &mut touched[j])
     });
     for j in 0..k {
         occ[j] |= from_bvh[j];
