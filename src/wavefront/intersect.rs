@@ -3,7 +3,7 @@
 //! direction-octant change per 64 rays) traverse the 8-wide BVH in groups of up to 32 8-ray packets
 //! (`accel/wide_group.rs`; the binary tree's groups of 16, `accel/group.rs`, only for a scene without a
 //! wide tree, i.e. without bounded primitives). Queues of incoherent rays are first partitioned by
-//! direction octant and gathered into packets, which traverse the 8-wide BVH one packet at a time
+//! direction (octant, then a patch of directions within it) and gathered into packets, which traverse the 8-wide BVH one packet at a time
 //! (`accel/wide_traverse.rs`) when `scene.wide_incoherent` (trees of at least `WIDE_MIN_NODES` binary
 //! nodes), else the binary tree in groups of 16 packets. CSG solids are not solved here: a packet that
 //! reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
@@ -138,16 +138,31 @@ fn gather_packet(rays: &RayQueue, order: &[u32], q: usize, len: usize) -> (Ray8,
     (Ray8::new(Vec3x8::new(f(0), f(1), f(2)), Vec3x8::new(f(3), f(4), f(5)), f(6)), rays.with_time.then(|| f(7)))
 }
 
-/// Direction octant of ray `i` (3 sign bits).
+/// Direction bins per axis within an octant ([`direction_bin`]).
+const DIR_BINS: usize = 6;
+
+/// Direction bin of ray `i`: its octant (3 sign bits), then within the octant the cell of `(|dx|, |dz|)
+/// / (|dx| + |dy| + |dz|)` on a [`DIR_BINS`]-square grid (the octahedral map of the direction; a bin is
+/// a patch of directions about 15 degrees across). The result only orders rays into packets: any
+/// function of the ray would give the same hits.
 #[inline(always)]
-fn octant(rays: &RayQueue, i: usize) -> usize {
-    rays.dx[i].is_sign_negative() as usize | (rays.dy[i].is_sign_negative() as usize) << 1 | (rays.dz[i].is_sign_negative() as usize) << 2
+fn direction_bin(rays: &RayQueue, i: usize) -> usize {
+    let (dx, dy, dz) = (rays.dx[i], rays.dy[i], rays.dz[i]);
+    let octant = dx.is_sign_negative() as usize | (dy.is_sign_negative() as usize) << 1 | (dz.is_sign_negative() as usize) << 2;
+    let (x, z) = (dx.abs(), dz.abs());
+    let scale = DIR_BINS as f32 / (x + dy.abs() + z);
+    // (`as` saturates: NaN -> 0; the min keeps the |x| = L1 edge in the last bin.)
+    let cell = |c: f32| ((c * scale) as usize).min(DIR_BINS - 1);
+    (octant * DIR_BINS + cell(x)) * DIR_BINS + cell(z)
 }
 
-/// Partition the queue's rays by direction octant (stable: queue order, i.e. image order, within an
-/// octant) into `order`, so that packets and groups hold rays of one octant; `false` (and `order`
+/// Partition the queue's rays by direction bin ([`direction_bin`]: octant, then a patch of directions
+/// within it; stable: queue order, i.e. image order, within a bin) into `order`, so that packets hold
+/// rays of one octant and, as far as the queue allows, of like directions; `false` (and `order`
 /// untouched) when the queue is already coherent (at most one octant change per 64 rays, as camera rays
-/// are) and sorting would only cost.
+/// are) and sorting would only cost. The bins within octants (session 20) cut the node visits of peer
+/// scene (b)'s diffuse bounces by 15% and the leaf visits by 17% against octants alone (same node
+/// tests per ray: a packet's lanes share more of them); the stage 1% faster at 4 spp, 5-7% at 16-64.
 fn octant_order(rays: &RayQueue, order: &mut Vec<u32>) -> bool {
     let len = rays.len();
     // Octant changes, counted per packet from sign masks (padding lanes have d = +x, ignored).
@@ -163,19 +178,20 @@ fn octant_order(rays: &RayQueue, order: &mut Vec<u32>) -> bool {
     if changes * 64 <= len {
         return false;
     }
-    let mut start = [0usize; 9];
+    const BINS: usize = 8 * DIR_BINS * DIR_BINS;
+    let mut start = [0usize; BINS + 1];
     for i in 0..len {
-        start[octant(rays, i) + 1] += 1;
+        start[direction_bin(rays, i) + 1] += 1;
     }
-    for o in 0..8 {
-        start[o + 1] += start[o];
+    for b in 0..BINS {
+        start[b + 1] += start[b];
     }
     order.clear();
     order.resize(len, 0);
     for i in 0..len {
-        let o = octant(rays, i);
-        order[start[o]] = i as u32;
-        start[o] += 1;
+        let b = direction_bin(rays, i);
+        order[start[b]] = i as u32;
+        start[b] += 1;
     }
     true
 }
@@ -373,6 +389,43 @@ fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQ
 mod tests {
     use super::*;
     use crate::sample::hash::test_uniforms;
+    use crate::wavefront::RayItem;
+
+    /// The partition of an incoherent queue: a permutation of the queue, bins in order, queue order
+    /// within a bin, every packet of one octant where its bin's rays fill it; bins in range for
+    /// degenerate directions (zero, axis-aligned, huge, tiny, NaN) too; coherent queues left alone.
+    #[test]
+    fn incoherent_queues_are_partitioned_by_direction_bin() {
+        let mut u = test_uniforms(0xd1b5);
+        let mut rays = RayQueue::new(false, false);
+        let odd = [Vec3::ZERO, Vec3::X, -Vec3::Y, Vec3::Z * 1e-30, Vec3::new(1e30, -1e30, 1e30), Vec3::splat(f32::NAN), Vec3::new(-0.0, 0.0, -0.0)];
+        for i in 0..5000 {
+            let d = if i % 97 == 0 { odd[i / 97 % odd.len()] } else { Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5) };
+            rays.push(&RayItem { d, tmax: f32::INFINITY, ..Default::default() });
+        }
+        let mut order = Vec::new();
+        assert!(octant_order(&rays, &mut order), "random directions are incoherent");
+        let mut seen = vec![false; rays.len()];
+        for &i in &order {
+            assert!(!std::mem::replace(&mut seen[i as usize], true), "ray {i} twice");
+        }
+        assert!(seen.iter().all(|&s| s), "a ray left out");
+        let bins: Vec<usize> = order.iter().map(|&i| direction_bin(&rays, i as usize)).collect();
+        assert!(bins.iter().all(|&b| b < 8 * DIR_BINS * DIR_BINS));
+        for k in 1..order.len() {
+            assert!(bins[k - 1] < bins[k] || (bins[k - 1] == bins[k] && order[k - 1] < order[k]), "position {k}");
+        }
+        // Octants are the bins' leading digit, so each octant is one run.
+        let octants: Vec<usize> = bins.iter().map(|b| b / (DIR_BINS * DIR_BINS)).collect();
+        assert!(octants.windows(2).all(|w| w[0] <= w[1]));
+        // A queue of one direction per 64 rays (camera-like) is not sorted.
+        let mut coherent = RayQueue::new(false, false);
+        for i in 0..640 {
+            let d = if i < 320 { Vec3::new(0.1, -0.2, -1.0) } else { Vec3::new(-0.1, -0.2, -1.0) };
+            coherent.push(&RayItem { d, tmax: f32::INFINITY, ..Default::default() });
+        }
+        assert!(!octant_order(&coherent, &mut order));
+    }
 
     /// `hit_slot` (static spheres from the slot-ordered lanes) must record what `hit_bounded` records
     /// for the slot's prim through its `Prim`: the same `t` bits, ids and candidates, for every slot of
