@@ -398,7 +398,15 @@ mod tests {
     fn incoherent_queues_are_partitioned_by_direction_bin() {
         let mut u = test_uniforms(0xd1b5);
         let mut rays = RayQueue::new(false, false);
-        let odd = [Vec3::ZERO, Vec3::X, -Vec3::Y, Vec3::Z * 1e-30, Vec3::new(1e30, -1e30, 1e30), Vec3::splat(f32::NAN), Vec3::new(-0.0, 0.0, -0.0)];
+        let odd = [
+            Vec3::ZERO,
+            Vec3::X,
+            -Vec3::Y,
+            Vec3::Z * 1e-30,
+            Vec3::new(1e30, -1e30, 1e30),
+            Vec3::splat(f32::NAN),
+            Vec3::new(-0.0, 0.0, -0.0),
+        ];
         for i in 0..5000 {
             let d = if i % 97 == 0 { odd[i / 97 % odd.len()] } else { Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5) };
             rays.push(&RayItem { d, tmax: f32::INFINITY, ..Default::default() });
