@@ -138,32 +138,41 @@ fn gather_packet(rays: &RayQueue, order: &[u32], q: usize, len: usize) -> (Ray8,
     (Ray8::new(Vec3x8::new(f(0), f(1), f(2)), Vec3x8::new(f(3), f(4), f(5)), f(6)), rays.with_time.then(|| f(7)))
 }
 
-/// Direction bins per axis within an octant ([`direction_bin`]).
+/// Direction cells per axis within an octant ([`direction_bin`]), in queues of at least
+/// [`MIN_RAYS_PER_PIXEL`] rays per pixel.
 const DIR_BINS: usize = 6;
 
+/// Rays per pixel from which a queue is sorted by direction cells within octants. A pixel's samples
+/// leave from nearly one point, so that sorting them by direction keeps a packet's origins together;
+/// with a ray or two per pixel, queue (image) order within an octant is what does (the criterion row
+/// `intersect/secondary`, one ray per pixel of 64 x 64-pixel queues, ran 15-19% slower with the cells).
+const MIN_RAYS_PER_PIXEL: usize = 8;
+
 /// Direction bin of ray `i`: its octant (3 sign bits), then within the octant the cell of `(|dx|, |dz|)
-/// / (|dx| + |dy| + |dz|)` on a [`DIR_BINS`]-square grid (the octahedral map of the direction; a bin is
-/// a patch of directions about 15 degrees across). The result only orders rays into packets: any
+/// / (|dx| + |dy| + |dz|)` on a `cells`-square grid (the octahedral map of the direction; at
+/// [`DIR_BINS`] a patch about 15 degrees across). The result only orders rays into packets: any
 /// function of the ray would give the same hits.
 #[inline(always)]
-fn direction_bin(rays: &RayQueue, i: usize) -> usize {
+fn direction_bin(rays: &RayQueue, i: usize, cells: usize) -> usize {
     let (dx, dy, dz) = (rays.dx[i], rays.dy[i], rays.dz[i]);
     let octant = dx.is_sign_negative() as usize | (dy.is_sign_negative() as usize) << 1 | (dz.is_sign_negative() as usize) << 2;
     let (x, z) = (dx.abs(), dz.abs());
-    let scale = DIR_BINS as f32 / (x + dy.abs() + z);
+    let scale = cells as f32 / (x + dy.abs() + z);
     // (`as` saturates: NaN -> 0; the min keeps the |x| = L1 edge in the last bin.)
-    let cell = |c: f32| ((c * scale) as usize).min(DIR_BINS - 1);
-    (octant * DIR_BINS + cell(x)) * DIR_BINS + cell(z)
+    let cell = |c: f32| ((c * scale) as usize).min(cells - 1);
+    (octant * cells + cell(x)) * cells + cell(z)
 }
 
-/// Partition the queue's rays by direction bin ([`direction_bin`]: octant, then a patch of directions
-/// within it; stable: queue order, i.e. image order, within a bin) into `order`, so that packets hold
-/// rays of one octant and, as far as the queue allows, of like directions; `false` (and `order`
-/// untouched) when the queue is already coherent (at most one octant change per 64 rays, as camera rays
-/// are) and sorting would only cost. The bins within octants (session 20) cut the node visits of peer
-/// scene (b)'s diffuse bounces by 15% and the leaf visits by 17% against octants alone (same node
-/// tests per ray: a packet's lanes share more of them); the stage 1% faster at 4 spp, 5-7% at 16-64.
-fn octant_order(rays: &RayQueue, order: &mut Vec<u32>) -> bool {
+/// Partition the queue's rays by direction bin ([`direction_bin`]: octant, then, in queues of many rays
+/// per pixel, a patch of directions within it; stable: queue order, i.e. image order, within a bin)
+/// into `order`, so that packets hold rays of one octant and, where the queue allows, of like
+/// directions; `false` (and `order` untouched) when the queue is already coherent (at most one octant
+/// change per 64 rays, as camera rays are) and sorting would only cost. `cells_allowed`: whether the
+/// queue's packets take the wide tree (where the cells were measured). The cells within octants
+/// (session 20) cut the node visits of peer scene (b)'s diffuse bounces at 16 spp by 15% and the leaf
+/// visits by 17% against octants alone (the same node tests per ray: a packet's lanes share more of
+/// them); the stage 3-4% faster at 16 and 64 spp.
+fn octant_order(rays: &RayQueue, order: &mut Vec<u32>, cells_allowed: bool) -> bool {
     let len = rays.len();
     // Octant changes, counted per packet from sign masks (padding lanes have d = +x, ignored).
     let (mut changes, mut prev) = (0usize, u32::MAX);
@@ -178,18 +187,19 @@ fn octant_order(rays: &RayQueue, order: &mut Vec<u32>) -> bool {
     if changes * 64 <= len {
         return false;
     }
-    const BINS: usize = 8 * DIR_BINS * DIR_BINS;
-    let mut start = [0usize; BINS + 1];
+    let cells = if cells_allowed && rays.pixels > 0 && len >= MIN_RAYS_PER_PIXEL * rays.pixels as usize { DIR_BINS } else { 1 };
+    let bins = 8 * cells * cells;
+    let mut start = [0usize; 8 * DIR_BINS * DIR_BINS + 1];
     for i in 0..len {
-        start[direction_bin(rays, i) + 1] += 1;
+        start[direction_bin(rays, i, cells) + 1] += 1;
     }
-    for b in 0..BINS {
+    for b in 0..bins {
         start[b + 1] += start[b];
     }
     order.clear();
     order.resize(len, 0);
     for i in 0..len {
-        let b = direction_bin(rays, i);
+        let b = direction_bin(rays, i, cells);
         order[start[b]] = i as u32;
         start[b] += 1;
     }
@@ -291,9 +301,12 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     hits.reset(n);
     cands.clear();
     let mut order = std::mem::take(&mut hits.order);
-    let sorted = octant_order(rays, &mut order);
+    // Incoherent queues go one packet at a time through the wide tree, else in groups through the binary
+    // one (direction cells were measured on the wide packets only: the groups keep octants alone).
+    let wide_packets = incoherent == Traversal::Wide && scene.wide_incoherent && !scene.bvh8.is_empty();
+    let sorted = octant_order(rays, &mut order, wide_packets);
     hits.scattered = sorted;
-    if sorted && incoherent == Traversal::Wide && scene.wide_incoherent && !scene.bvh8.is_empty() {
+    if sorted && wide_packets {
         intersect_wide(scene, rays, &order, hits, cands);
         hits.order = order;
         return;
@@ -411,28 +424,38 @@ mod tests {
             let d = if i % 97 == 0 { odd[i / 97 % odd.len()] } else { Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5) };
             rays.push(&RayItem { d, tmax: f32::INFINITY, ..Default::default() });
         }
-        let mut order = Vec::new();
-        assert!(octant_order(&rays, &mut order), "random directions are incoherent");
-        let mut seen = vec![false; rays.len()];
-        for &i in &order {
-            assert!(!std::mem::replace(&mut seen[i as usize], true), "ray {i} twice");
+        // As many rays per pixel as sort by cells, then one per pixel (octants alone).
+        for (pixels, cells) in [(100, DIR_BINS), (5000, 1)] {
+            rays.pixels = pixels;
+            check_partition(&rays, cells);
         }
-        assert!(seen.iter().all(|&s| s), "a ray left out");
-        let bins: Vec<usize> = order.iter().map(|&i| direction_bin(&rays, i as usize)).collect();
-        assert!(bins.iter().all(|&b| b < 8 * DIR_BINS * DIR_BINS));
-        for k in 1..order.len() {
-            assert!(bins[k - 1] < bins[k] || (bins[k - 1] == bins[k] && order[k - 1] < order[k]), "position {k}");
-        }
-        // Octants are the bins' leading digit, so each octant is one run.
-        let octants: Vec<usize> = bins.iter().map(|b| b / (DIR_BINS * DIR_BINS)).collect();
-        assert!(octants.windows(2).all(|w| w[0] <= w[1]));
         // A queue of one direction per 64 rays (camera-like) is not sorted.
         let mut coherent = RayQueue::new(false, false);
         for i in 0..640 {
             let d = if i < 320 { Vec3::new(0.1, -0.2, -1.0) } else { Vec3::new(-0.1, -0.2, -1.0) };
             coherent.push(&RayItem { d, tmax: f32::INFINITY, ..Default::default() });
         }
-        assert!(!octant_order(&coherent, &mut order));
+        assert!(!octant_order(&coherent, &mut Vec::new(), true));
+    }
+
+    fn check_partition(rays: &RayQueue, cells: usize) {
+        let mut order = Vec::new();
+        assert!(octant_order(rays, &mut order, true), "random directions are incoherent");
+        let mut seen = vec![false; rays.len()];
+        for &i in &order {
+            assert!(!std::mem::replace(&mut seen[i as usize], true), "ray {i} twice");
+        }
+        assert!(seen.iter().all(|&s| s), "a ray left out");
+        let bins: Vec<usize> = order.iter().map(|&i| direction_bin(rays, i as usize, cells)).collect();
+        assert!(bins.iter().all(|&b| b < 8 * cells * cells));
+        for k in 1..order.len() {
+            assert!(bins[k - 1] < bins[k] || (bins[k - 1] == bins[k] && order[k - 1] < order[k]), "{cells} cells, position {k}");
+        }
+        // Octants are the bins' leading digit, so each octant is one run.
+        let octants: Vec<usize> = bins.iter().map(|b| b / (cells * cells)).collect();
+        assert!(octants.windows(2).all(|w| w[0] <= w[1]));
+        let used = bins.iter().collect::<std::collections::BTreeSet<_>>().len();
+        assert!(used > 8 * cells * cells / 2, "{cells} cells: {used} bins used");
     }
 
     /// `hit_slot` (static spheres from the slot-ordered lanes) must record what `hit_bounded` records

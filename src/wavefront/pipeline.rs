@@ -59,6 +59,7 @@ pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut
             break;
         }
         cur.pad();
+        cur.pixels = unit.tile.pixel_count();
         next.clear();
         nee.clear();
         timed!(times.intersect, intersect(scene, cur, hits, csg));

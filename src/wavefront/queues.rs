@@ -170,6 +170,10 @@ pub struct RayQueue {
     /// Whether `time` / `lambda` are carried.
     pub with_time: bool,
     pub with_lambda: bool,
+    /// How many image pixels the queue's rays serve (set by the pipeline per work unit; 0: unknown).
+    /// The intersect stage sorts incoherent queues by finer direction cells when they hold many rays
+    /// per pixel.
+    pub pixels: u32,
 }
 
 impl RayQueue {
