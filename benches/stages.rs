@@ -167,6 +167,7 @@ fn from_hits(
                 }
             }
             out.pad();
+            out.pixels = q.pixels;
             out
         })
         .collect()
@@ -212,6 +213,21 @@ fn bench_intersect_secondary(c: &mut Criterion) {
     // What `intersect` does (`INCOHERENT`: wide packets), and the group traversal beside it.
     time_intersect(c, &pool, &scene, &qs, "secondary/bench_spheres.toml", INCOHERENT);
     time_intersect(c, &pool, &scene, &qs, "secondary_groups/bench_spheres.toml", Traversal::Groups);
+    // The same kind of rays at 16 per pixel (16 x 16-pixel queues, as the renderer's work units at 16
+    // spp): sorted by direction cells within octants (`wavefront::intersect`).
+    // (Every 8th tile: 600k rays.)
+    let tiles16: Vec<RayQueue> = support::camera_queues(&scene, 16).into_iter().step_by(8).collect();
+    let qs16 = secondary_queues(&scene, &tiles16);
+    time_intersect(c, &pool, &scene, &qs16, "secondary_16spp/bench_spheres.toml", INCOHERENT);
+    // The same queues sorted by octant alone (no pixel count: what one ray per pixel gets).
+    let octants: Vec<RayQueue> = secondary_queues(&scene, &tiles16)
+        .into_iter()
+        .map(|mut q| {
+            q.pixels = 0;
+            q
+        })
+        .collect();
+    time_intersect(c, &pool, &scene, &octants, "secondary_16spp_octants/bench_spheres.toml", INCOHERENT);
 }
 
 /// The shade stage on the camera hits of the showcase (glass, mirror, glossy, CSG, two lights):

@@ -34,6 +34,8 @@ pub fn camera_queues(scene: &Scene, spp: u32) -> Vec<RayQueue> {
             let mut paths = PathTable::default();
             generate(scene, &profile, 1, tile, 0..spp, &mut paths, &mut q);
             q.pad();
+            // (As the pipeline tells the intersect stage.)
+            q.pixels = tile.pixel_count();
             out.push(q);
         }
     }
