@@ -94,9 +94,7 @@ pub fn resolve_profile(a: &RenderArgs) -> Result<Profile, Failure> {
         let (k, v) = s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?;
         sets.push((k.trim().to_string(), v.to_string()));
     }
-    for (k, v) in sets {
-        p.set(&k, &v).map_err(|e| Failure::input(format!("command line: {e}")))?;
-    }
+    p.set_all(sets.iter().map(|(k, v)| (k.as_str(), v.as_str()))).map_err(|e| Failure::input(format!("command line: {e}")))?;
     Ok(p)
 }
 

@@ -108,10 +108,11 @@ struct Setup {
 fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     let scene = load_scene(&a.scene).map_err(Failure::input)?;
     let mut profile = Profile::load(&a.profile).map_err(Failure::input)?;
+    let mut sets = Vec::new();
     for s in &a.set {
-        let (k, v) = s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?;
-        profile.set(k.trim(), v).map_err(|e| Failure::input(format!("command line: {e}")))?;
+        sets.push(s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?);
     }
+    profile.set_all(sets).map_err(|e| Failure::input(format!("command line: {e}")))?;
     let mut strategies = parse_list("--strategies", &a.strategies, parse_strategy)?;
     dedup(&mut strategies);
     let mut counts = parse_list("--spp", &a.spp, parse_count)?;

@@ -161,6 +161,18 @@ impl Profile {
         Ok(())
     }
 
+    /// Several overrides at once (`--set` flags, in order), validated together after the last: so that
+    /// `max_depth=0` may come before the `diffuse_depth=0` that makes it valid. On error nothing changes.
+    pub fn set_all<'a>(&mut self, pairs: impl IntoIterator<Item = (&'a str, &'a str)>) -> Result<(), String> {
+        let mut p = self.clone();
+        for (k, v) in pairs {
+            p.set_field(k.trim(), v)?;
+        }
+        p.validate().map_err(|(f, m)| format!("{f}: {m}"))?;
+        *self = p;
+        Ok(())
+    }
+
     fn set_field(&mut self, key: &str, value: &str) -> Result<(), String> {
         fn num<T: std::str::FromStr>(key: &str, v: &str) -> Result<T, String> {
             v.trim().parse().map_err(|_| format!("{key}: `{v}` is not a valid number"))
@@ -254,5 +266,21 @@ mod tests {
         assert!(p.set("nope", "1").is_err());
         p.set("strategy", "sobol").unwrap();
         assert_eq!(p.light_strategy, Strategy::Sobol);
+    }
+
+    #[test]
+    fn overrides_are_validated_together_after_the_last() {
+        let mut p = Profile::builtin("final");
+        (p.max_depth, p.diffuse_depth) = (6, 4);
+        // One at a time, max_depth = 0 is below diffuse_depth; together with it, valid.
+        assert!(p.clone().set("max_depth", "0").is_err());
+        p.set_all([("max_depth", "0"), ("diffuse_depth", "0")]).unwrap();
+        assert_eq!((p.max_depth, p.diffuse_depth), (0, 0));
+        // Invalid at the end: an error naming the field, and the profile unchanged.
+        let before = p.clone();
+        let e = p.set_all([("spp", "8"), ("diffuse_depth", "3")]).unwrap_err();
+        assert!(e.starts_with("diffuse_depth"), "{e}");
+        assert_eq!(p.spp, before.spp);
+        assert!(p.set_all([("spp", "x")]).unwrap_err().contains("spp"));
     }
 }
