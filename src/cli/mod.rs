@@ -41,6 +41,16 @@ impl Failure {
     }
 }
 
+/// Apply `--set KEY=VALUE` flags (after `before`, overrides of the command's own flags) to `profile`,
+/// validated together after the last ([`crate::scene::Profile::set_all`]).
+pub fn apply_sets(profile: &mut crate::scene::Profile, before: &[(&str, String)], sets: &[String]) -> Result<(), Failure> {
+    let mut pairs: Vec<(&str, &str)> = before.iter().map(|(k, v)| (*k, v.as_str())).collect();
+    for s in sets {
+        pairs.push(s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?);
+    }
+    profile.set_all(pairs).map_err(|e| Failure::input(format!("command line: {e}")))
+}
+
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.command {

@@ -74,27 +74,23 @@ pub struct RenderArgs {
 /// Load the profile named on the command line and apply the overrides.
 pub fn resolve_profile(a: &RenderArgs) -> Result<Profile, Failure> {
     let mut p = Profile::load(&a.profile).map_err(Failure::input)?;
-    let mut sets: Vec<(String, String)> = Vec::new();
+    let mut flags: Vec<(&str, String)> = Vec::new();
     if let Some(v) = a.spp {
-        sets.push(("spp".into(), v.to_string()));
+        flags.push(("spp", v.to_string()));
     }
     if let Some(v) = &a.strategy {
-        sets.push(("strategy".into(), v.clone()));
+        flags.push(("strategy", v.clone()));
     }
     if let Some(v) = a.light_samples {
-        sets.push(("light_samples".into(), v.to_string()));
+        flags.push(("light_samples", v.to_string()));
     }
     if let Some(v) = a.max_depth {
-        sets.push(("max_depth".into(), v.to_string()));
+        flags.push(("max_depth", v.to_string()));
         if p.diffuse_depth > v {
-            sets.push(("diffuse_depth".into(), v.to_string()));
+            flags.push(("diffuse_depth", v.to_string()));
         }
     }
-    for s in &a.set {
-        let (k, v) = s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?;
-        sets.push((k.trim().to_string(), v.to_string()));
-    }
-    p.set_all(sets.iter().map(|(k, v)| (k.as_str(), v.as_str()))).map_err(|e| Failure::input(format!("command line: {e}")))?;
+    super::apply_sets(&mut p, &flags, &a.set)?;
     Ok(p)
 }
 

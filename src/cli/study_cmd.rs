@@ -108,11 +108,7 @@ struct Setup {
 fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     let scene = load_scene(&a.scene).map_err(Failure::input)?;
     let mut profile = Profile::load(&a.profile).map_err(Failure::input)?;
-    let mut sets = Vec::new();
-    for s in &a.set {
-        sets.push(s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?);
-    }
-    profile.set_all(sets).map_err(|e| Failure::input(format!("command line: {e}")))?;
+    super::apply_sets(&mut profile, &[], &a.set)?;
     let mut strategies = parse_list("--strategies", &a.strategies, parse_strategy)?;
     dedup(&mut strategies);
     let mut counts = parse_list("--spp", &a.spp, parse_count)?;

@@ -3,8 +3,8 @@
 //! direction-octant change per 64 rays) traverse the 8-wide BVH in groups of up to 32 8-ray packets
 //! (`accel/wide_group.rs`; the binary tree's groups of 16, `accel/group.rs`, only for a scene without a
 //! wide tree, i.e. without bounded primitives). Queues of incoherent rays are first partitioned by
-//! direction (octant, then a patch of directions within it) and gathered into packets, which traverse the 8-wide BVH one packet at a time
-//! (`accel/wide_traverse.rs`) when `scene.wide_incoherent` (trees of at least `WIDE_MIN_NODES` binary
+//! direction (octant, then, in queues of many rays per pixel, a patch of directions within it) and
+//! gathered into packets, which traverse the 8-wide BVH one packet at a time (`accel/wide_traverse.rs`) when `scene.wide_incoherent` (trees of at least `WIDE_MIN_NODES` binary
 //! nodes), else the binary tree in groups of 16 packets. CSG solids are not solved here: a packet that
 //! reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
@@ -172,7 +172,7 @@ fn direction_bin(rays: &RayQueue, i: usize, cells: usize) -> usize {
 /// (session 20) cut the node visits of peer scene (b)'s diffuse bounces at 16 spp by 15% and the leaf
 /// visits by 17% against octants alone (the same node tests per ray: a packet's lanes share more of
 /// them); the stage 3-4% faster at 16 and 64 spp.
-fn octant_order(rays: &RayQueue, order: &mut Vec<u32>, cells_allowed: bool) -> bool {
+fn direction_order(rays: &RayQueue, order: &mut Vec<u32>, cells_allowed: bool) -> bool {
     let len = rays.len();
     // Octant changes, counted per packet from sign masks (padding lanes have d = +x, ignored).
     let (mut changes, mut prev) = (0usize, u32::MAX);
@@ -206,7 +206,7 @@ fn octant_order(rays: &RayQueue, order: &mut Vec<u32>, cells_allowed: bool) -> b
     true
 }
 
-/// How [`intersect_with`] traverses a queue of incoherent rays (one that `octant_order` partitions).
+/// How [`intersect_with`] traverses a queue of incoherent rays (one that `direction_order` partitions).
 /// Coherent queues (camera rays) never do: they take the wide group traversal. Results do not depend on
 /// the choice (same `t`
 /// bits, same primitive ids: the tie rule makes recording order-independent); `tests/wide_bvh.rs`
@@ -304,7 +304,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     // Incoherent queues go one packet at a time through the wide tree, else in groups through the binary
     // one (direction cells were measured on the wide packets only: the groups keep octants alone).
     let wide_packets = incoherent == Traversal::Wide && scene.wide_incoherent && !scene.bvh8.is_empty();
-    let sorted = octant_order(rays, &mut order, wide_packets);
+    let sorted = direction_order(rays, &mut order, wide_packets);
     hits.scattered = sorted;
     if sorted && wide_packets {
         intersect_wide(scene, rays, &order, hits, cands);
@@ -429,18 +429,28 @@ mod tests {
             rays.pixels = pixels;
             check_partition(&rays, cells);
         }
+        // Known cells: +x lies on the x edge of octant 0; +y at the pole; (-1, -1, -1) at a third of
+        // the way on both axes of octant 7; NaN in cell 0.
+        let mut known = RayQueue::new(false, false);
+        for d in [Vec3::X, Vec3::Y, Vec3::splat(-1.0), Vec3::new(0.5, 0.2, -0.3), Vec3::splat(f32::NAN)] {
+            known.push(&RayItem { d, tmax: f32::INFINITY, ..Default::default() });
+        }
+        let want = [5 * 6, 0, (7 * 6 + 2) * 6 + 2, (4 * 6 + 3) * 6 + 1, 0];
+        for (i, w) in want.into_iter().enumerate() {
+            assert_eq!(direction_bin(&known, i, DIR_BINS), w, "ray {i}");
+        }
         // A queue of one direction per 64 rays (camera-like) is not sorted.
         let mut coherent = RayQueue::new(false, false);
         for i in 0..640 {
             let d = if i < 320 { Vec3::new(0.1, -0.2, -1.0) } else { Vec3::new(-0.1, -0.2, -1.0) };
             coherent.push(&RayItem { d, tmax: f32::INFINITY, ..Default::default() });
         }
-        assert!(!octant_order(&coherent, &mut Vec::new(), true));
+        assert!(!direction_order(&coherent, &mut Vec::new(), true));
     }
 
     fn check_partition(rays: &RayQueue, cells: usize) {
         let mut order = Vec::new();
-        assert!(octant_order(rays, &mut order, true), "random directions are incoherent");
+        assert!(direction_order(rays, &mut order, true), "random directions are incoherent");
         let mut seen = vec![false; rays.len()];
         for &i in &order {
             assert!(!std::mem::replace(&mut seen[i as usize], true), "ray {i} twice");
@@ -451,9 +461,13 @@ mod tests {
         for k in 1..order.len() {
             assert!(bins[k - 1] < bins[k] || (bins[k - 1] == bins[k] && order[k - 1] < order[k]), "{cells} cells, position {k}");
         }
-        // Octants are the bins' leading digit, so each octant is one run.
+        // Octants (sign bits, x first) are the bins' leading digit, so each octant is one run.
         let octants: Vec<usize> = bins.iter().map(|b| b / (cells * cells)).collect();
         assert!(octants.windows(2).all(|w| w[0] <= w[1]));
+        for (&i, &o) in order.iter().zip(&octants) {
+            let d = [rays.dx[i as usize], rays.dy[i as usize], rays.dz[i as usize]];
+            assert_eq!(o, (0..3).map(|a| (d[a].is_sign_negative() as usize) << a).sum::<usize>());
+        }
         let used = bins.iter().collect::<std::collections::BTreeSet<_>>().len();
         assert!(used > 8 * cells * cells / 2, "{cells} cells: {used} bins used");
     }
