@@ -154,13 +154,22 @@ const MIN_RAYS_PER_PIXEL: usize = 8;
 /// function of the ray would give the same hits.
 #[inline(always)]
 fn direction_bin(rays: &RayQueue, i: usize, cells: usize) -> usize {
+    let octant = octant(rays, i);
+    if cells == 1 {
+        return octant;
+    }
     let (dx, dy, dz) = (rays.dx[i], rays.dy[i], rays.dz[i]);
-    let octant = dx.is_sign_negative() as usize | (dy.is_sign_negative() as usize) << 1 | (dz.is_sign_negative() as usize) << 2;
     let (x, z) = (dx.abs(), dz.abs());
     let scale = cells as f32 / (x + dy.abs() + z);
     // (`as` saturates: NaN -> 0; the min keeps the |x| = L1 edge in the last bin.)
     let cell = |c: f32| ((c * scale) as usize).min(cells - 1);
     (octant * cells + cell(x)) * cells + cell(z)
+}
+
+/// Direction octant of ray `i` (3 sign bits, x first).
+#[inline(always)]
+fn octant(rays: &RayQueue, i: usize) -> usize {
+    rays.dx[i].is_sign_negative() as usize | (rays.dy[i].is_sign_negative() as usize) << 1 | (rays.dz[i].is_sign_negative() as usize) << 2
 }
 
 /// Partition the queue's rays by direction bin ([`direction_bin`]: octant, then, in queues of many rays
@@ -187,23 +196,32 @@ fn direction_order(rays: &RayQueue, order: &mut Vec<u32>, cells_allowed: bool) -
     if changes * 64 <= len {
         return false;
     }
-    let cells = if cells_allowed && rays.pixels > 0 && len >= MIN_RAYS_PER_PIXEL * rays.pixels as usize { DIR_BINS } else { 1 };
-    let bins = 8 * cells * cells;
-    let mut start = [0usize; 8 * DIR_BINS * DIR_BINS + 1];
-    for i in 0..len {
-        start[direction_bin(rays, i, cells) + 1] += 1;
-    }
-    for b in 0..bins {
-        start[b + 1] += start[b];
-    }
     order.clear();
     order.resize(len, 0);
-    for i in 0..len {
-        let b = direction_bin(rays, i, cells);
+    if cells_allowed && rays.pixels > 0 && len >= MIN_RAYS_PER_PIXEL * rays.pixels as usize {
+        counting_sort(&mut [0; 8 * DIR_BINS * DIR_BINS + 1], order, |i| direction_bin(rays, i, DIR_BINS));
+    } else {
+        // (Octants alone: 9 counters, and no division per ray.)
+        counting_sort(&mut [0; 9], order, |i| octant(rays, i));
+    }
+    true
+}
+
+/// Stable counting sort of `0..order.len()` by `key` (below `start.len() - 1`; `start` zeroed) into
+/// `order`.
+#[inline(always)]
+fn counting_sort(start: &mut [usize], order: &mut [u32], key: impl Fn(usize) -> usize) {
+    for i in 0..order.len() {
+        start[key(i) + 1] += 1;
+    }
+    for b in 1..start.len() {
+        start[b] += start[b - 1];
+    }
+    for i in 0..order.len() {
+        let b = key(i);
         order[start[b]] = i as u32;
         start[b] += 1;
     }
-    true
 }
 
 /// How [`intersect_with`] traverses a queue of incoherent rays (one that `direction_order` partitions).
