@@ -52,7 +52,8 @@ impl Bvh {
     /// Closest-hit packet traversal. `leaf(slot, &mut ray)` is called for each primitive of each
     /// visited leaf (`slot`: its position in `indices`, which holds the primitive; data a renderer keeps
     /// in slot order is then read in leaf order); it tests the primitive against all lanes and lowers
-    /// `ray.tmax` on lanes it hits (the caller records ids). It must not change `o`, `d` or `inv_d` (they are precomputed once).
+    /// `ray.tmax` on lanes it hits (the caller records ids). It must not change `o`, `d` or `inv_d`
+    /// (they are precomputed once).
     /// Children are visited near-first (by the sign of the summed directions of the lanes with
     /// `tmax >= 0` on the node's split axis, see the module doc); a node is skipped when no lane's
     /// slab interval overlaps `[0, tmax]` (conservatively, see `PacketRay`). Lanes with `tmax < 0`
@@ -98,8 +99,8 @@ impl Bvh {
     /// Active lanes are those with `tmax > 0`. `leaf(slot, &ray)` (a primitive's slot in `indices`, as
     /// for [`Bvh::traverse_closest_x8`]) returns the lanes the primitive occludes (all-ones lanes); in
     /// the `ray` it receives, inactive and already occluded lanes have `tmax = -1`, so a kernel that
-    /// accepts hits in `(tmin, tmax)` ignores them without a mask. Traversal stops as soon as every active lane is
-    /// occluded. Returns the occluded mask (only active lanes can be set).
+    /// accepts hits in `(tmin, tmax)` ignores them without a mask. Traversal stops as soon as every
+    /// active lane is occluded. Returns the occluded mask (only active lanes can be set).
     pub fn traverse_any_x8(&self, ray: &Ray8, mut leaf: impl FnMut(u32, &Ray8) -> f32x8) -> f32x8 {
         let active = ray.tmax.simd_gt(f32x8::ZERO);
         let active_bits = active.to_bitmask();

@@ -151,14 +151,9 @@ impl Profile {
         Ok(())
     }
 
-    /// Override one field from the command line (`--set key=value`, `--spp N`, ...). On error the
-    /// profile is left unchanged.
+    /// Override one field ([`Profile::set_all`] of one pair). On error the profile is left unchanged.
     pub fn set(&mut self, key: &str, value: &str) -> Result<(), String> {
-        let mut p = self.clone();
-        p.set_field(key, value)?;
-        p.validate().map_err(|(f, m)| format!("{f}: {m}"))?;
-        *self = p;
-        Ok(())
+        self.set_all([(key, value)])
     }
 
     /// Several overrides at once (`--set` flags, in order), validated together after the last: so that
