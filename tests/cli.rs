@@ -70,3 +70,34 @@ fn render_writes_image_and_stats_json() {
     assert_eq!(v["rays"]["camera"], 320 * 240 * 2);
     assert!(v["rays"]["shadow"].as_u64().unwrap() > 0);
 }
+
+/// A render whose samples overflow the film (a point light of intensity 1e30: every lit sample is
+/// beyond 2^31) says so on stderr even with --quiet, and counts them in the JSON; the same scene with
+/// intensity 1 says nothing.
+#[test]
+fn discarded_samples_are_never_silent() {
+    let scene = |intensity: &str| {
+        format!(
+            "[image]\nwidth = 8\nheight = 8\n[camera]\nposition = [0,1,5]\nlook_at = [0,0,0]\nfov = 40\n\
+             [materials.m]\ntype = \"lambert\"\nalbedo = [0.5,0.5,0.5]\n\
+             [[shapes]]\ntype = \"plane\"\npoint = [0,0,0]\nnormal = [0,1,0]\nmaterial = \"m\"\n\
+             [[lights]]\ntype = \"point\"\nposition = [0,2,0]\nintensity = [{intensity},1,1]\n"
+        )
+    };
+    for (intensity, discarded) in [("1e30", true), ("1", false)] {
+        let path = tmp(&format!("overflow-{intensity}.toml"));
+        std::fs::write(&path, scene(intensity)).unwrap();
+        let json = tmp(&format!("overflow-{intensity}.json"));
+        let out = strata()
+            .args(["render", path.to_str().unwrap(), "-q", "--spp", "2", "-o", tmp("overflow.png").to_str().unwrap()])
+            .args(["--stats-json", json.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let err = String::from_utf8_lossy(&out.stderr);
+        let stats: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let n = stats["nonfinite_samples"].as_u64().unwrap();
+        assert_eq!(n > 0, discarded, "intensity {intensity}: {n} discarded");
+        assert_eq!(err.contains(&format!("warning: {n} samples were discarded")), discarded, "intensity {intensity}: stderr {err}");
+    }
+}

@@ -163,3 +163,23 @@ fn syntax_error_has_line() {
     let e = parse_scene(Path::new("s.toml"), &text).unwrap_err();
     assert_eq!(e.line, text.lines().count());
 }
+
+/// A background the film cannot hold (every escaping camera ray makes a sample at or beyond 2^31, which
+/// the film discards) is an input error naming its field and line; just below the limit is accepted,
+/// and so are emitters above it (a tiny light needs a huge radiance; a render that loses samples to
+/// one says so: `tests/cli.rs`).
+#[test]
+fn background_beyond_the_film_range_is_an_error() {
+    let background = |r: &str| BASE.replace("height = 24\n", &format!("height = 24\nbackground = [0, 0, {r}]\n"));
+    for big in ["2147483648", "1e30", "3.4e38"] {
+        let text = background(big);
+        let e = parse_scene(Path::new("bad.toml"), &text).expect_err("a background beyond the film's range");
+        assert_eq!(e.field, "image.background");
+        assert_eq!(e.line, text.lines().position(|l| l.contains("background")).unwrap() + 1);
+        assert!(e.message.contains("film's range"), "{}", e.message);
+    }
+    // The largest f32 below 2^31.
+    parse_scene(Path::new("ok.toml"), &background("2147483520")).expect("a background just below 2^31");
+    let light = "[[lights]]\ntype = \"quad\"\norigin = [0, 3, 0]\nu = [1e-5, 0, 0]\nv = [0, 0, 1e-5]\nradiance = [1e10, 1e10, 1e10]\n";
+    parse_scene(Path::new("ok.toml"), &format!("{BASE}{light}")).expect("a tiny, bright area light");
+}

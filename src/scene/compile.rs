@@ -8,6 +8,7 @@ use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, 
 use crate::accel::{build_bvh, Aabb, Bound, BuildOptions, Bvh8, Collapse, LightBuffer, WIDE_MIN_NODES};
 use crate::camera::Camera;
 use crate::csg::{self, Csg, CsgTree, Op};
+use crate::film::MAX_SAMPLE_VALUE;
 use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
 use crate::optics::{sigma_from_transmittance, Ior};
 use glam::{Affine3A, EulerRot, Mat3, Quat, Vec3};
@@ -86,6 +87,26 @@ impl Compiler<'_> {
         Ok(c)
     }
 
+    /// The background's radiance: a colour below the film's range in every component. Every camera ray
+    /// that escapes makes a sample of that value, and the film discards samples at or beyond
+    /// [`MAX_SAMPLE_VALUE`] (its fixed-point sums would overflow), so such a background could only ever
+    /// be lost. (Emitters are not held to it: a tiny area light needs a huge radiance for its power, and
+    /// a camera ray almost never sees it; a render that discards samples says so.)
+    fn background(&self, v: &V3, field: &str) -> R<Vec3> {
+        let c = self.color(v, field, None)?;
+        if !(c.max_element() < MAX_SAMPLE_VALUE) {
+            return Err(self.err(
+                v.span(),
+                field,
+                format!(
+                    "background components must be below {MAX_SAMPLE_VALUE:.0} (2^31, the film's range: every sample that sees it would be discarded), got {:e}; scale every radiance and intensity of the scene down by one factor",
+                    c.max_element()
+                ),
+            ));
+        }
+        Ok(c)
+    }
+
     fn positive(&self, v: &S<f32>, field: &str) -> R<f32> {
         let x = *v.get_ref();
         if !(x.is_finite() && x > 0.0) {
@@ -122,7 +143,7 @@ impl Compiler<'_> {
             ));
         }
         let background = match &img.background {
-            Some(b) => self.color(b, "image.background", None)?,
+            Some(b) => self.background(b, "image.background")?,
             None => Vec3::ZERO,
         };
         let camera = self.camera(&file.camera, width, height)?;
