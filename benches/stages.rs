@@ -228,6 +228,20 @@ fn bench_intersect_secondary(c: &mut Criterion) {
         })
         .collect();
     time_intersect(c, &pool, &scene, &octants, "secondary_16spp_octants/bench_spheres.toml", INCOHERENT);
+    // Diffuse bounces at 16 per pixel (cosine about the normal, as path tracing's first bounce), with
+    // and without the cells: the rays the cells were made for. (Uniform directions from 1e-3 behind the
+    // hit, above, are half of them into the surface they left; session 21 saw those rows disagree with
+    // the renders.)
+    let bounces = bounce_queues(&scene, &tiles16);
+    time_intersect(c, &pool, &scene, &bounces, "bounce_16spp/bench_spheres.toml", INCOHERENT);
+    let bounces: Vec<RayQueue> = bounces
+        .into_iter()
+        .map(|mut q| {
+            q.pixels = 0;
+            q
+        })
+        .collect();
+    time_intersect(c, &pool, &scene, &bounces, "bounce_16spp_octants/bench_spheres.toml", INCOHERENT);
 }
 
 /// The shade stage on the camera hits of the showcase (glass, mirror, glossy, CSG, two lights):
