@@ -220,28 +220,31 @@ fn bench_intersect_secondary(c: &mut Criterion) {
     let qs16 = secondary_queues(&scene, &tiles16);
     time_intersect(c, &pool, &scene, &qs16, "secondary_16spp/bench_spheres.toml", INCOHERENT);
     // The same queues sorted by octant alone (no pixel count: what one ray per pixel gets).
-    let octants: Vec<RayQueue> = secondary_queues(&scene, &tiles16)
-        .into_iter()
-        .map(|mut q| {
-            q.pixels = 0;
-            q
-        })
-        .collect();
-    time_intersect(c, &pool, &scene, &octants, "secondary_16spp_octants/bench_spheres.toml", INCOHERENT);
+    time_intersect(
+        c,
+        &pool,
+        &scene,
+        &octants_only(secondary_queues(&scene, &tiles16)),
+        "secondary_16spp_octants/bench_spheres.toml",
+        INCOHERENT,
+    );
     // Diffuse bounces at 16 per pixel (cosine about the normal, as path tracing's first bounce), with
-    // and without the cells: the rays the cells were made for. (Uniform directions from 1e-3 behind the
-    // hit, above, are half of them into the surface they left; session 21 saw those rows disagree with
-    // the renders.)
+    // and without the cells: the rays the cells were made for. (The uniform directions above, started
+    // 1e-3 short of the hit, go half of them into the surface they left; session 21 saw those rows
+    // disagree with the renders.)
     let bounces = bounce_queues(&scene, &tiles16);
     time_intersect(c, &pool, &scene, &bounces, "bounce_16spp/bench_spheres.toml", INCOHERENT);
-    let bounces: Vec<RayQueue> = bounces
-        .into_iter()
+    time_intersect(c, &pool, &scene, &octants_only(bounce_queues(&scene, &tiles16)), "bounce_16spp_octants/bench_spheres.toml", INCOHERENT);
+}
+
+/// `qs` without their pixel counts: the intersect stage then sorts them by octant alone.
+fn octants_only(qs: Vec<RayQueue>) -> Vec<RayQueue> {
+    qs.into_iter()
         .map(|mut q| {
             q.pixels = 0;
             q
         })
-        .collect();
-    time_intersect(c, &pool, &scene, &bounces, "bounce_16spp_octants/bench_spheres.toml", INCOHERENT);
+        .collect()
 }
 
 /// The shade stage on the camera hits of the showcase (glass, mirror, glossy, CSG, two lights):

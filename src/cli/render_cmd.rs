@@ -241,10 +241,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         let text = serde_json::to_string_pretty(&stats).map_err(Failure::runtime)?;
         crate::film::output::write_atomic(j, |tmp| std::fs::write(tmp, text).map_err(|e| e.to_string())).map_err(Failure::runtime)?;
     }
-    // Discarded samples are never silent, not even with --quiet: the image lacks their light.
-    if stats.nonfinite_samples > 0 {
-        eprintln!("{}", crate::film::discarded_warning(stats.nonfinite_samples));
-    }
+    crate::film::warn_discarded(stats.nonfinite_samples);
     if !stats.completed {
         let f = film_out.as_deref().unwrap_or(&out);
         eprintln!(

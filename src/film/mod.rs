@@ -20,13 +20,16 @@ pub const FIXED_ONE: f64 = 4_294_967_296.0;
 /// Samples at or beyond this magnitude (2^31) are treated as non-finite (keeps q = v 2^32 within an i64).
 pub const MAX_SAMPLE_VALUE: f32 = 2_147_483_648.0;
 
-/// The warning printed when a render discarded samples (NaN, infinite, or at or beyond
-/// [`MAX_SAMPLE_VALUE`]): the image lacks their light, so it is never left silent.
-pub fn discarded_warning(discarded: u64) -> String {
-    format!(
-        "warning: {discarded} samples were discarded as NaN, infinite or beyond the film's range (2^31) and are \
-         missing from the image; see README, \"Numerical robustness\""
-    )
+/// Print the warning for a render that discarded samples (NaN, infinite, or at or beyond
+/// [`MAX_SAMPLE_VALUE`]) to stderr, if it discarded any: the image lacks their light, so it is never
+/// left silent (not even under `--quiet`).
+pub fn warn_discarded(discarded: u64) {
+    if discarded > 0 {
+        eprintln!(
+            "warning: {discarded} samples were discarded as NaN, infinite or beyond the film's range (2^31) and \
+             are missing from the image; see README, \"Numerical robustness\""
+        );
+    }
 }
 
 /// Whether a sample may be accumulated: every channel finite and below [`MAX_SAMPLE_VALUE`] in

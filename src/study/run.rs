@@ -123,10 +123,8 @@ pub fn render_once(scene: &Scene, profile: Profile, seed: u64, threads: usize) -
     let mut job = RenderJob::new(scene, Settings { profile, seed });
     job.threads = threads;
     let (film, stats) = render_into(&job, Film::new(scene.width, scene.height));
-    // Discarded samples bias every error measured from this image: never silent.
-    if stats.nonfinite_samples > 0 {
-        eprintln!("{}", crate::film::discarded_warning(stats.nonfinite_samples));
-    }
+    // (Discarded samples would bias every error measured from this image.)
+    crate::film::warn_discarded(stats.nonfinite_samples);
     (film, stats.seconds, stats.rays.total)
 }
 
