@@ -21,6 +21,23 @@
 // `!(x > 0.0)` is deliberate throughout: it is also true for NaN, which must take the rejecting branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+/// `println!` that ignores write errors: a closed stdout (`strata render ... | head -3`) must not end
+/// a command with a panic (Rust ignores SIGPIPE, so the write fails instead of killing the process).
+macro_rules! outln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($t)*);
+    }};
+}
+
+/// `eprintln!` that ignores write errors (`strata render ... 2>&1 | head -3`), like [`outln`].
+macro_rules! errln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($t)*);
+    }};
+}
+
 pub mod accel;
 pub mod camera;
 pub mod cli;

@@ -101,3 +101,54 @@ fn discarded_samples_are_never_silent() {
         assert_eq!(err.contains(&format!("warning: {n} samples were discarded")), discarded, "intensity {intensity}: stderr {err}");
     }
 }
+
+/// A closed stdout or stderr (`strata render ... | head -1`, `strata study ... 2>&1 | head -1`) does
+/// not end a command with a panic: the render still writes its image and exits 0, the study its CSV.
+/// (Rust ignores SIGPIPE, so each write to a closed pipe fails; `println!` would panic on it.)
+#[test]
+fn closed_pipes_do_not_panic() {
+    use std::process::Stdio;
+    let scene_text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/soft_shadows.toml"))
+        .unwrap()
+        .replace("width = 160", "width = 20")
+        .replace("height = 120", "height = 14");
+    let scene = tmp("pipes.toml");
+    std::fs::write(&scene, scene_text).unwrap();
+    let s = scene.to_str().unwrap().to_string();
+    for closed in ["stdout", "stderr"] {
+        let png = tmp(&format!("pipes-{closed}.png"));
+        let study = tmp(&format!("pipes-study-{closed}"));
+        let commands = [
+            vec!["render".to_string(), s.clone(), "-o".into(), png.to_str().unwrap().into(), "--spp".into(), "2".into()],
+            ["study", &s, "--spp", "1,2", "--seeds", "1", "--reference-spp", "8", "--out", study.to_str().unwrap()]
+                .map(String::from)
+                .to_vec(),
+        ];
+        for args in commands {
+            let mut c = strata();
+            c.args(&args).stdin(Stdio::null());
+            // The closed end: a pipe whose reader is dropped before the command writes; the other
+            // stream is kept to look for a panic message.
+            if closed == "stdout" {
+                c.stdout(Stdio::piped()).stderr(Stdio::piped());
+            } else {
+                c.stderr(Stdio::piped()).stdout(Stdio::piped());
+            }
+            let mut child = c.spawn().unwrap();
+            let mut kept: Box<dyn std::io::Read> = if closed == "stdout" {
+                drop(child.stdout.take());
+                Box::new(child.stderr.take().unwrap())
+            } else {
+                drop(child.stderr.take());
+                Box::new(child.stdout.take().unwrap())
+            };
+            let mut text = String::new();
+            kept.read_to_string(&mut text).unwrap();
+            let status = child.wait().unwrap();
+            assert!(!text.contains("panicked"), "{} with {closed} closed: {text}", args[0]);
+            assert_eq!(status.code(), Some(0), "{} with {closed} closed: {text}", args[0]);
+        }
+        assert!(png.exists(), "the render with {closed} closed wrote no image");
+        assert!(study.join("study.csv").exists(), "the study with {closed} closed wrote no CSV");
+    }
+}

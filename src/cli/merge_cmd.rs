@@ -102,7 +102,7 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
         write_film(fp, &h, &merged).map_err(Failure::runtime)?;
     }
     let ranges: Vec<String> = films.iter().map(|(_, f)| range_text(&f.header.samples)).collect();
-    println!(
+    outln!(
         "merged {} films: samples {} of spp {} ({} samples in all); wrote {}{}",
         films.len(),
         if problems.is_empty() { range_text(&range) } else { ranges.join(", ") },
@@ -112,7 +112,7 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
         a.film.as_ref().map(|f| format!(" and {}", f.display())).unwrap_or_default()
     );
     for p in &problems {
-        eprintln!("warning: {p}");
+        errln!("warning: {p}");
     }
     Ok(0)
 }

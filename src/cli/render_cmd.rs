@@ -232,9 +232,9 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             Some(r) => format!(", resumed {resumed_units} of {n_units} work units from {}", r.display()),
             None => String::new(),
         };
-        println!("  {label} of {}{resumed}", header.spp);
+        outln!("  {label} of {}{resumed}", header.spp);
         if let Some(f) = &film_out {
-            println!("  wrote film {}", f.display());
+            outln!("  wrote film {}", f.display());
         }
     }
     if let Some(j) = &a.stats_json {
@@ -244,7 +244,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     crate::film::warn_discarded(stats.nonfinite_samples);
     if !stats.completed {
         let f = film_out.as_deref().unwrap_or(&out);
-        eprintln!(
+        errln!(
             "interrupted: wrote the {} samples accumulated so far to {} and the film to {} ({} of {n_units} work units); \
              continue with the same command and --resume {}",
             film.total_samples(),
@@ -290,15 +290,15 @@ impl Progress {
             let tenths = done * 10 / total;
             if self.logged_tenths.fetch_max(tenths, Ordering::Relaxed) < tenths {
                 let secs = self.start.elapsed().as_secs_f64();
-                eprintln!("{}: {}% ({done}/{total} work units, {secs:.1} s)", self.label, tenths * 10);
+                errln!("{}: {}% ({done}/{total} work units, {secs:.1} s)", self.label, tenths * 10);
             }
         }
     }
 
     fn println(&self, m: &str) {
         match &self.bar {
-            Some(b) => b.suspend(|| eprintln!("{m}")),
-            None => eprintln!("{m}"),
+            Some(b) => b.suspend(|| errln!("{m}")),
+            None => errln!("{m}"),
         }
     }
 

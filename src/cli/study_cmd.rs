@@ -193,11 +193,11 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     std::fs::create_dir_all(&a.out).map_err(|e| Failure::input(format!("--out {}: cannot create: {e}", a.out.display())))?;
     let unused = unused_integrals(&scene, &plan.integrals);
     if !unused.is_empty() {
-        eprintln!("note: the scene does not exercise {} (their strategy changes nothing)", unused.join(", "));
+        errln!("note: the scene does not exercise {} (their strategy changes nothing)", unused.join(", "));
     }
-    println!("strata study: {}  {}x{}  profile {}", a.scene.display(), scene.width, scene.height, profile.name);
-    println!("  sampling: {}", describe_mapping(&plan));
-    eprintln!("reference: preparing...");
+    outln!("strata study: {}  {}x{}  profile {}", a.scene.display(), scene.width, scene.height, profile.name);
+    outln!("  sampling: {}", describe_mapping(&plan));
+    errln!("reference: preparing...");
     let reference = obtain(&source, &scene, &profile, &plan.integrals, &a.out, plan.threads).map_err(|e| match e {
         RefError::Input(m) => Failure::input(m),
         RefError::Runtime(m) => Failure::runtime(m),
@@ -205,7 +205,7 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     if reference.image.iter().any(|p| !p.is_finite()) {
         return Err(Failure::input("the reference image has non-finite pixels"));
     }
-    println!("  reference: {}", reference.description);
+    outln!("  reference: {}", reference.description);
     let total = plan.strategies.len() * plan.counts.len() * plan.seeds as usize;
     let mut done = 0;
     let tty = std::io::stderr().is_terminal();
@@ -214,12 +214,12 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
         if !tty {
             return;
         }
-        eprint!("\r  run {done}/{total}: {} n={} seed {} ({:.3} s)        ", r.strategy, r.n, r.seed, r.seconds);
+        let _ = write!(std::io::stderr(), "\r  run {done}/{total}: {} n={} seed {} ({:.3} s)        ", r.strategy, r.n, r.seed, r.seconds);
         let _ = std::io::stderr().flush();
     };
     let series = run_series(&scene, &profile, &plan, &reference.image, a.sheet, &mut report).map_err(Failure::input)?;
     if tty {
-        eprintln!();
+        errln!();
     }
     let summary = summarize(&series.runs);
     print_table(&summary, &plan);
@@ -229,24 +229,31 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     csv::write(&csv_path, &series.runs).map_err(Failure::runtime)?;
     let plot_path = a.out.join("study.png");
     plot::write(&plot_path, &summary, &plan.strategies, unit).map_err(Failure::runtime)?;
-    println!("wrote {}", csv_path.display());
-    println!("wrote {}", plot_path.display());
+    outln!("wrote {}", csv_path.display());
+    outln!("wrote {}", plot_path.display());
     if a.sheet {
         let sheet_path = a.out.join("sheet.png");
         sheet::write(&sheet_path, &series.images, &plan.strategies, &plan.counts, scene.width, scene.height, unit)
             .map_err(Failure::runtime)?;
-        println!("wrote {}", sheet_path.display());
+        outln!("wrote {}", sheet_path.display());
     }
     Ok(0)
 }
 
 fn print_table(summary: &[Summary], plan: &Plan) {
-    println!(
+    outln!(
         "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12}   (mean over {} seeds)",
-        "strategy", "spp", "seconds", "rays", "mse", "relmse", "efficiency", plan.seeds
+        "strategy",
+        "spp",
+        "seconds",
+        "rays",
+        "mse",
+        "relmse",
+        "efficiency",
+        plan.seeds
     );
     for s in summary {
-        println!(
+        outln!(
             "{:<9} {:>6} {:>10.4} {:>12.0} {:>12.3e} {:>12.3e} {:>12.3e}",
             s.strategy.name(),
             s.n,
@@ -257,11 +264,11 @@ fn print_table(summary: &[Summary], plan: &Plan) {
             s.efficiency
         );
     }
-    println!("\nfitted slope of log MSE against log samples / log seconds:");
+    outln!("\nfitted slope of log MSE against log samples / log seconds:");
     for &st in &plan.strategies {
         let (vs_n, vs_t) = slopes(summary, st);
         let f = |x: Option<crate::study::metrics::LogLogFit>| x.map_or("n/a".to_string(), |f| format!("{:+.3}", f.slope));
-        println!("  {:<9} {} / {}", st.name(), f(vs_n), f(vs_t));
+        outln!("  {:<9} {} / {}", st.name(), f(vs_n), f(vs_t));
     }
-    println!();
+    outln!();
 }

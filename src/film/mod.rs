@@ -25,7 +25,7 @@ pub const MAX_SAMPLE_VALUE: f32 = 2_147_483_648.0;
 /// left silent (not even under `--quiet`).
 pub fn warn_discarded(discarded: u64) {
     if discarded > 0 {
-        eprintln!(
+        errln!(
             "warning: {discarded} samples were discarded as NaN, infinite or beyond the film's range (2^31) and \
              are missing from the image; see README, \"Numerical robustness\""
         );
