@@ -183,3 +183,20 @@ fn background_beyond_the_film_range_is_an_error() {
     let light = "[[lights]]\ntype = \"quad\"\norigin = [0, 3, 0]\nu = [1e-5, 0, 0]\nv = [0, 0, 1e-5]\nradiance = [1e10, 1e10, 1e10]\n";
     parse_scene(Path::new("ok.toml"), &format!("{BASE}{light}")).expect("a tiny, bright area light");
 }
+
+/// `motion` on a top-level `use` moves the placed solid (as on any other top-level shape); on a `use`
+/// inside a CSG tree it is an error naming the child's field.
+#[test]
+fn motion_of_a_placed_solid() {
+    let solid = "[solids.peg]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.5\nmaterial = \"m\"\n";
+    let top = format!("{solid}[[shapes]]\nuse = \"peg\"\nmotion = [0.25, 0, 0]\n");
+    let s = parse_scene(Path::new("ok.toml"), &format!("{BASE}{top}")).expect("a top-level use may move");
+    assert_eq!(s.prims.len(), 1);
+    assert_eq!(s.prims[0].motion, glam::Vec3::new(0.25, 0.0, 0.0));
+    assert!(s.features.csg, "{:?}", s.features);
+    let child = format!("{solid}[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [{{ use = \"peg\", motion = [1, 0, 0] }}]\n");
+    let (line, field, msg) = fail(&child);
+    assert_eq!(field, "shapes[0].children[0].motion");
+    assert_eq!(line, line_of(&child, "children = "));
+    assert!(msg.contains("top-level"), "{msg}");
+}

@@ -705,7 +705,9 @@ impl Compiler<'_> {
                     format!("solid `{name}` refers to itself (cycle: {} -> {name})", uses.join(" -> ")),
                 ));
             }
-            self.check_fields(def, field, "use", &[])?;
+            // (`motion` reaches here only at the top level, where `top_shape` applies it to the
+            // placed solid: a CSG child's motion was refused above.)
+            self.check_fields(def, field, "use", &["motion"])?;
             uses.push(name.clone());
             let r = self.csg_tree(target, &format!("solids.{name}"), t, material, depth + 1, uses);
             uses.pop();
