@@ -189,6 +189,13 @@ fn cli_merge_of_ranges_is_bit_identical_to_one_render() {
     let st = ok(strata().args(["merge", "--status", s(&p("a.film")), s(&p("c.film"))]).output().unwrap());
     let out = String::from_utf8_lossy(&st.stdout);
     assert!(out.contains("present (complete): 0..1, 4..6") && out.contains("missing: 1..4"), "{out}");
+    assert!(out.contains("complete samples: 3 of 6"), "{out}");
+    // Overlapping films: each sample counted once (0..4 and 1..6 cover 6 of 6), the overlap named.
+    ok(render(&sc, &["-o", s(&p("d.exr")), "--film", s(&p("d.film")), "--samples", "0..4"]));
+    ok(render(&sc, &["-o", s(&p("e.exr")), "--film", s(&p("e.film")), "--samples", "1..6"]));
+    let st = ok(strata().args(["merge", "--status", s(&p("d.film")), s(&p("e.film"))]).output().unwrap());
+    let out = String::from_utf8_lossy(&st.stdout);
+    assert!(out.contains("complete samples: 6 of 6") && !out.contains("ready to merge") && out.contains("overlap:"), "{out}");
     let _ = std::fs::remove_dir_all(&d);
 }
 

@@ -230,7 +230,12 @@ fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
         }
         let missing = missing_ranges(spp, &all);
         say!("missing: {}", list(&missing));
-        let done: u32 = complete.iter().map(|r| r.len() as u32).sum();
+        // Samples covered by complete films, each counted once where films overlap.
+        let (mut done, mut end) = (0u32, 0u32);
+        for r in &sorted {
+            done += r.end.saturating_sub(r.start.max(end));
+            end = end.max(r.end);
+        }
         let overlaps = overlap_lines(&ok);
         for o in &overlaps {
             say!("overlap: {o}");
