@@ -43,7 +43,11 @@ fn bad_flags_are_input_errors() {
         let mut a = vec!["render", "scenes/shapes/sphere.toml", "-o", o.to_str().unwrap()];
         a.extend(args.iter().copied());
         let out = strata().args(&a).output().unwrap();
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        // Flags are located on the command line, not at a made-up position in a file.
+        assert!(err.starts_with("error: command line: ") || err.starts_with("error: --set "), "{args:?}: {err}");
+        assert!(!err.contains(":0:0"), "{args:?}: {err}");
     }
 }
 

@@ -116,12 +116,13 @@ impl Profile {
             return Profile::parse(Path::new(&format!("<built-in profile {name_or_path}>")), text);
         }
         Err(InputError {
-            file: local,
+            file: PathBuf::from("command line"),
             line: 0,
             column: 0,
-            field: "profile".into(),
+            field: "--profile".into(),
             message: format!(
-                "no profile named `{name_or_path}` (shipped: {})",
+                "no profile file `{name_or_path}` or `{}`, and no shipped profile of that name (shipped: {})",
+                local.display(),
                 BUILTIN.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
             ),
         })
