@@ -42,7 +42,6 @@
 
 use glam::Vec3;
 
-#[cfg(doc)]
 use super::aabb::intersect_aabb_x8;
 use super::aabb::PacketRay;
 use super::wide::{Bvh8, Bvh8Node, WIDTH};
@@ -53,6 +52,9 @@ use crate::simd::{f32x8, i32x8, Ray8, Vec3x8};
 /// wide level consumes at least one binary level, so depth <= [`MAX_DEPTH`]), and visiting it leaves at
 /// most `WIDTH - 1` more entries pending.
 const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
+
+/// Live lanes at or below which [`Bvh8::occluded_lanes_hybrid`] leaves a node to one-ray traversals.
+pub const SWITCH_LANES: usize = 2;
 
 /// A pending child: its slot fields (`count` 0: an inner node), the smallest entry distance over the
 /// lanes that entered it, and those lanes (bit `l` = lane `l`; bit 0 for a single ray).
@@ -70,8 +72,9 @@ pub struct Bvh8Stack(pub(super) Vec<Entry>);
 
 impl Default for Bvh8Stack {
     fn default() -> Self {
-        // (WIDTH more: a branch-free push writes all of a node's slots past the top.)
-        Self(vec![Entry::default(); STACK + WIDTH])
+        // (WIDTH more: a branch-free push writes all of a node's slots past the top. The second half:
+        // the packet stack of `Bvh8::occluded_lanes_hybrid`, which never holds more entries.)
+        Self(vec![Entry::default(); 2 * (STACK + WIDTH)])
     }
 }
 
@@ -309,56 +312,144 @@ impl Bvh8 {
         }
         let ls = LaneSlabs::new(ray);
         let tmax = ray.tmax.to_array();
-        let stack = &mut stack.0[..];
+        let stack = &mut stack.0[..STACK + WIDTH];
         let mut occluded = 0;
         let mut rest = lanes;
-        'lanes: while rest != 0 {
+        while rest != 0 {
             let l = rest.trailing_zeros() as usize;
             rest &= rest - 1;
-            if !(tmax[l] > 0.0) {
+            if tmax[l] > 0.0 && self.occluded_from(0, l, &ls, tmax[l], stack, &mut leaf) {
+                occluded |= 1 << l;
+            }
+        }
+        occluded
+    }
+
+    /// [`Bvh8::occluded_lanes`] starting with the packet: from the root, each node's 8 children are
+    /// tested with the packet's slab test ([`intersect_aabb_x8`], one child at a time for all lanes,
+    /// 8 independent tests), and a child is entered by the lanes that pass; a node reached by at most
+    /// [`SWITCH_LANES`] lanes is left to one-ray traversals of its subtree, one per lane. Rays towards
+    /// one light from nearby points share the nodes near the root: there the packet pays one test per
+    /// child for all its lanes where one ray at a time pays a chain of dependent node visits per lane
+    /// (Embree's hybrid traversal, Benthin et al. 2012, "Combining single and packet ray tracing for
+    /// arbitrary ray distributions on the Intel MIC architecture", switches the same way). The packet
+    /// test and the one-ray test agree on every lane (module doc), and leaves call `leaf` per lane as
+    /// the one-ray traversal does, so the occluded lanes are [`Bvh8::occluded_lanes`]'.
+    pub fn occluded_lanes_hybrid(
+        &self,
+        ray: &Ray8,
+        lanes: u32,
+        stack: &mut Bvh8Stack,
+        mut leaf: impl FnMut(usize, usize, usize) -> bool,
+    ) -> u32 {
+        if self.nodes.is_empty() {
+            return 0;
+        }
+        let live = lanes & ray.tmax.simd_gt(f32x8::ZERO).to_bitmask();
+        if live.count_ones() as usize <= SWITCH_LANES {
+            return self.occluded_lanes(ray, live, stack, leaf);
+        }
+        let (pr, ls, tmax) = (PacketRay::new(ray), LaneSlabs::new(ray), ray.tmax.to_array());
+        let (single, packet) = stack.0.split_at_mut(STACK + WIDTH);
+        let (mut occluded, mut psp) = (0u32, 1usize);
+        packet[0] = Entry { child: 0, count: 0, tn: 0.0, lanes: live };
+        while psp > 0 {
+            psp -= 1;
+            let e = packet[psp];
+            let m = e.lanes & !occluded;
+            if m.count_ones() as usize <= SWITCH_LANES {
+                let mut rest = m;
+                while rest != 0 {
+                    let l = rest.trailing_zeros() as usize;
+                    rest &= rest - 1;
+                    if self.occluded_from(e.child as usize, l, &ls, tmax[l], single, &mut leaf) {
+                        occluded |= 1 << l;
+                    }
+                }
                 continue;
             }
-            let (s, oct, tm) = (ls.lane(l), ls.oct[l], f32x8::splat(tmax[l]));
-            let mut sp = 0usize;
-            let mut node = 0usize;
-            loop {
-                let n = &self.nodes[node];
-                let (_, hit) = slab8_oct(oct, n, &s, tm);
-                // Any hit ends the lane, so the order of the children does not matter: all 8 slots are
-                // written and the hit ones kept, without a branch per child.
-                let hit = hit.to_bitmask();
-                for i in 0..WIDTH {
-                    stack[sp] = Entry { child: n.child[i], count: n.count[i], tn: 0.0, lanes: 1 };
-                    sp += ((hit >> i) & 1) as usize;
+            let n = &self.nodes[e.child as usize];
+            let b = &n.bounds;
+            #[allow(clippy::needless_range_loop)] // (slot i of six bound rows, the child and the count)
+            for i in 0..WIDTH {
+                // (Empty slots, min = +inf and max = -inf, would pass the packet test: skipped.)
+                if !(b[0][i] <= b[3][i]) {
+                    continue;
                 }
-                // The last child pushed (the highest hit slot) is taken from the node, not back from
-                // the stack (no store-to-load round trip on the way down).
-                let mut top = (hit != 0).then(|| {
-                    let i = 31 - hit.leading_zeros() as usize;
-                    sp -= 1;
-                    (n.child[i], n.count[i])
-                });
-                loop {
-                    let (child, count) = match top.take() {
-                        Some(c) => c,
-                        None if sp == 0 => continue 'lanes,
-                        None => {
-                            sp -= 1;
-                            (stack[sp].child, stack[sp].count)
-                        }
-                    };
-                    if count == 0 {
-                        node = child as usize;
-                        break;
-                    }
-                    if leaf(l, child as usize, count as usize) {
+                let (lo, hi) = (Vec3::new(b[0][i], b[1][i], b[2][i]), Vec3::new(b[3][i], b[4][i], b[5][i]));
+                let hit = intersect_aabb_x8(lo, hi, &pr, ray.tmax).1.to_bitmask() & m & !occluded;
+                if hit == 0 {
+                    continue;
+                }
+                if n.count[i] == 0 {
+                    packet[psp] = Entry { child: n.child[i], count: 0, tn: 0.0, lanes: hit };
+                    psp += 1;
+                    continue;
+                }
+                let mut rest = hit;
+                while rest != 0 {
+                    let l = rest.trailing_zeros() as usize;
+                    rest &= rest - 1;
+                    if leaf(l, n.child[i] as usize, n.count[i] as usize) {
                         occluded |= 1 << l;
-                        continue 'lanes;
                     }
                 }
             }
         }
         occluded
+    }
+
+    /// Lane `l` of the packet whose slab constants are `ls` (its `tmax` > 0), one ray at a time through
+    /// the subtree of node `start` (see [`Bvh8::occluded_lanes`]): whether a leaf's `leaf` call found
+    /// it occluded.
+    #[inline(always)]
+    fn occluded_from(
+        &self,
+        start: usize,
+        l: usize,
+        ls: &LaneSlabs,
+        tmax: f32,
+        stack: &mut [Entry],
+        leaf: &mut impl FnMut(usize, usize, usize) -> bool,
+    ) -> bool {
+        let (s, oct, tm) = (ls.lane(l), ls.oct[l], f32x8::splat(tmax));
+        let mut sp = 0usize;
+        let mut node = start;
+        loop {
+            let n = &self.nodes[node];
+            let (_, hit) = slab8_oct(oct, n, &s, tm);
+            // Any hit ends the lane, so the order of the children does not matter: all 8 slots are
+            // written and the hit ones kept, without a branch per child.
+            let hit = hit.to_bitmask();
+            for i in 0..WIDTH {
+                stack[sp] = Entry { child: n.child[i], count: n.count[i], tn: 0.0, lanes: 1 };
+                sp += ((hit >> i) & 1) as usize;
+            }
+            // The last child pushed (the highest hit slot) is taken from the node, not back from
+            // the stack (no store-to-load round trip on the way down).
+            let mut top = (hit != 0).then(|| {
+                let i = 31 - hit.leading_zeros() as usize;
+                sp -= 1;
+                (n.child[i], n.count[i])
+            });
+            loop {
+                let (child, count) = match top.take() {
+                    Some(c) => c,
+                    None if sp == 0 => return false,
+                    None => {
+                        sp -= 1;
+                        (stack[sp].child, stack[sp].count)
+                    }
+                };
+                if count == 0 {
+                    node = child as usize;
+                    break;
+                }
+                if leaf(l, child as usize, count as usize) {
+                    return true;
+                }
+            }
+        }
     }
 
     /// Closest-hit traversal of an 8-ray packet in which each lane tests a node's 8 children with one

@@ -40,8 +40,8 @@ pub use plane::{intersect_plane_f64, intersect_plane_x8, Plane};
 pub use quad::{intersect_quad_f64, intersect_quad_x8, Quad};
 pub use sphere::{
     intersect_sphere_f64, intersect_sphere_moving_x8, intersect_sphere_x8, normal_sphere, occludes_sphere, occludes_sphere_consts,
-    occludes_sphere_x8, refine_sphere_point, refine_sphere_point_x8, sphere_interval_x8, spheres_lanes_x8, SphereConsts, SpherePacket,
-    SpherePacketOf, GRAZE,
+    occludes_sphere_x8, occludes_spheres_lanes, refine_sphere_point, refine_sphere_point_x8, sphere_interval_x8, spheres_lanes_x8,
+    SphereConsts, SpherePacket, SpherePacketOf, GRAZE,
 };
 
 use crate::simd::{f32x8, Lanes, Ray8};

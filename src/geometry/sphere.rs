@@ -143,6 +143,14 @@ impl SpherePacket {
     pub fn new(ray: &Ray8) -> Self {
         SpherePacketOf::of([ray.o.x, ray.o.y, ray.o.z], [ray.d.x, ray.d.y, ray.d.z])
     }
+
+    /// Lane `l`'s terms in all 8 lanes: the terms of lane `l`'s ray splatted (the operations are
+    /// lane-wise, so the bits are the same).
+    #[inline(always)]
+    pub fn lane(&self, l: usize) -> Self {
+        let at = |v: f32x8| f32x8::splat(v.to_array()[l]);
+        SpherePacket { a: at(self.a), inv_a: at(self.inv_a), finite: at(self.finite) }
+    }
 }
 
 impl<F: Lanes> SpherePacketOf<F> {
@@ -177,19 +185,30 @@ pub fn occludes_sphere<F: Lanes>(o: [F; 3], d: [F; 3], tmax: F, center: Vec3, ra
 /// `scene::LeafSpheres`): the same operations, hence the same lanes.
 #[inline(always)]
 pub fn occludes_sphere_consts<F: Lanes>(o: [F; 3], d: [F; 3], tmax: F, center: Vec3, k: SphereConsts, pk: &SpherePacketOf<F>) -> F {
+    let c = [F::splat(center.x), F::splat(center.y), F::splat(center.z)];
+    occludes_spheres_lanes(o, d, tmax, c, [F::splat(k.r2), F::splat(k.r2_lo), F::splat(k.graze)], pk)
+}
+
+/// [`occludes_sphere_consts`] with a sphere per lane (centres `c` by axis; `k` = the lanes' `r2`,
+/// `r2_lo` and `graze` of [`SphereConsts`]): lane-wise operations only, so a lane's verdict is the
+/// one-sphere twin's for that sphere, hence `spheres_lanes_x8(..) < tmax` of the closest-hit kernel
+/// (the any-hit leaf test of one ray against a leaf's spheres in lanes: the ray splatted, `pk` of it).
+#[inline(always)]
+pub fn occludes_spheres_lanes<F: Lanes>(o: [F; 3], d: [F; 3], tmax: F, c: [F; 3], k: [F; 3], pk: &SpherePacketOf<F>) -> F {
     let none = F::splat(0.0);
-    let (sx, ex) = two_sum(o[0], -F::splat(center.x));
-    let (sy, ey) = two_sum(o[1], -F::splat(center.y));
-    let (sz, ez) = two_sum(o[2], -F::splat(center.z));
+    let [r2, r2_lo, graze] = k;
+    let (sx, ex) = two_sum(o[0], -c[0]);
+    let (sy, ey) = two_sum(o[1], -c[1]);
+    let (sz, ez) = two_sum(o[2], -c[2]);
     let b = sx.mul_add(d[0], sy.mul_add(d[1], sz * d[2]));
     let kk = b * pk.inv_a;
     let l = [kk.mul_neg_add(d[0], sx) + ex, kk.mul_neg_add(d[1], sy) + ey, kk.mul_neg_add(d[2], sz) + ez];
-    let disc = l[0].mul_neg_add(l[0], l[1].mul_neg_add(l[1], l[2].mul_neg_add(l[2], F::splat(k.r2))));
-    let hit = disc.ge(F::splat(k.graze)) & pk.finite & tmax.gt(none);
+    let disc = l[0].mul_neg_add(l[0], l[1].mul_neg_add(l[1], l[2].mul_neg_add(l[2], r2)));
+    let hit = disc.ge(graze) & pk.finite & tmax.gt(none);
     if !hit.any() {
         return none;
     }
-    let c0 = dist2_minus_r2([sx, sy, sz], [ex, ey, ez], F::splat(k.r2), F::splat(k.r2_lo));
+    let c0 = dist2_minus_r2([sx, sy, sz], [ex, ey, ez], r2, r2_lo);
     let away = b.gt(none) & c0.ge(none);
     if !(hit & !away).any() {
         return none;
@@ -344,7 +363,7 @@ mod tests {
     #[test]
     fn spheres_in_lanes_match_the_one_sphere_kernel() {
         let mut f = crate::sample::hash::test_uniforms(0x51f3_0e5a_11ce_0001);
-        let (mut hits, mut checked) = (0, 0);
+        let (mut hits, mut checked, mut occluded) = (0, 0, 0);
         for round in 0..3000 {
             let scale = [1e-4f32, 1.0, 1e3, 1e5][round % 4];
             let v = |f: &mut dyn FnMut() -> f32| Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5);
@@ -380,9 +399,24 @@ mod tests {
                 hits += (one != MISS) as u32;
                 checked += 1;
             }
+            // The any-hit twin with spheres in lanes gives the kernel's verdict `t < tmax`, with the
+            // packet terms of a packet whose lane 3 is this ray (`SpherePacket::lane`).
+            let mut packet = Ray8::new(Vec3x8::splat(v(&mut f)), Vec3x8::splat(v(&mut f) * 1e3), f32x8::splat(1.0));
+            for (dst, src) in [(&mut packet.o, ray.o), (&mut packet.d, ray.d)] {
+                let (mut x, mut y, mut z) = (dst.x.to_array(), dst.y.to_array(), dst.z.to_array());
+                (x[3], y[3], z[3]) = (src.x.to_array()[0], src.y.to_array()[0], src.z.to_array()[0]);
+                *dst = Vec3x8::new(f32x8::from(x), f32x8::from(y), f32x8::from(z));
+            }
+            let pk = SpherePacket::new(&packet).lane(3);
+            let terms = [f32x8::from(k.map(|k| k.r2)), f32x8::from(k.map(|k| k.r2_lo)), f32x8::from(k.map(|k| k.graze))];
+            let occ =
+                occludes_spheres_lanes([ray.o.x, ray.o.y, ray.o.z], [ray.d.x, ray.d.y, ray.d.z], ray.tmax, [c.x, c.y, c.z], terms, &pk);
+            assert_eq!(occ.to_bitmask(), lanes.simd_lt(ray.tmax).to_bitmask(), "round {round}: any-hit twin");
+            occluded += occ.to_bitmask().count_ones();
         }
         assert_eq!(checked, 24_000);
         assert!(hits > 500, "only {hits} hits");
+        assert!(occluded > 300, "only {occluded} occluded lanes");
     }
 
     /// The any-hit twin gives exactly the kernel's verdict `t < tmax`: random packets at scales 1e-4

@@ -18,7 +18,7 @@ use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, trans
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{Bvh8Stack, LightBuffer, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
-use crate::geometry::{occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, spheres_lanes_x8, SpherePacket, SpherePacketOf};
+use crate::geometry::{occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, occludes_spheres_lanes, SpherePacket, SpherePacketOf};
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
@@ -814,8 +814,8 @@ pub fn occlusion_group(
 /// [`occlusion_group`] for scenes whose shadow rays walk through nothing (`!any_passable`), one ray at
 /// a time through the wide BVH (`Bvh8::occluded_lanes`): incoherent packets (shading points scattered
 /// by bounces) share few nodes and leaves, so a packet's leaf tests would mostly test lanes that never
-/// reach the leaf. A leaf's static spheres meet the ray in one 8-lane call (spheres in lanes,
-/// [`spheres_lanes_x8`], the same arithmetic per ray and sphere as the packet kernel), its other prims
+/// reach the leaf. A leaf's static spheres meet the ray in one 8-lane call (spheres in lanes, the
+/// any-hit twin [`occludes_spheres_lanes`]: the verdict of the packet kernel per ray and sphere), its other prims
 /// the packet test with the ray in every lane. The same occluded lanes as [`occlusion_group`].
 pub fn occlusion_single(
     scene: &Scene,
@@ -837,7 +837,9 @@ pub fn occlusion_single(
         let lanes = !occ[j].to_bitmask() & ray.tmax.simd_gt(f32x8::ZERO).to_bitmask();
         let (o, d, tm) = (ray.o, ray.d, ray.tmax.to_array());
         let time = times[j].map(|t| t.to_array());
-        let bits = scene.bvh8.occluded_lanes(ray, lanes, stack, |l, first, count| {
+        // The sphere twin's packet terms of each lane's ray in all 8 lanes: lane l of `pk`, splatted.
+        let pk = SpherePacket::new(ray);
+        let bits = scene.bvh8.occluded_lanes_hybrid(ray, lanes, stack, |l, first, count| {
             // The lane's ray in all 8 lanes (its inverse direction as the packet computed it).
             let one = &Ray8 {
                 o: Vec3x8::splat(o.lane(l)),
@@ -852,9 +854,10 @@ pub fn occlusion_single(
                 let n = (end - first).min(LANES);
                 let sph = ls.sphere_bits(first, n);
                 if sph != 0 {
-                    let c = Vec3x8::new(load8(&ls.cx, first), load8(&ls.cy, first), load8(&ls.cz, first));
-                    let t = spheres_lanes_x8(c, load8(&ls.r2, first), load8(&ls.r2_lo, first), load8(&ls.graze, first), one);
-                    if t.simd_lt(one.tmax).to_bitmask() & sph != 0 {
+                    let c = [load8(&ls.cx, first), load8(&ls.cy, first), load8(&ls.cz, first)];
+                    let k = [load8(&ls.r2, first), load8(&ls.r2_lo, first), load8(&ls.graze, first)];
+                    let (ov, dv) = ([one.o.x, one.o.y, one.o.z], [one.d.x, one.d.y, one.d.z]);
+                    if occludes_spheres_lanes(ov, dv, one.tmax, c, k, &pk.lane(l)).to_bitmask() & sph != 0 {
                         return true;
                     }
                 }
