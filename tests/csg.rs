@@ -375,6 +375,203 @@ fn smallest_resolved_gap() {
     }
 }
 
+/// A box `[-w, w]^2 × [z0, z1]` (material `m`) in the frame `g`.
+fn slab(g: Affine3A, w: f32, z0: f32, z1: f32, m: u32) -> CsgTree {
+    let local =
+        Affine3A::from_scale_rotation_translation(Vec3::new(w, w, 0.5 * (z1 - z0)), Quat::IDENTITY, Vec3::new(0.0, 0.0, 0.5 * (z0 + z1)));
+    CsgTree::Leaf(Leaf::new(Shape::Box, g * local, m))
+}
+
+/// Rigid frames for the stacked-box tests: identity, a quarter turn, the assembly placement, and an
+/// arbitrary rotation far from the origin (larger tolerance, coarser f32 rounding).
+fn rigid_frames() -> [Affine3A; 4] {
+    [
+        Affine3A::IDENTITY,
+        Affine3A::from_rotation_x(std::f32::consts::FRAC_PI_2),
+        placement(),
+        Affine3A::from_rotation_translation(Quat::from_euler(glam::EulerRot::ZYX, 2.1, 0.4, -0.9), Vec3::new(3.0, -7.5, 11.0)),
+    ]
+}
+
+/// A fixed grid of rays in the frame `g`, given in local coordinates: origins `(x, y, z)` for `x, y` in
+/// `{-0.6, -0.2, 0.2, 0.6}`, directions `(dx, dy, ±1) × len` for `dx, dy` in `{-0.2, 0, 0.15}`, lengths
+/// 0.7 and 1.3 (`d` not unit). Returned as (local origin, local direction, world origin, world direction);
+/// `g` is rigid, so `t` is the same in both frames.
+fn ray_grid(g: Affine3A, z: f64, up: bool) -> Vec<(DVec3, DVec3, Vec3, Vec3)> {
+    let mut rays = Vec::new();
+    let c = [-0.6, -0.2, 0.2, 0.6];
+    let tilt = [-0.2, 0.0, 0.15];
+    for &len in &[0.7, 1.3] {
+        for &dx in &tilt {
+            for &dy in &tilt {
+                for &x in &c {
+                    for &y in &c {
+                        let (ol, dl) = (DVec3::new(x, y, z), DVec3::new(dx, dy, if up { 1.0 } else { -1.0 }) * len);
+                        rays.push((ol, dl, g.transform_point3(ol.as_vec3()), g.transform_vector3(dl.as_vec3())));
+                    }
+                }
+            }
+        }
+    }
+    rays
+}
+
+/// `first_hit` for one ray, held bit for bit to `first_hit_x8` (the ray in every lane).
+fn hit_both(csg: &Csg, s: u32, o: Vec3, d: Vec3, tmin: f32, arena: &mut CsgArena) -> Option<CsgHit> {
+    let h = first_hit(csg, s, o, d, tmin, f32::INFINITY, arena);
+    let (packet, tmin8) = ray8(&[(o, d, tmin, f32::INFINITY); 8]);
+    let mut out = [None; 8];
+    first_hit_x8(csg, s, &packet, tmin8, arena, &mut out);
+    assert!(out.iter().all(|&x| x == h), "scalar {h:?} vs x8 {out:?}");
+    h
+}
+
+/// Two stacked boxes whose shared face is not quite shared: the lower box `z ∈ [-1, 0]`, the upper one
+/// `z ∈ [δ, 1 + δ]` with `δ` = 1e-6 and 3e-6 (a gap, so the lower box's exit comes strictly before the
+/// upper one's entry in f32) or -2e-6 (an overlap), placed through a different transform (`g · T(δ z) ·
+/// box`), in four rigid frames, both operand orders. `δ` is far below the coincidence tolerance (≥ 1e-5
+/// world units), so the union is one solid. Rays start inside the lower box (`z = -0.5`, a 4 × 4 × 9 × 2
+/// grid) going up, `tmin = 0`: the f64 reference has one interval, and its exit is the upper box's far face
+/// `z = 1 + δ` (analytic); the first hit of `first_hit` / `first_hit_x8` is that exit, on the upper box's
+/// leaf, not an exit at the joint (merge shortcut for "disjoint" operands taken without the tolerance).
+#[test]
+fn union_of_nearly_touching_boxes_has_no_joint() {
+    let mut arena = CsgArena::new();
+    let mut iv = Vec::new();
+    let mut rays = 0;
+    for g in rigid_frames() {
+        for delta in [1e-6f32, 3e-6, -2e-6] {
+            let lower = slab(g, 2.0, -1.0, 0.0, 1);
+            let upper = slab(g * Affine3A::from_translation(Vec3::new(0.0, 0.0, delta)), 2.0, 0.0, 1.0, 2);
+            let mut csg = Csg::new();
+            let lu = csg.add_solid(&node(Op::Union, vec![lower.clone(), upper.clone()])).unwrap();
+            let ul = csg.add_solid(&node(Op::Union, vec![upper, lower])).unwrap();
+            let upper_leaf = [csg.solid_leaves(lu).start + 1, csg.solid_leaves(ul).start];
+            for (ol, dl, o, d) in ray_grid(g, -0.5, true) {
+                let exit = (1.0 + delta as f64 - ol.z) / dl.z;
+                let tol = 1e-4 * (exit + scale(o, d));
+                for (s, up) in [(lu, upper_leaf[0]), (ul, upper_leaf[1])] {
+                    intervals_f64(&csg, s, dv(o), dv(d), &mut iv);
+                    assert!(iv.len() == 1 && iv[0].0 < 0.0 && (iv[0].1 - exit).abs() <= tol, "reference {iv:?}, exit at {exit}");
+                    let h = hit_both(&csg, s, o, d, 0.0, &mut arena).expect("no exit");
+                    assert!(
+                        !h.entering && (h.t as f64 - iv[0].1).abs() <= tol && h.leaf == up && !h.flip,
+                        "δ={delta} g={g:?} o={o} d={d}: first hit {h:?}, reference exit {} (upper box's far face, leaf {up})",
+                        iv[0].1
+                    );
+                    rays += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(rays, 4 * 3 * 288 * 2);
+}
+
+/// `A ∪ B` with a gap smaller than the coincidence tolerance and `tmin` inside the gap: the lower box
+/// `z ∈ [-1, 0]` and the upper box `z ∈ [δ, 1 + δ]`, `δ` = 4e-6 and 8e-6, both orders, four rigid frames,
+/// rays from below (`z = -2`, a 4 × 4 × 9 × 2 grid) going up with `tmin` at `z = δ / 2` (analytic).
+/// The gap is one event under the rule, so the ray is inside the union at `tmin`: the f64 reference has
+/// one interval around `tmin`, and the first hit must be its exit at `z = 1 + δ` (analytic), not an entry
+/// at the upper box's near face (the lower box's interval, which ends just before `tmin`, must still be
+/// merged with it).
+#[test]
+fn union_gap_below_tolerance_with_tmin_inside() {
+    let mut arena = CsgArena::new();
+    let mut iv = Vec::new();
+    let mut rays = 0;
+    for g in rigid_frames() {
+        for delta in [4e-6f32, 8e-6] {
+            let lower = slab(g, 2.0, -1.0, 0.0, 1);
+            let upper = slab(g, 2.0, delta, 1.0 + delta, 2);
+            let mut csg = Csg::new();
+            let lu = csg.add_solid(&node(Op::Union, vec![lower.clone(), upper.clone()])).unwrap();
+            let ul = csg.add_solid(&node(Op::Union, vec![upper, lower])).unwrap();
+            for (ol, dl, o, d) in ray_grid(g, -2.0, true) {
+                let at = |z: f64| (z - ol.z) / dl.z;
+                let (tmin, exit) = (at(0.5 * delta as f64), at(1.0 + delta as f64));
+                let tol = 1e-4 * (exit + scale(o, d));
+                for s in [lu, ul] {
+                    intervals_f64(&csg, s, dv(o), dv(d), &mut iv);
+                    assert!(iv.len() == 1 && iv[0].0 < tmin && (iv[0].1 - exit).abs() <= tol, "reference {iv:?}, tmin {tmin}");
+                    let h = hit_both(&csg, s, o, d, tmin as f32, &mut arena).expect("no exit");
+                    assert!(
+                        !h.entering && (h.t as f64 - iv[0].1).abs() <= tol,
+                        "δ={delta} g={g:?} o={o} d={d} tmin={tmin}: first hit {h:?}, reference exit {} (upper box's far face)",
+                        iv[0].1
+                    );
+                    rays += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(rays, 4 * 2 * 288 * 2);
+}
+
+/// Which leaf a coincident boundary reports: where both operands' crossings form the group and both
+/// moved the way the result did, the boundary belongs to the left operand (`merge.rs`: "from the operand
+/// whose own state changed the same way as the result's (`a` preferred)"), so its material and `flip` are
+/// the left operand's. Analytic cases in four rigid frames, rays on a 4 × 4 × 9 × 2 grid:
+/// - `A ∪ B` and `B ∪ A`, `A = [-1, 1]^3`, `B = [-1.5, 1.5]^2 × [-1, 0.5]` (same bottom face, built
+///   through another scale and translation): from below, the entry at `z = -1` is the left operand's
+///   leaf (material 1 or 2), unflipped;
+/// - `A - B`, `A = [-1.5, 1.5]^2 × [0, 1]`, `B = [-2, 2]^2 × [-1, 0]`: from below, the entry at `z = 0`
+///   (A's bottom face flush with B's top) is A's leaf, `flip = false`; from above, the exit at `z = 0`
+///   after the entry at `z = 1` is A's leaf, `flip = false`.
+///
+/// Every `t` is held to the analytic face and to the f64 reference.
+#[test]
+fn coincident_boundary_belongs_to_left_operand() {
+    let mut arena = CsgArena::new();
+    let mut iv = Vec::new();
+    let mut rays = 0;
+    for g in rigid_frames() {
+        let a = slab(g, 1.0, -1.0, 1.0, 1);
+        let b = slab(g, 1.5, -1.0, 0.5, 2);
+        let (da, db) = (slab(g, 1.5, 0.0, 1.0, 3), slab(g, 2.0, -1.0, 0.0, 4));
+        let mut csg = Csg::new();
+        let ab = csg.add_solid(&node(Op::Union, vec![a.clone(), b.clone()])).unwrap();
+        let ba = csg.add_solid(&node(Op::Union, vec![b, a])).unwrap();
+        let diff = csg.add_solid(&node(Op::Difference, vec![da, db])).unwrap();
+        let first_boundary = |csg: &Csg, s: u32, o: Vec3, d: Vec3, iv: &mut Vec<(f64, f64)>| {
+            intervals_f64(csg, s, dv(o), dv(d), iv);
+            iv[0]
+        };
+        for (ol, dl, o, d) in ray_grid(g, -2.0, true) {
+            let at = |z: f64| (z - ol.z) / dl.z;
+            let tol = |t: f64| 1e-4 * (t.abs() + scale(o, d));
+            for (s, want) in [(ab, 1), (ba, 2), (diff, 3)] {
+                let face = at(if s == diff { 0.0 } else { -1.0 });
+                let (entry, _) = first_boundary(&csg, s, o, d, &mut iv);
+                assert!((entry - face).abs() <= tol(face), "reference {iv:?}, face at {face}");
+                let h = hit_both(&csg, s, o, d, 0.0, &mut arena).expect("no entry");
+                assert!(
+                    h.entering && (h.t as f64 - entry).abs() <= tol(entry) && csg.leaf(h.leaf).material == want && !h.flip,
+                    "g={g:?} o={o} d={d}: entry {h:?} (material {}), want the left operand's (material {want}), unflipped",
+                    csg.leaf(h.leaf).material
+                );
+                rays += 1;
+            }
+        }
+        for (ol, dl, o, d) in ray_grid(g, 2.0, false) {
+            let at = |z: f64| (z - ol.z) / dl.z;
+            let face = at(0.0);
+            let tol = 1e-4 * (face + scale(o, d));
+            let (top, exit) = first_boundary(&csg, diff, o, d, &mut iv);
+            assert!((top - at(1.0)).abs() <= tol && (exit - face).abs() <= tol, "reference {iv:?}, exit at {face}");
+            let entry = hit_both(&csg, diff, o, d, 0.0, &mut arena).expect("no entry");
+            assert!(entry.entering && csg.leaf(entry.leaf).material == 3 && !entry.flip, "{entry:?}");
+            let h = hit_both(&csg, diff, o, d, entry.t, &mut arena).expect("no exit");
+            assert!(
+                !h.entering && (h.t as f64 - exit).abs() <= tol && csg.leaf(h.leaf).material == 3 && !h.flip,
+                "g={g:?} o={o} d={d}: exit {h:?} (material {}), want A's bottom face (material 3), unflipped",
+                csg.leaf(h.leaf).material
+            );
+            rays += 1;
+        }
+    }
+    assert_eq!(rays, 4 * 288 * 4);
+}
+
 // ---------------------------------------------------------------------------------------------------------
 // Deep trees, errors, bounds, arena
 // ---------------------------------------------------------------------------------------------------------
