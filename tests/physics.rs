@@ -312,6 +312,11 @@ fn beer_lambert_identities() {
     }
     let inf = f32::INFINITY;
     assert_eq!(beer_lambert(Vec3::new(0.0, 1.0, 0.0), inf), Vec3::new(1.0, 0.0, 1.0));
+    // A negative distance is no path at all (documented as 0): transmittance exactly 1, never a gain,
+    // also at -inf (where the unclamped exponent would be +inf).
+    let sigma = Vec3::new(0.5, 1.0, 3.0);
+    assert_eq!(beer_lambert(sigma, -1.0), Vec3::ONE);
+    assert_eq!(beer_lambert(sigma, -inf), Vec3::ONE);
     assert_eq!(sigma_from_transmittance(Vec3::ONE, 2.0), Vec3::ZERO);
     let s = sigma_from_transmittance(Vec3::new(0.0, 0.5, 1.0), 0.0);
     assert!(s.is_finite() && s.min_element() >= 0.0);

@@ -177,4 +177,24 @@ mod tests {
         let c8 = cross(&s, c7.stack, GLASS, false);
         assert!(!c8.is_real() && c8.stack == e.push(GLASS));
     }
+
+    /// Leaving a medium whose entry was lost (never on the stack) while inside a higher-priority one: the
+    /// ray is taken to have been inside the lost medium too (README, "Which side is which"), so on the
+    /// stack {glass} the water's surface is outranked by the glass on both sides: a null crossing, glass to
+    /// glass, and the stack is unchanged. With a lower-priority (or no) medium around it, the lost medium
+    /// itself is the medium before.
+    #[test]
+    fn leaving_a_lost_medium_inside_a_higher_priority_one_is_null() {
+        let s = scene();
+        let e = MediumStack::default();
+        let c = cross(&s, e.push(GLASS), WATER, false);
+        assert_eq!((c.before, c.after, c.is_real()), (Some(GLASS), Some(GLASS), false), "{c:?}");
+        assert_eq!(c.stack, e.push(GLASS));
+        // Same with glass outermost under a lower-priority medium entered later.
+        let c = cross(&s, e.push(GLASS).push(BUBBLE), ICE, false);
+        assert_eq!((c.before, c.after, c.is_real()), (Some(GLASS), Some(GLASS), false), "{c:?}");
+        // The lost medium outranks what is on the stack: it was the medium, the crossing is real.
+        let c = cross(&s, e.push(WATER), GLASS, false);
+        assert_eq!((c.before, c.after, c.is_real()), (Some(GLASS), Some(WATER), true), "{c:?}");
+    }
 }
