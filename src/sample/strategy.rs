@@ -13,6 +13,8 @@ use crate::simd::{f32x8, LANES};
 #[serde(rename_all = "lowercase")]
 pub enum Strategy {
     /// Always the centre of the domain: one deterministic sample repeated (pinhole lens, pixel centre).
+    /// (`centre` is accepted in files as on the command line.)
+    #[serde(alias = "centre")]
     Center,
     /// Centres of an `nx x ny` grid of sub-squares: a deterministic midpoint quadrature rule.
     Grid,
@@ -557,6 +559,18 @@ mod tests {
         assert_eq!(Strategy::parse("centre"), Some(Strategy::Center));
         assert_eq!(Strategy::parse("halton"), None);
         assert_eq!(Strategy::parse(""), None);
+        // Profile files take the same names (serde), `centre` included, and write `center`.
+        #[derive(serde::Deserialize, serde::Serialize)]
+        struct W {
+            s: Strategy,
+        }
+        for (text, want) in [("s = \"centre\"", Strategy::Center), ("s = \"center\"", Strategy::Center), ("s = \"sobol\"", Strategy::Sobol)]
+        {
+            let w: W = toml::from_str(text).unwrap();
+            assert_eq!(w.s, want, "{text}");
+        }
+        assert!(toml::from_str::<W>("s = \"halton\"").is_err());
+        assert_eq!(toml::to_string(&W { s: Strategy::Center }).unwrap().trim(), "s = \"center\"");
     }
 
     #[test]
