@@ -1,6 +1,6 @@
 //! The static spheres of the BVH's leaves as lanes: per slot of `bvh.indices` (the order in which
 //! leaves list their primitives), the sphere's centre and radius terms, so that one ray meets a
-//! whole leaf's spheres in one 8-lane kernel call ([`crate::geometry::spheres_lanes_x8`]), and a packet
+//! whole leaf's spheres in one 8-lane any-hit call ([`crate::geometry::occludes_spheres_lanes`]), and a packet
 //! meets a leaf's sphere from these lanes (the intersect stage's closest-hit leaves) instead of through
 //! `indices`, `bounded` and the 176-byte `Prim`: three dependent loads, each a cache miss once the scene
 //! outgrows the caches (at a million spheres they were two thirds of the leaf test's time). Slots of
