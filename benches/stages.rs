@@ -191,17 +191,10 @@ fn secondary_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
 fn bounce_queues(scene: &Scene, qs: &[RayQueue]) -> Vec<RayQueue> {
     from_hits(scene, qs, 7, |mut r, t, prim, u| {
         let p = r.o + r.d * t;
-        let n = match scene.prims[prim as usize].shape {
-            Shape::Sphere { center, .. } => (p - center).normalize(),
-            Shape::Plane(pl) => pl.normal,
-            _ => return None,
-        };
-        let n = if n.dot(r.d) > 0.0 { -n } else { n };
-        let (a, b) = n.any_orthonormal_pair();
-        let (rad, phi) = (u().sqrt(), std::f32::consts::TAU * u());
-        let z = (1.0 - rad * rad).max(0.0).sqrt();
+        let n = support::facing_normal(scene, prim, p, r.d)?;
+        let (u1, u2) = (u(), u());
         r.o = strata::geometry::offset_ray_origin(p, n);
-        r.d = a * (rad * phi.cos()) + b * (rad * phi.sin()) + n * z;
+        r.d = support::cosine_about(n, u1, u2);
         Some(r)
     })
 }

@@ -56,3 +56,25 @@ pub fn tiles(scene: &Scene, side: u32) -> Vec<Tile> {
     }
     out
 }
+
+/// The surface normal at `p` on `prim` (a sphere, plane or quad), facing against the ray direction `d`;
+/// `None` for other shapes.
+pub fn facing_normal(scene: &Scene, prim: u32, p: glam::Vec3, d: glam::Vec3) -> Option<glam::Vec3> {
+    use strata::scene::Shape;
+    let n = match scene.prims[prim as usize].shape {
+        Shape::Sphere { center, .. } => (p - center).normalize(),
+        Shape::Plane(pl) => pl.normal,
+        Shape::Quad(q) => q.unit_normal,
+        _ => return None,
+    };
+    Some(if n.dot(d) > 0.0 { -n } else { n })
+}
+
+/// A cosine-distributed diffuse bounce about `n` from two uniforms (the first picks the radius), as
+/// path tracing takes them.
+pub fn cosine_about(n: glam::Vec3, u1: f32, u2: f32) -> glam::Vec3 {
+    let (a, b) = n.any_orthonormal_pair();
+    let (rad, phi) = (u1.sqrt(), std::f32::consts::TAU * u2);
+    let z = (1.0 - rad * rad).max(0.0).sqrt();
+    a * (rad * phi.cos()) + b * (rad * phi.sin()) + n * z
+}

@@ -24,6 +24,9 @@
 //! direction's length), and `strata.json` with per set the ray count, hit count, sum of hit distances
 //! and the best rate. Timing: best of `--reps` passes over the set on `--threads` threads (2).
 
+#[path = "../benches/support.rs"]
+mod support;
+
 use glam::Vec3;
 use rand_core::{Rng, SeedableRng};
 use rayon::prelude::*;
@@ -33,13 +36,12 @@ use std::path::PathBuf;
 use std::time::Instant;
 use strata::accel::{Bvh8Stack, GROUP};
 use strata::csg::CsgArena;
-use strata::scene::{load_scene, Light, Profile, Scene, Shape};
+use strata::scene::{load_scene, Light, Profile, Scene};
 use strata::simd::{f32x8, Ray8, Vec3x8};
-use strata::wavefront::generate::{generate, Tile};
 use strata::wavefront::intersect::intersect;
 use strata::wavefront::queues::{RayItem, NONE};
 use strata::wavefront::shadow::{occlusion_group, occlusion_single};
-use strata::wavefront::{CsgCandidates, HitQueue, PathTable, RayQueue};
+use strata::wavefront::{CsgCandidates, HitQueue, RayQueue};
 
 const SHADOW_END: f32 = 1.0 - 1e-4;
 
@@ -71,30 +73,12 @@ fn fail(msg: &str) -> ! {
     std::process::exit(2)
 }
 
-/// Camera rays of every 4th 16 x 16 tile at 16 spp, one queue per tile.
+/// Camera rays of every 4th 16 x 16 tile at 16 spp (the benchmarks' queues: one tile per queue).
 fn camera_queues(scene: &Scene) -> Vec<RayQueue> {
-    let mut profile = Profile::builtin("bench");
-    profile.spp = 16;
-    let mut out = Vec::new();
-    let mut k = 0;
-    for y0 in (0..scene.height).step_by(16) {
-        for x0 in (0..scene.width).step_by(16) {
-            k += 1;
-            if k % 4 != 0 {
-                continue;
-            }
-            let tile = Tile { x0, y0, x1: (x0 + 16).min(scene.width), y1: (y0 + 16).min(scene.height) };
-            let (mut q, mut paths) = (RayQueue::new(false, false), PathTable::default());
-            generate(scene, &profile, 1, tile, 0..16, &mut paths, &mut q);
-            q.pad();
-            q.pixels = tile.pixel_count();
-            out.push(q);
-        }
-    }
-    out
+    support::camera_queues(scene, 16).into_iter().skip(3).step_by(4).collect()
 }
 
-/// Per queue, the hit point and facing surface normal of each ray that hits a sphere or a quad.
+/// Per queue, the hit point and facing surface normal of each ray that hits a sphere, plane or quad.
 fn hit_points(scene: &Scene, qs: &[RayQueue]) -> Vec<Vec<(Vec3, Vec3)>> {
     let (mut hits, mut cands) = (HitQueue::default(), CsgCandidates::default());
     qs.iter()
@@ -105,12 +89,7 @@ fn hit_points(scene: &Scene, qs: &[RayQueue]) -> Vec<Vec<(Vec3, Vec3)>> {
                 .filter_map(|i| {
                     let r = q.get(i);
                     let p = r.o + r.d * hits.t[i];
-                    let n = match scene.prims[hits.prim[i] as usize].shape {
-                        Shape::Sphere { center, .. } => (p - center).normalize(),
-                        Shape::Quad(quad) => quad.unit_normal,
-                        _ => return None,
-                    };
-                    Some((p, if n.dot(r.d) > 0.0 { -n } else { n }))
+                    support::facing_normal(scene, hits.prim[i], p, r.d).map(|n| (p, n))
                 })
                 .collect()
         })
@@ -125,10 +104,8 @@ fn bounce_queues(points: &[Vec<(Vec3, Vec3)>], pixels: &[u32], u: &mut impl FnMu
         .map(|(pts, &px)| {
             let mut q = RayQueue::new(false, false);
             for &(p, n) in pts {
-                let (a, b) = n.any_orthonormal_pair();
-                let (rad, phi) = (u().sqrt(), std::f32::consts::TAU * u());
-                let z = (1.0 - rad * rad).max(0.0).sqrt();
-                let d = a * (rad * phi.cos()) + b * (rad * phi.sin()) + n * z;
+                let (u1, u2) = (u(), u());
+                let d = support::cosine_about(n, u1, u2);
                 q.push(&RayItem { o: strata::geometry::offset_ray_origin(p, n), d, tmax: f32::INFINITY, ..Default::default() });
             }
             q.pad();
