@@ -310,19 +310,8 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return 0;
         }
-        let ls = LaneSlabs::new(ray);
-        let tmax = ray.tmax.to_array();
-        let stack = &mut stack.0[..STACK + WIDTH];
-        let mut occluded = 0;
-        let mut rest = lanes;
-        while rest != 0 {
-            let l = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
-            if tmax[l] > 0.0 && self.occluded_from(0, l, &ls, tmax[l], stack, &mut leaf) {
-                occluded |= 1 << l;
-            }
-        }
-        occluded
+        let live = lanes & ray.tmax.simd_gt(f32x8::ZERO).to_bitmask();
+        self.occluded_each(0, live, &LaneSlabs::new(ray), &ray.tmax.to_array(), &mut stack.0[..STACK + WIDTH], &mut leaf)
     }
 
     /// [`Bvh8::occluded_lanes`] starting with the packet: from the root, each node's 8 children are
@@ -358,14 +347,7 @@ impl Bvh8 {
             let e = packet[psp];
             let m = e.lanes & !occluded;
             if m.count_ones() as usize <= SWITCH_LANES {
-                let mut rest = m;
-                while rest != 0 {
-                    let l = rest.trailing_zeros() as usize;
-                    rest &= rest - 1;
-                    if self.occluded_from(e.child as usize, l, &ls, tmax[l], single, &mut leaf) {
-                        occluded |= 1 << l;
-                    }
-                }
+                occluded |= self.occluded_each(e.child as usize, m, &ls, &tmax, single, &mut leaf);
                 continue;
             }
             let n = &self.nodes[e.child as usize];
@@ -394,6 +376,29 @@ impl Bvh8 {
                         occluded |= 1 << l;
                     }
                 }
+            }
+        }
+        occluded
+    }
+
+    /// The lanes `lanes` (each with `tmax` > 0) one at a time through the subtree of node `start`
+    /// ([`Bvh8::occluded_from`] per lane): the occluded ones.
+    #[inline(always)]
+    fn occluded_each(
+        &self,
+        start: usize,
+        lanes: u32,
+        ls: &LaneSlabs,
+        tmax: &[f32; 8],
+        stack: &mut [Entry],
+        leaf: &mut impl FnMut(usize, usize, usize) -> bool,
+    ) -> u32 {
+        let (mut occluded, mut rest) = (0, lanes);
+        while rest != 0 {
+            let l = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            if self.occluded_from(start, l, ls, tmax[l], stack, leaf) {
+                occluded |= 1 << l;
             }
         }
         occluded

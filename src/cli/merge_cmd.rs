@@ -231,11 +231,7 @@ fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
         let missing = missing_ranges(spp, &all);
         say!("missing: {}", list(&missing));
         // Samples covered by complete films, each counted once where films overlap.
-        let (mut done, mut end) = (0u32, 0u32);
-        for r in &sorted {
-            done += r.end.saturating_sub(r.start.max(end));
-            end = end.max(r.end);
-        }
+        let done = spp - missing_ranges(spp, &complete).iter().map(|r| r.len() as u32).sum::<u32>();
         let overlaps = overlap_lines(&ok);
         for o in &overlaps {
             say!("overlap: {o}");
