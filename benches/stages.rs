@@ -8,7 +8,7 @@ mod support;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rayon::prelude::*;
 use std::hint::black_box;
-use strata::accel::{Bvh8Stack, GROUP};
+use strata::accel::{WideStack, GROUP};
 use strata::csg::{intervals_f64, CsgArena};
 use strata::scene::{Profile, Scene, Shape};
 use strata::simd::f32x8;
@@ -486,7 +486,7 @@ fn bench_shadow(c: &mut Criterion) {
     // them, which the shadow stage traces one ray at a time (`occlusion_single`). Validated against
     // the group traversal on every packet, then both timed.
     let (scattered, scattered_own) = shadow_packets_own(&scene, &bounce_queues(&scene, &qs));
-    let mut stack = Bvh8Stack::default();
+    let mut stack = WideStack::default();
     for g in scattered.chunks(GROUP) {
         let single = occlusion_single(&scene, &profile, g, &[None; GROUP], &mut arena, &mut stack);
         let (group, _) = occlusion_group(&scene, &profile, &mut g.to_vec(), &[None; GROUP], &mut arena, false);
@@ -499,7 +499,7 @@ fn bench_shadow(c: &mut Criterion) {
         b.iter(|| {
             pool.install(|| {
                 scattered.par_chunks(512).for_each_init(
-                    || (strata::csg::CsgArena::new(), Bvh8Stack::default()),
+                    || (strata::csg::CsgArena::new(), WideStack::default()),
                     |(arena, stack), ps| {
                         for g in ps.chunks(GROUP) {
                             black_box(occlusion_single(&scene, &profile, g, &[None; GROUP], arena, stack));

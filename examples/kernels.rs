@@ -34,7 +34,7 @@ use std::hint::black_box;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
-use strata::accel::{Bvh8Stack, GROUP};
+use strata::accel::{WideStack, GROUP};
 use strata::csg::CsgArena;
 use strata::scene::{load_scene, Light, Profile, Scene};
 use strata::simd::{f32x8, Ray8, Vec3x8};
@@ -239,14 +239,14 @@ fn main() {
         (n, sum, secs)
     };
     let any = |ps: &[Ray8], single: bool| {
-        let trace = |g: &[Ray8], arena: &mut CsgArena, stack: &mut Bvh8Stack| {
+        let trace = |g: &[Ray8], arena: &mut CsgArena, stack: &mut WideStack| {
             if single {
                 occlusion_single(&scene, &profile, g, &[None; GROUP], arena, stack)
             } else {
                 occlusion_group(&scene, &profile, &mut g.to_vec(), &[None; GROUP], arena, false).0
             }
         };
-        let (mut arena, mut stack) = (CsgArena::new(), Bvh8Stack::default());
+        let (mut arena, mut stack) = (CsgArena::new(), WideStack::default());
         let mut n = 0u64;
         for g in ps.chunks(GROUP) {
             let occ = trace(g, &mut arena, &mut stack);
@@ -257,7 +257,7 @@ fn main() {
         let secs = best(a.reps, || {
             pool.install(|| {
                 ps.par_chunks(512).for_each_init(
-                    || (CsgArena::new(), Bvh8Stack::default()),
+                    || (CsgArena::new(), WideStack::default()),
                     |(arena, stack), c| {
                         for g in c.chunks(GROUP) {
                             black_box(trace(g, arena, stack));

@@ -6,7 +6,7 @@
 
 use glam::Vec3;
 use rand_core::Rng;
-use strata::accel::{Bvh8Stack, GROUP};
+use strata::accel::{WideStack, GROUP};
 use strata::csg::CsgArena;
 use strata::scene::{Profile, Scene};
 use strata::simd::{f32x8, Ray8, Vec3x8};
@@ -54,7 +54,7 @@ fn one_ray_at_a_time_occludes_the_lanes_the_group_traversal_does() {
     let mut r = R::new(0x0051_491e);
     let profile = Profile::builtin("final");
     let mut arena = CsgArena::new();
-    let mut stack = Bvh8Stack::default();
+    let mut stack = WideStack::default();
     let (mut lanes, mut occluded) = (0u32, 0u32);
     for case in 0..24 {
         let k = [1e-3f32, 1.0, 37.0, 1e4][case % 4];

@@ -1,5 +1,5 @@
-//! 8-wide BVH tests: `Bvh8` invariants, the single-ray node kernel against the packet slab test, the
-//! single-ray and packet traversals against brute force f64, and the intersect stage with and without
+//! Wide BVH tests (16 or 8 children per node, `WIDTH`): `WideBvh` invariants, the single-ray node
+//! kernel against the packet slab test, the single-ray and packet traversals against brute force f64, and the intersect stage with and without
 //! the wide BVH (same `t` bits, same primitive ids). All seeds fixed.
 
 use std::collections::BTreeSet;
@@ -8,8 +8,8 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 use rand_core::Rng;
 use strata::accel::{
-    build_bvh, intersect_aabb_f64, intersect_aabb_x8, intersect_children_single, transpose8x8, Aabb, BuildOptions, Bvh, Bvh8, Bvh8Node,
-    Bvh8Stack, Collapse, PacketRay, MAX_DEPTH, WIDE_GROUP, WIDTH,
+    build_bvh, intersect_aabb_f64, intersect_aabb_x8, intersect_children_single, transpose8x8, Aabb, BuildOptions, Bvh, Collapse,
+    PacketRay, WideBvh, WideNode, WideStack, MAX_DEPTH, WIDE_GROUP, WIDTH,
 };
 use strata::csg::CsgArena;
 use strata::scene::{parse_scene, Scene};
@@ -45,15 +45,15 @@ impl Rand {
     }
 }
 
-fn collapse_ok(bounds: &[Aabb], opts: &BuildOptions) -> (Bvh, Bvh8) {
+fn collapse_ok(bounds: &[Aabb], opts: &BuildOptions) -> (Bvh, WideBvh) {
     let bvh = build_bvh(bounds, opts);
-    let greedy = Bvh8::from_bvh(&bvh, Collapse::Greedy);
+    let greedy = WideBvh::from_bvh(&bvh, Collapse::Greedy);
     if let Err(e) = greedy.validate(bounds) {
-        panic!("Bvh8::validate failed for {} boxes ({opts:?}, greedy collapse): {e}", bounds.len());
+        panic!("WideBvh::validate failed for {} boxes ({opts:?}, greedy collapse): {e}", bounds.len());
     }
-    let w = Bvh8::from_bvh(&bvh, Collapse::Sah);
+    let w = WideBvh::from_bvh(&bvh, Collapse::Sah);
     if let Err(e) = w.validate(bounds) {
-        panic!("Bvh8::validate failed for {} boxes ({opts:?}, SAH collapse): {e}", bounds.len());
+        panic!("WideBvh::validate failed for {} boxes ({opts:?}, SAH collapse): {e}", bounds.len());
     }
     // The SAH collapse is optimal over all cuts of the binary tree, the greedy one is one of them.
     assert!(w.sah_cost() <= greedy.sah_cost() * (1.0 + 1e-5), "SAH collapse {} > greedy {}", w.sah_cost(), greedy.sah_cost());
@@ -64,7 +64,7 @@ fn collapse_ok(bounds: &[Aabb], opts: &BuildOptions) -> (Bvh, Bvh8) {
 type Leaves = BTreeSet<(u32, u32, [u32; 6])>;
 
 /// The leaves of the binary and of the wide tree.
-fn leaves(bvh: &Bvh, w: &Bvh8) -> (Leaves, Leaves) {
+fn leaves(bvh: &Bvh, w: &WideBvh) -> (Leaves, Leaves) {
     let bits = |b: Aabb| [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z].map(f32::to_bits);
     let bin = bvh.nodes.iter().filter(|n| n.is_leaf()).map(|n| (n.left_first, n.count(), bits(n.aabb()))).collect();
     let wide = w
@@ -117,12 +117,13 @@ fn bvh8_validate_catches_corruption() {
     let mut rng = Rand::new(82);
     let bounds = random_boxes(&mut rng, 300, 50.0, 3.0);
     let (_, good) = collapse_ok(&bounds, &BuildOptions::default());
-    let corrupt = |f: &dyn Fn(&mut Bvh8)| {
+    let corrupt = |f: &dyn Fn(&mut WideBvh)| {
         let mut w = good.clone();
         f(&mut w);
         w.validate(&bounds)
     };
-    let leaf_slot = |w: &Bvh8| w.nodes.iter().enumerate().find_map(|(k, n)| (0..WIDTH).find(|&i| n.count[i] > 0).map(|i| (k, i))).unwrap();
+    let leaf_slot =
+        |w: &WideBvh| w.nodes.iter().enumerate().find_map(|(k, n)| (0..WIDTH).find(|&i| n.count[i] > 0).map(|i| (k, i))).unwrap();
     // A leaf slot shrunk (its last primitive then belongs to no leaf).
     assert!(corrupt(&|w| {
         let (k, i) = leaf_slot(w);
@@ -152,16 +153,18 @@ fn bvh8_validate_catches_corruption() {
 
 #[test]
 fn node_layout_is_the_documented_bytes() {
-    assert_eq!(std::mem::size_of::<Bvh8Node>(), 256);
-    assert_eq!(std::mem::align_of::<Bvh8Node>(), 64);
-    let mut n = Bvh8Node::EMPTY;
+    // With W = WIDTH: bounds at 0..24W (6 rows of W), child at 24W..28W, count at 28W..32W.
+    let w = WIDTH;
+    assert_eq!(std::mem::size_of::<WideNode>(), 32 * w);
+    assert_eq!(std::mem::align_of::<WideNode>(), 64);
+    let mut n = WideNode::EMPTY;
     n.bounds[4][2] = 7.0; // max y of child 2
     n.child[5] = 0xAABB_CCDD;
-    n.count[7] = 3;
+    n.count[w - 1] = 3;
     let bytes: &[u8] = bytemuck::bytes_of(&n);
-    assert_eq!(&bytes[(4 * 8 + 2) * 4..(4 * 8 + 3) * 4], &7.0f32.to_ne_bytes());
-    assert_eq!(&bytes[192 + 5 * 4..192 + 6 * 4], &0xAABB_CCDDu32.to_ne_bytes());
-    assert_eq!(&bytes[224 + 7 * 4..224 + 8 * 4], &3u32.to_ne_bytes());
+    assert_eq!(&bytes[(4 * w + 2) * 4..(4 * w + 3) * 4], &7.0f32.to_ne_bytes());
+    assert_eq!(&bytes[24 * w + 5 * 4..24 * w + 6 * 4], &0xAABB_CCDDu32.to_ne_bytes());
+    assert_eq!(&bytes[32 * w - 4..32 * w], &3u32.to_ne_bytes());
 }
 
 #[test]
@@ -196,10 +199,10 @@ fn packet(o: [Vec3; LANES], d: [Vec3; LANES], tmax: [f32; LANES]) -> Ray8 {
     )
 }
 
-/// A node over up to 8 random boxes at scale `s`: some flat on an axis (min = max), some hairline
+/// A node over up to `WIDTH` random boxes at scale `s`: some flat on an axis (min = max), some hairline
 /// (one ulp wide), some far away, the rest of the slots empty.
-fn random_node(rng: &mut Rand, s: f32) -> Bvh8Node {
-    let mut n = Bvh8Node::EMPTY;
+fn random_node(rng: &mut Rand, s: f32) -> WideNode {
+    let mut n = WideNode::EMPTY;
     for i in 0..1 + rng.below(WIDTH as u32) as usize {
         let c = rng.vec(-10.0, 10.0) * s;
         let mut h = rng.vec(0.0, 3.0) * s;
@@ -429,7 +432,7 @@ fn record(best: &mut Option<(f64, u32)>, p: u32, t: f64) -> Option<f32> {
     })
 }
 
-fn scenes() -> Vec<(f32, Vec<Prim>, Bvh8)> {
+fn scenes() -> Vec<(f32, Vec<Prim>, WideBvh)> {
     let mut rng = Rand::new(85);
     [(1.0f32, 400usize), (1e4, 300), (1e-4, 300), (1.0, 3)]
         .into_iter()
@@ -445,7 +448,7 @@ fn scenes() -> Vec<(f32, Vec<Prim>, Bvh8)> {
 #[test]
 fn single_ray_closest_and_any_hit_match_brute_force() {
     let mut rng = Rand::new(86);
-    let mut st = Bvh8Stack::default();
+    let mut st = WideStack::default();
     let (mut hit_count, mut occluded_count) = (0, 0);
     for (s, prims, w) in scenes() {
         for (o, d, tmax) in random_rays(&mut rng, &prims, 2500, s) {
@@ -474,7 +477,7 @@ fn single_ray_closest_and_any_hit_match_brute_force() {
 #[test]
 fn packet_closest_hit_matches_brute_force() {
     let mut rng = Rand::new(87);
-    let mut st = Bvh8Stack::default();
+    let mut st = WideStack::default();
     for (s, prims, w) in scenes() {
         let rays = random_rays(&mut rng, &prims, 4000, s);
         for chunk in rays.chunks(LANES) {
@@ -510,11 +513,11 @@ fn packet_closest_hit_matches_brute_force() {
 /// aimed around a random primitive), full and partial groups, inactive and zero-length lanes, groups
 /// whose lanes all have a finite `tmax`, and groups
 /// with an exactly zero direction component (no shared octant: the per-packet fallback), through
-/// `Bvh8::traverse_closest_group` against brute force (t and id, equal distances to the lower id).
+/// `WideBvh::traverse_closest_group` against brute force (t and id, equal distances to the lower id).
 #[test]
 fn group_closest_hit_matches_brute_force() {
     let mut rng = Rand::new(90);
-    let mut st = Bvh8Stack::default();
+    let mut st = WideStack::default();
     let (mut hits, mut full, mut fallback) = (0usize, 0usize, 0usize);
     for (s, prims, w) in scenes() {
         for g in 0..60 {
@@ -705,9 +708,9 @@ fn intersect_stage_is_identical_with_the_wide_bvh() {
             let q = stage_queue(&mut rng, &scene, if coherent { 3001 } else { 3000 }, s, coherent);
             let (groups, wide) = if coherent {
                 let wide = stage_hits(&scene, &q, Traversal::Wide, false);
-                let bvh8 = std::mem::take(&mut scene.bvh8);
+                let wide_bvh = std::mem::take(&mut scene.wide_bvh);
                 let binary = stage_hits(&scene, &q, Traversal::Wide, false);
-                scene.bvh8 = bvh8;
+                scene.wide_bvh = wide_bvh;
                 (binary, wide)
             } else {
                 (stage_hits(&scene, &q, Traversal::Groups, true), stage_hits(&scene, &q, Traversal::Wide, true))
@@ -740,7 +743,7 @@ fn entry_distances_beyond_the_f32_range_are_entered() {
     let far = prims.len() as u32 - 1;
     let bounds: Vec<Aabb> = prims.iter().map(Prim::bounds).collect();
     let (_, w) = collapse_ok(&bounds, &BuildOptions::default());
-    let mut st = Bvh8Stack::default();
+    let mut st = WideStack::default();
     let rays: Vec<(Vec3, Vec3)> = (0..8).map(|k| (Vec3::new(-15.0, 15.5 - k as f32, 15.5), Vec3::new(1e-9, 0.0, -0.0))).collect();
     let mut packet_best = [None; LANES];
     let mut ray = packet(std::array::from_fn(|l| rays[l].0), std::array::from_fn(|l| rays[l].1), [f32::INFINITY; LANES]);

@@ -166,7 +166,7 @@ pub(super) fn group_tmax(rays: &[Ray8]) -> f32 {
 impl Bvh {
     /// Closest-hit traversal of up to [`GROUP`] packets together (see the module doc). `leaf(slot, j,
     /// &mut rays[j])` has the contract of [`Bvh::traverse_closest_x8`]'s callback, for packet `j`.
-    /// A group without [`GroupBounds`] (directions of both signs on two axes) is traversed packet by packet.
+    /// A group without `GroupBounds` (directions of both signs on two axes) is traversed packet by packet.
     pub fn traverse_closest_group(&self, rays: &mut [Ray8], mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
         assert!(rays.len() <= GROUP, "at most {GROUP} packets per group");
         if self.nodes.is_empty() || rays.is_empty() {
@@ -221,7 +221,7 @@ impl Bvh {
     ///
     /// Returns each packet's occluded mask, as
     /// [`Bvh::traverse_any_x8`] would for that packet alone (same callback contract, for packet `j`).
-    /// Stops when every active lane of the group is occluded. A group without [`GroupBounds`] is
+    /// Stops when every active lane of the group is occluded. A group without `GroupBounds` is
     /// traversed packet by packet. The packets' `tmax` are used as working
     /// state (inactive and occluded lanes end at -1); nothing else of them changes.
     pub fn traverse_any_group(&self, rays: &mut [Ray8], mut leaf: impl FnMut(u32, usize, &Ray8) -> f32x8) -> [f32x8; GROUP] {

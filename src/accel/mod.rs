@@ -1,5 +1,6 @@
 //! Bounding volume hierarchies: a binary tree (binned SAH build, packet and group traversal) and an
-//! 8-wide tree collapsed from it (8-ray packet and single-ray traversal).
+//! wide tree collapsed from it (16 children per node with AVX-512, else 8; 8-ray packet and single-ray
+//! traversal).
 //!
 //! - `aabb.rs`: the box type and the ray-box slab kernels (`intersect_aabb_x8` and its f64 twin).
 //! - `node.rs`: the 32-byte node layout, a `Pod` contract.
@@ -9,12 +10,12 @@
 //! - `group.rs`: traversal of up to 16 packets together through the binary tree (shadow rays, and the
 //!   octant-sorted incoherent rays of trees under `WIDE_MIN_NODES`).
 //! - `wide_group.rs`: closest-hit traversal of up to 32 packets together through the wide tree, by an
-//!   interval test of 8 children at once (camera rays).
+//!   interval test of a node's children at once (camera rays).
 //! - `validate.rs`: `validate()` (tree invariants), `depth()`, `sah_cost()`.
-//! - `wide.rs`: [`Bvh8`], 8 children per node (a 256-byte `Pod` node: child boxes as 6 rows of 8
-//!   floats), collapsed from a built [`Bvh`] (greedy, or SAH-optimal as scenes do), its `validate()`
+//! - `wide.rs`: [`WideBvh`], [`WIDTH`] (16 or 8) children per node (a `32 * WIDTH`-byte `Pod` node:
+//!   child boxes as 6 rows of `WIDTH` floats, one vector register each), collapsed from a built [`Bvh`] (greedy, or SAH-optimal as scenes do), its `validate()`
 //!   and `sah_cost()`, and [`WIDE_MIN_NODES`], the tree size from which incoherent rays take it.
-//! - `wide_traverse.rs`: the wide tree's node kernel (one ray against 8 boxes, one `f32x8` per
+//! - `wide_traverse.rs`: the wide tree's node kernel (one ray against a node's boxes, one vector per
 //!   plane, the same padded distances as `intersect_aabb_x8`), closest-hit traversal of 8-ray packets
 //!   whose lanes enter children separately (the intersect stage's path for incoherent rays), and
 //!   closest-hit and any-hit traversal of one ray.
@@ -23,12 +24,12 @@
 //! - The BVH knows only boxes. Primitives are identified by their index into the `bounds` slice given
 //!   to [`build_bvh`]; leaves reference them through `Bvh::indices`, so a renderer may reorder its
 //!   primitive arrays by `indices` once after the build and then read leaf ranges contiguously. A
-//!   [`Bvh8`] keeps the binary tree's leaves (same `indices` ranges), so it reports the same ids.
+//!   [`WideBvh`] keeps the binary tree's leaves (same `indices` ranges), so it reports the same ids.
 //! - Node 0 is the root. The children of an inner node are adjacent: right = left + 1. A wide node's
 //!   children fill its first slots; empty slots hold the box (+inf, -inf), which no ray enters.
 //! - Depth (levels, root = 1) is at most [`MAX_DEPTH`], so traversal uses a fixed stack of
 //!   `MAX_DEPTH` entries and never allocates; the wide tree is no deeper, and its traversals take a
-//!   caller-owned [`Bvh8Stack`] (`(WIDTH - 1) * MAX_DEPTH + 1` entries), allocated once per caller.
+//!   caller-owned [`WideStack`] (`(WIDTH - 1) * MAX_DEPTH + 1` entries), allocated once per caller.
 //! - A packet lane is inactive when its `tmax < 0` (the team's convention is `-1`).
 
 mod aabb;
@@ -47,9 +48,9 @@ pub use build::build_bvh;
 pub use group::GROUP;
 pub use light_buffer::{Bound, LightBuffer, NO_CELL};
 pub use node::{BvhNode, MAX_LEAF_COUNT};
-pub use wide::{Bvh8, Bvh8Node, Collapse, WIDE_MIN_NODES, WIDTH};
+pub use wide::{Collapse, NodeF, NodeI, WideBvh, WideNode, WIDE_MIN_NODES, WIDTH};
 pub use wide_group::WIDE_GROUP;
-pub use wide_traverse::{intersect_children_single, transpose8x8, Bvh8Stack};
+pub use wide_traverse::{intersect_children_single, transpose8x8, WideStack};
 
 /// Maximum number of levels of a built tree (a root-only tree has depth 1). The build guarantees it
 /// by switching to object-median splits when an SAH split would leave too few levels; traversal

@@ -1,4 +1,5 @@
-//! The 8-wide BVH ([`Bvh8`]): its node layout, the collapse from the binary [`Bvh`], and `validate`.
+//! The wide BVH ([`WideBvh`], [`WIDTH`] = 16 or 8 children per node): its node layout, the collapse
+//! from the binary [`Bvh`], and `validate`.
 //! Traversal is in `wide_traverse.rs`.
 //!
 //! A wide node stands for a binary inner node; its children are binary nodes of that node's subtree
@@ -9,21 +10,43 @@
 //! Two ways to choose the cut ([`Collapse`]):
 //! - greedy (Wald, Benthin & Boulos 2008, "Getting Rid of Packets: Efficient SIMD Single-Ray Traversal
 //!   using Multi-branching BVHs"): start from the two children and replace the inner child of largest
-//!   surface area by its two children until 8 children or only leaves;
+//!   surface area by its two children until `WIDTH` children or only leaves;
 //! - SAH-optimal ([`SahCollapse`], after Ylitie, Karras & Laine 2017), which the scene uses: on
-//!   `bench_spheres.toml` 228 wide nodes instead of 377, and 5% faster packet traversal.
+//!   `bench_spheres.toml`, 8 children per node, 228 wide nodes instead of 377, and 5% faster packet
+//!   traversal.
 
 use glam::Vec3;
 
 use super::{Aabb, Bvh, MAX_DEPTH, SAH_INTERSECT_COST, SAH_TRAVERSAL_COST};
-use crate::simd::f32x8;
 use bytemuck::{Pod, Zeroable};
 
-/// Children per wide node.
+/// Children per wide node: one node row (a bound of every child) fills one vector register, 16 floats
+/// where the target has AVX-512 (a zmm register), else 8 (ymm). With AVX-512, 16 children against 8
+/// took the intersect stage of peer scene (b) (path tracing, 1,000 spheres) from 0.329 to 0.293 CPU s
+/// at 16 spp (one thread, 8 interleaved rounds, `benches/ab.py`), by fewer levels per ray (session
+/// 23, README "Intersection"); on an AVX2 build of the same machine (`-C target-cpu=znver3`, a 16-float
+/// row as two ymm) the two widths tied (0.372 against 0.371 s), so 8 stays there.
+#[cfg(target_feature = "avx512f")]
+pub const WIDTH: usize = 16;
+/// Children per wide node (see the AVX-512 definition).
+#[cfg(not(target_feature = "avx512f"))]
 pub const WIDTH: usize = 8;
 
+/// One node row (a value per child) as lanes.
+#[cfg(target_feature = "avx512f")]
+pub type NodeF = crate::simd::f32x16;
+/// One node row as lanes.
+#[cfg(not(target_feature = "avx512f"))]
+pub type NodeF = crate::simd::f32x8;
+/// One node row of integers as lanes.
+#[cfg(target_feature = "avx512f")]
+pub type NodeI = crate::simd::i32x16;
+/// One node row of integers as lanes.
+#[cfg(not(target_feature = "avx512f"))]
+pub type NodeI = crate::simd::i32x8;
+
 /// Smallest binary tree (in nodes) for which the intersect stage sends incoherent rays through the
-/// [`Bvh8`] (`Scene::wide_incoherent`; camera rays take it at every size, `wide_group.rs`). Below it, groups of packets
+/// [`WideBvh`] (`Scene::wide_incoherent`; camera rays take it at every size, `wide_group.rs`). Below it, groups of packets
 /// through the binary tree were faster: the top levels, where a packet's rays still enter the same
 /// nodes, are most of a small tree, and there a group shares one box test among 64 rays (groups of 8
 /// packets then; 16 since session 5) while the wide
@@ -42,30 +65,32 @@ pub const WIDTH: usize = 8;
 /// | bench_spheres.toml, 1000 spheres (1811)     | 13.9   | 15.1  |
 pub const WIDE_MIN_NODES: usize = 400;
 
-/// One wide node: `repr(C, align(64))`, `Pod`, 256 bytes (4 cache lines), no padding.
+/// One wide node: `repr(C, align(64))`, `Pod`, `32 * WIDTH` bytes (512 with 16 children: 8 cache lines;
+/// 256 with 8), no padding. With `W = WIDTH`:
 ///
-/// | bytes    | field    | content                                                                    |
-/// |----------|----------|----------------------------------------------------------------------------|
-/// | 0..192   | `bounds` | 6 rows of 8 f32: child box min x, min y, min z, max x, max y, max z        |
-/// | 192..224 | `child`  | per child: inner: index of its wide node; leaf: first slot in `indices`    |
-/// | 224..256 | `count`  | per child: leaf: primitive count (>= 1); inner or empty slot: 0            |
+/// | bytes          | field    | content                                                                  |
+/// |----------------|----------|--------------------------------------------------------------------------|
+/// | 0..24W         | `bounds` | 6 rows of W f32: child box min x, min y, min z, max x, max y, max z      |
+/// | 24W..28W       | `child`  | per child: inner: index of its wide node; leaf: first slot in `indices`  |
+/// | 28W..32W       | `count`  | per child: leaf: primitive count (>= 1); inner or empty slot: 0          |
 ///
-/// Children fill slots `0..k` (k >= 1); empty slots `k..8` hold the box min = +inf, max = -inf, which the
-/// slab test never enters, and `child = count = 0`. Rows are 32-byte aligned: one `f32x8` load each.
+/// Children fill slots `0..k` (k >= 1); empty slots `k..W` hold the box min = +inf, max = -inf, which the
+/// slab test never enters, and `child = count = 0`. Rows are `4 * W`-byte aligned: one [`NodeF`] load
+/// each.
 #[repr(C, align(64))]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
-pub struct Bvh8Node {
+pub struct WideNode {
     pub bounds: [[f32; WIDTH]; 6],
     pub child: [u32; WIDTH],
     pub count: [u32; WIDTH],
 }
 
-const _: () = assert!(std::mem::size_of::<Bvh8Node>() == 256);
-const _: () = assert!(std::mem::align_of::<Bvh8Node>() == 64);
+const _: () = assert!(std::mem::size_of::<WideNode>() == 32 * WIDTH);
+const _: () = assert!(std::mem::align_of::<WideNode>() == 64);
 
-impl Bvh8Node {
+impl WideNode {
     /// A node with no child (every slot empty).
-    pub const EMPTY: Bvh8Node = Bvh8Node {
+    pub const EMPTY: WideNode = WideNode {
         bounds: [
             [f32::INFINITY; WIDTH],
             [f32::INFINITY; WIDTH],
@@ -101,15 +126,15 @@ impl Bvh8Node {
     }
 }
 
-/// An 8-wide BVH. `nodes[0]` is the root (always an inner wide node, even over a single leaf); an empty
+/// A wide BVH ([`WIDTH`] children per node). `nodes[0]` is the root (always an inner wide node, even over a single leaf); an empty
 /// `nodes` hits nothing. `indices` is the binary tree's, and every leaf keeps its binary range.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Bvh8 {
-    pub nodes: Vec<Bvh8Node>,
+pub struct WideBvh {
+    pub nodes: Vec<WideNode>,
     pub indices: Vec<u32>,
 }
 
-impl Bvh8 {
+impl WideBvh {
     /// Collapse a binary tree (see the module doc). Linear in its node count (the SAH collapse does
     /// `WIDTH^2` work per binary node).
     pub fn from_bvh(bvh: &Bvh, how: Collapse) -> Self {
@@ -117,11 +142,11 @@ impl Bvh8 {
             return Self { nodes: Vec::new(), indices: bvh.indices.clone() };
         }
         let dp = (how == Collapse::Sah).then(|| SahCollapse::new(bvh));
-        let mut nodes = vec![Bvh8Node::EMPTY];
+        let mut nodes = vec![WideNode::EMPTY];
         // (wide node to fill, binary node it stands for)
         let mut todo = vec![(0usize, 0usize)];
         while let Some((w, b)) = todo.pop() {
-            let mut node = Bvh8Node::EMPTY;
+            let mut node = WideNode::EMPTY;
             let slots = match &dp {
                 Some(dp) => dp.slots(bvh, b),
                 None => collapse_greedy(bvh, b),
@@ -133,7 +158,7 @@ impl Bvh8 {
                 } else {
                     node.set_child(i, n.aabb(), nodes.len() as u32, 0);
                     todo.push((nodes.len(), c));
-                    nodes.push(Bvh8Node::EMPTY);
+                    nodes.push(WideNode::EMPTY);
                 }
             }
             nodes[w] = node;
@@ -161,13 +186,13 @@ impl Bvh8 {
     }
 }
 
-/// How [`Bvh8::from_bvh`] picks the binary nodes that become the children of a wide node.
+/// How [`WideBvh::from_bvh`] picks the binary nodes that become the children of a wide node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Collapse {
     /// Top-down: the two children, then repeatedly the inner child of largest surface area replaced by
-    /// its two children, until 8 children or only leaves ([`collapse_greedy`]).
+    /// its two children, until `WIDTH` children or only leaves (`collapse_greedy`).
     Greedy,
-    /// The least SAH cost over all ways to cut the binary tree into wide nodes ([`SahCollapse`]).
+    /// The least SAH cost over all ways to cut the binary tree into wide nodes (`SahCollapse`).
     Sah,
 }
 
@@ -283,15 +308,15 @@ fn collapse_greedy(bvh: &Bvh, b: usize) -> Vec<usize> {
     ch
 }
 
-impl Bvh8Node {
+impl WideNode {
     /// Occupied slots, from the min-x row (an empty slot's min is +inf, an occupied one's is finite).
     #[inline(always)]
     pub(super) fn child_count_fast(&self) -> usize {
-        f32x8::from(self.bounds[0]).simd_lt(f32x8::splat(f32::INFINITY)).to_bitmask().count_ones() as usize
+        NodeF::from(self.bounds[0]).simd_lt(NodeF::splat(f32::INFINITY)).to_bitmask().count_ones() as usize
     }
 }
 
-impl Bvh8 {
+impl WideBvh {
     /// Check the invariants of a tree collapsed from a binary tree over `bounds`:
     /// - an empty `bounds` has an empty tree; else `indices` is a permutation of `0..n`;
     /// - every node is reached exactly once from the root (no cycles, no orphans), at depth <=

@@ -1,11 +1,12 @@
-//! Group traversal of the 8-wide BVH: up to [`WIDE_GROUP`] 8-ray packets (256 coherent rays: camera
-//! rays of four 8x8 pixel blocks) descend [`Bvh8`] together, deciding each node's 8 children by the
-//! group's interval test alone.
+//! Group traversal of the wide BVH: up to [`WIDE_GROUP`] 8-ray packets (256 coherent rays: camera
+//! rays of four 8x8 pixel blocks) descend [`WideBvh`] together, deciding each node's children (16 or
+//! 8, [`WIDTH`]) by the group's interval test alone.
 //!
 //! The binary group traversal (`group.rs`) enters a node by one packet's slab test and falls back to
 //! the interval test when that packet misses: about 60 instructions per binary node, and a coherent
-//! group of 64 camera rays visits ~32 binary nodes; a group of 256 visits ~6 wide nodes here. Here the
-//! interval test of `GroupBounds` runs on a wide node's 8 children at once, one `f32x8` per quantity (the child boxes are rows of 8 floats): the same
+//! group of 64 camera rays visits ~32 binary nodes; a group of 256 visits ~6 wide nodes of 8 children
+//! here. Here the interval test of `GroupBounds` runs on a wide node's children at once, one
+//! [`NodeF`] per quantity (the child boxes are rows of `WIDTH` floats): the same
 //! operations on the same operands as the scalar test, lane by lane, so its verdicts are the scalar
 //! test's, which is conservative against the padded per-lane slab test (see `GroupBounds::misses`).
 //! Packets are tested only at leaves: when a wide node enters a leaf child, each packet runs the
@@ -20,9 +21,9 @@
 
 use super::aabb::{intersect_aabb_x8, PacketRay};
 use super::group::{culled, group_tmax, GroupBounds, SLACK};
-use super::wide::{Bvh8, Bvh8Node, WIDTH};
-use super::wide_traverse::{pop, push_children_but_nearest, Bvh8Stack};
-use crate::simd::{f32x8, Ray8};
+use super::wide::{NodeF, NodeI, WideBvh, WideNode, WIDTH};
+use super::wide_traverse::{pop, push_children_but_nearest, WideStack};
+use crate::simd::Ray8;
 use glam::Vec3;
 
 /// Packets per group of the wide group traversal. Camera rays of `bench_spheres` (one thread, best of
@@ -32,22 +33,22 @@ use glam::Vec3;
 pub const WIDE_GROUP: usize = 32;
 
 impl GroupBounds {
-    /// [`GroupBounds::misses`] for the 8 children of `n` at once: `(tn, enter)`, the entry bound of each
+    /// [`GroupBounds::misses`] for the children of `n` at once: `(tn, enter)`, the entry bound of each
     /// child and the mask (bit `i` = child `i`) of occupied children the test does not cull.
     #[inline(always)]
-    fn children(&self, n: &Bvh8Node, tmax: f32) -> (f32x8, u32) {
-        let row = |i: usize| f32x8::from(n.bounds[i]);
+    fn children(&self, n: &WideNode, tmax: f32) -> (NodeF, u32) {
+        let row = |i: usize| NodeF::from(n.bounds[i]);
         let axis = |a: usize| {
-            let (pad, o_lo, o_hi) = (f32x8::splat(self.pad[a]), f32x8::splat(self.o_lo[a]), f32x8::splat(self.o_hi[a]));
-            let (inv_lo, inv_hi) = (f32x8::splat(self.inv_lo[a]), f32x8::splat(self.inv_hi[a]));
+            let (pad, o_lo, o_hi) = (NodeF::splat(self.pad[a]), NodeF::splat(self.o_lo[a]), NodeF::splat(self.o_hi[a]));
+            let (inv_lo, inv_hi) = (NodeF::splat(self.inv_lo[a]), NodeF::splat(self.inv_hi[a]));
             let (b0, b1) = if self.neg.test(a) { (-row(a + 3), -row(a)) } else { (row(a), row(a + 3)) };
             let (d0, d1) = (b0 - pad - o_hi, b1 + pad - o_lo);
             ((d0 * inv_lo).fast_min(d0 * inv_hi), (d1 * inv_lo).fast_max(d1 * inv_hi))
         };
         let ((nx, fx), (ny, fy), (nz, fz)) = (axis(0), axis(1), axis(2));
-        let tn = nx.fast_max(ny).fast_max(nz).fast_max(f32x8::ZERO);
-        let tf = fx.fast_min(fy).fast_min(fz).fast_min(f32x8::splat(tmax));
-        let cull = (tn - tf).simd_gt(f32x8::splat(SLACK) * (tn.abs() + tf.abs()) + f32x8::splat(f32::MIN_POSITIVE));
+        let tn = nx.fast_max(ny).fast_max(nz).fast_max(NodeF::ZERO);
+        let tf = fx.fast_min(fy).fast_min(fz).fast_min(NodeF::splat(tmax));
+        let cull = (tn - tf).simd_gt(NodeF::splat(SLACK) * (tn.abs() + tf.abs()) + NodeF::splat(f32::MIN_POSITIVE));
         // Empty slots (min = +inf, max = -inf) give tn = +inf, tf = -inf (NaN on a mixed axis, whose
         // origins are infinite), which the verdict's arithmetic does not cull: they are excluded by
         // their box.
@@ -56,12 +57,12 @@ impl GroupBounds {
     }
 }
 
-impl Bvh8 {
+impl WideBvh {
     /// Closest-hit traversal of up to [`WIDE_GROUP`] packets together (see the module doc). `leaf(slot, j,
-    /// &mut rays[j])` has the contract of [`Bvh8::traverse_closest_x8`]'s callback (a primitive's
+    /// &mut rays[j])` has the contract of [`WideBvh::traverse_closest_x8`]'s callback (a primitive's
     /// slot in `indices`), for packet `j`. A group without `GroupBounds` (directions of both signs on
-    /// two axes) is traversed packet by packet ([`Bvh8::traverse_closest_x8`]).
-    pub fn traverse_closest_group(&self, rays: &mut [Ray8], stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
+    /// two axes) is traversed packet by packet ([`WideBvh::traverse_closest_x8`]).
+    pub fn traverse_closest_group(&self, rays: &mut [Ray8], stack: &mut WideStack, mut leaf: impl FnMut(u32, usize, &mut Ray8)) {
         assert!(rays.len() <= WIDE_GROUP, "at most {WIDE_GROUP} packets per group");
         if self.nodes.is_empty() || rays.is_empty() {
             return;
@@ -125,14 +126,14 @@ impl Bvh8 {
 
 /// Slots of `n` that hold a leaf (bit `i` = slot `i`).
 #[inline(always)]
-fn leaf_slots(n: &Bvh8Node) -> u32 {
-    let c = crate::simd::i32x8::from(bytemuck::cast::<[u32; WIDTH], [i32; WIDTH]>(n.count));
-    (!c.simd_eq(crate::simd::i32x8::ZERO)).to_bitmask() as u32
+fn leaf_slots(n: &WideNode) -> u32 {
+    let c = NodeI::from(bytemuck::cast::<[u32; WIDTH], [i32; WIDTH]>(n.count));
+    (!c.simd_eq(NodeI::ZERO)).to_bitmask() as u32
 }
 
 /// The packets among `among` (bit `j` = packet `j`) that pass the padded slab test of child `i`'s box.
 #[inline(always)]
-fn packets_entering(n: &Bvh8Node, i: usize, pr: &[PacketRay], rays: &[Ray8], among: u32) -> u32 {
+fn packets_entering(n: &WideNode, i: usize, pr: &[PacketRay], rays: &[Ray8], among: u32) -> u32 {
     let b = &n.bounds;
     let (bmin, bmax) = (Vec3::new(b[0][i], b[1][i], b[2][i]), Vec3::new(b[3][i], b[4][i], b[5][i]));
     let mut out = 0;
@@ -148,7 +149,7 @@ fn packets_entering(n: &Bvh8Node, i: usize, pr: &[PacketRay], rays: &[Ray8], amo
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simd::Vec3x8;
+    use crate::simd::{f32x8, Vec3x8};
     use glam::Vec3A;
 
     /// The 8-child interval test gives, child by child, the scalar test's verdict (`misses`): random
@@ -185,7 +186,7 @@ mod tests {
                 })
                 .collect();
             let gb = GroupBounds::new(&rays).expect("one octant, or one mixed axis");
-            let mut n = Bvh8Node::EMPTY;
+            let mut n = WideNode::EMPTY;
             for i in 0..(1 + round % WIDTH) {
                 let c = Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5) * 40.0 * scale;
                 let h = Vec3::new(f(), f(), f()) * [0.0, 1.0, 10.0][i % 3] * scale;
@@ -205,6 +206,6 @@ mod tests {
                 culled_count += (!b.is_empty() && !want) as usize;
             }
         }
-        assert!(compared == 24_000 && entered > 1000 && culled_count > 1000, "{entered} entered, {culled_count} culled");
+        assert!(compared == 3000 * WIDTH && entered > 1000 && culled_count > 1000, "{entered} entered, {culled_count} culled");
     }
 }

@@ -1,8 +1,8 @@
-//! Traversal of the 8-wide BVH ([`Bvh8`]): 8-ray packets whose lanes each test a node's 8 children at
-//! once (the intersect stage's traversal of incoherent rays), and one ray at a time (closest and any
+//! Traversal of the wide BVH ([`WideBvh`], [`WIDTH`] = 16 or 8 children per node): 8-ray packets
+//! whose lanes each test a node's children at once (the intersect stage's traversal of incoherent rays), and one ray at a time (closest and any
 //! hit).
 //!
-//! Node test: one ray against the 8 child boxes, one `f32x8` per plane (Wald, Benthin & Boulos 2008,
+//! Node test: one ray against the node's child boxes, one [`NodeF`] (`f32x16` or `f32x8`) per plane (Wald, Benthin & Boulos 2008,
 //! "Getting Rid of Packets"; Embree's single-ray kernels). The per-ray constants are the packet test's
 //! ([`PacketRay`]: every lane of it holds that lane's ray's constants bit for bit), and each plane
 //! distance is the same FMA with the same operands as in [`intersect_aabb_x8`]. The one difference:
@@ -25,8 +25,8 @@
 //! with the new `tmax` would fail too). The order is computed without branches: a child's stack
 //! position is the number of hit children farther than it (ties: the higher slot is farther).
 //!
-//! The stack is caller-owned scratch ([`Bvh8Stack`]): it has room for the worst case, `(WIDTH - 1) *
-//! MAX_DEPTH + 1` entries (7 KiB), and zeroing a local array that size on each call cost about 30% of
+//! The stack is caller-owned scratch ([`WideStack`]): it has room for the worst case, `(WIDTH - 1) *
+//! MAX_DEPTH + 1` entries (7 KiB at 8 children, 15 at 16), and zeroing a local array that size on each call cost about 30% of
 //! the single-ray time (140 -> 97 ns/ray) and 10% of the packet time (62 -> 55 ns/ray).
 //!
 //! Packet variants measured (single thread, best of 9, secondary rays of the intersect benchmark,
@@ -44,7 +44,7 @@ use glam::Vec3;
 
 use super::aabb::intersect_aabb_x8;
 use super::aabb::PacketRay;
-use super::wide::{Bvh8, Bvh8Node, WIDTH};
+use super::wide::{NodeF, WideBvh, WideNode, WIDTH};
 use super::MAX_DEPTH;
 use crate::simd::{f32x8, i32x8, Ray8, Vec3x8};
 
@@ -53,7 +53,7 @@ use crate::simd::{f32x8, i32x8, Ray8, Vec3x8};
 /// most `WIDTH - 1` more entries pending.
 const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
-/// Live lanes at or below which [`Bvh8::occluded_lanes_hybrid`] leaves a node to one-ray traversals.
+/// Live lanes at or below which [`WideBvh::occluded_lanes_hybrid`] leaves a node to one-ray traversals.
 pub const SWITCH_LANES: usize = 2;
 
 /// A pending child: its slot fields (`count` 0: an inner node), the smallest entry distance over the
@@ -66,14 +66,14 @@ pub(super) struct Entry {
     pub(super) lanes: u32,
 }
 
-/// Caller-owned traversal stack of [`Bvh8`], reused across traversals (see the module doc).
+/// Caller-owned traversal stack of [`WideBvh`], reused across traversals (see the module doc).
 #[derive(Clone, Debug)]
-pub struct Bvh8Stack(pub(super) Vec<Entry>);
+pub struct WideStack(pub(super) Vec<Entry>);
 
-impl Default for Bvh8Stack {
+impl Default for WideStack {
     fn default() -> Self {
         // (WIDTH more: a branch-free push writes all of a node's slots past the top. The second half:
-        // the packet stack of `Bvh8::occluded_lanes_hybrid`, which never holds more entries.)
+        // the packet stack of `WideBvh::occluded_lanes_hybrid`, which never holds more entries.)
         Self(vec![Entry::default(); 2 * (STACK + WIDTH)])
     }
 }
@@ -82,25 +82,25 @@ impl Default for Bvh8Stack {
 /// far plane.
 #[derive(Clone, Copy, Debug)]
 struct Slab {
-    inv_n: [f32x8; 3],
-    c_n: [f32x8; 3],
-    inv_f: [f32x8; 3],
-    c_f: [f32x8; 3],
+    inv_n: [NodeF; 3],
+    c_n: [NodeF; 3],
+    inv_f: [NodeF; 3],
+    c_f: [NodeF; 3],
 }
 
-/// Distances of one ray to the 8 child boxes of `n`: `(tnear, hit)`, `tnear = max(0, near planes)`,
+/// Distances of one ray to the child boxes of `n`: `(tnear, hit)`, `tnear = max(0, near planes)`,
 /// `hit` where `tnear <= min(far planes, tmax)`. Bit `a` of `OCT` is set when the ray's direction is
 /// negative on axis `a` (near plane = the box max).
 #[inline(always)]
-fn slab8<const OCT: usize>(n: &Bvh8Node, s: &Slab, tmax: f32x8) -> (f32x8, f32x8) {
-    let row = |i: usize| f32x8::from(n.bounds[i]);
+fn slab8<const OCT: usize>(n: &WideNode, s: &Slab, tmax: NodeF) -> (NodeF, NodeF) {
+    let row = |i: usize| NodeF::from(n.bounds[i]);
     let d = |a: usize| {
         let neg = (OCT >> a) & 1 == 1;
         let (near, far) = if neg { (a + 3, a) } else { (a, a + 3) };
         (row(near).mul_add(s.inv_n[a], s.c_n[a]), row(far).mul_add(s.inv_f[a], s.c_f[a]))
     };
     let ((nx, fx), (ny, fy), (nz, fz)) = (d(0), d(1), d(2));
-    let tn = nx.fast_max(ny).fast_max(nz.fast_max(f32x8::ZERO));
+    let tn = nx.fast_max(ny).fast_max(nz.fast_max(NodeF::ZERO));
     let tf = fx.fast_min(fy).fast_min(fz.fast_min(tmax));
     (tn, tn.simd_le(tf))
 }
@@ -108,7 +108,7 @@ fn slab8<const OCT: usize>(n: &Bvh8Node, s: &Slab, tmax: f32x8) -> (f32x8, f32x8
 /// [`slab8`] for a run-time octant (a predictable branch: a ray's octant never changes, and an
 /// octant-sorted packet's lanes share one).
 #[inline(always)]
-fn slab8_oct(oct: u32, n: &Bvh8Node, s: &Slab, tmax: f32x8) -> (f32x8, f32x8) {
+fn slab8_oct(oct: u32, n: &WideNode, s: &Slab, tmax: NodeF) -> (NodeF, NodeF) {
     match oct & 7 {
         0 => slab8::<0>(n, s, tmax),
         1 => slab8::<1>(n, s, tmax),
@@ -157,7 +157,7 @@ impl LaneSlabs {
     /// Lane `l`'s constants, splatted.
     #[inline(always)]
     fn lane(&self, l: usize) -> Slab {
-        let s = |v: &[[f32; 8]; 3]| [f32x8::splat(v[0][l]), f32x8::splat(v[1][l]), f32x8::splat(v[2][l])];
+        let s = |v: &[[f32; 8]; 3]| [NodeF::splat(v[0][l]), NodeF::splat(v[1][l]), NodeF::splat(v[2][l])];
         Slab { inv_n: s(&self.inv_n), c_n: s(&self.c_n), inv_f: s(&self.inv_f), c_f: s(&self.c_f) }
     }
 }
@@ -179,7 +179,7 @@ pub fn transpose8x8(mut x: u64) -> u64 {
 /// deepest, so that the nearest is on top; `lanes(i)` gives child `i`'s lane mask. (An entry distance
 /// can be +inf, for a box beyond the f32 range that a ray with `tmax = inf` enters: it is pushed last.)
 #[inline(always)]
-pub(super) fn push_children(n: &Bvh8Node, key: f32x8, hit: u32, lanes: impl Fn(usize) -> u32, stack: &mut [Entry], sp: &mut usize) {
+pub(super) fn push_children(n: &WideNode, key: NodeF, hit: u32, lanes: impl Fn(usize) -> u32, stack: &mut [Entry], sp: &mut usize) {
     if let Some(e) = push_children_but_nearest(n, key, hit, lanes, stack, sp) {
         stack[*sp] = e;
         *sp += 1;
@@ -191,8 +191,8 @@ pub(super) fn push_children(n: &Bvh8Node, key: f32x8, hit: u32, lanes: impl Fn(u
 /// stack. `None` when no child is hit.
 #[inline(always)]
 pub(super) fn push_children_but_nearest(
-    n: &Bvh8Node,
-    key: f32x8,
+    n: &WideNode,
+    key: NodeF,
     hit: u32,
     lanes: impl Fn(usize) -> u32,
     stack: &mut [Entry],
@@ -205,7 +205,7 @@ pub(super) fn push_children_but_nearest(
     while bits != 0 {
         let i = bits.trailing_zeros() as usize;
         bits &= bits - 1;
-        let k = f32x8::splat(ka[i]);
+        let k = NodeF::splat(ka[i]);
         let higher = !((2u32 << i) - 1);
         let farther = ((key.simd_gt(k).to_bitmask() | (key.simd_eq(k).to_bitmask() & higher)) & hit).count_ones() as usize;
         let e = Entry { child: n.child[i], count: n.count[i], tn: ka[i], lanes: lanes(i) };
@@ -233,12 +233,12 @@ pub(super) fn pop(nearest: &mut Option<Entry>, stack: &[Entry], sp: &mut usize) 
     Some(stack[*sp])
 }
 
-/// Ray `lane` of `ray` against the 8 children of `n` with the single-ray kernel the traversals use:
+/// Ray `lane` of `ray` against the children of `n` with the single-ray kernel the traversals use:
 /// `(tnear, hit bits)`, bit `i` for child `i` (tnear of missed children is unspecified). Against
 /// [`intersect_aabb_x8`] in `tests/wide_bvh.rs`.
-pub fn intersect_children_single(n: &Bvh8Node, ray: &Ray8, lane: usize) -> (f32x8, u32) {
+pub fn intersect_children_single(n: &WideNode, ray: &Ray8, lane: usize) -> (NodeF, u32) {
     let ls = LaneSlabs::new(ray);
-    let (tn, hit) = slab8_oct(ls.oct[lane], n, &ls.lane(lane), f32x8::splat(ray.tmax.to_array()[lane]));
+    let (tn, hit) = slab8_oct(ls.oct[lane], n, &ls.lane(lane), NodeF::splat(ray.tmax.to_array()[lane]));
     (tn, hit.to_bitmask())
 }
 
@@ -248,7 +248,7 @@ fn splat_ray(o: Vec3, d: Vec3, tmax: f32) -> Ray8 {
     Ray8::new(Vec3x8::splat(o), Vec3x8::splat(d), f32x8::splat(tmax))
 }
 
-impl Bvh8 {
+impl WideBvh {
     /// Closest-hit traversal of one ray. `leaf(slot, &mut tmax)` is called for each primitive of each
     /// visited leaf (`slot`: its position in `indices`, which holds the primitive); it lowers `tmax`
     /// when the primitive is hit nearer (the caller records which).
@@ -258,7 +258,7 @@ impl Bvh8 {
     ///
     /// Not used by the intersect stage (`wavefront::intersect::INCOHERENT` has the measurement: its
     /// octant-sorted packets share node tests and leaf calls that a lone ray pays alone).
-    pub fn traverse_closest_single(&self, o: Vec3, d: Vec3, tmax: f32, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, &mut f32)) {
+    pub fn traverse_closest_single(&self, o: Vec3, d: Vec3, tmax: f32, stack: &mut WideStack, mut leaf: impl FnMut(u32, &mut f32)) {
         let mut tmax = tmax;
         if self.nodes.is_empty() || !(tmax >= 0.0) {
             return;
@@ -270,7 +270,7 @@ impl Bvh8 {
         let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
-            let (tn, hit) = slab8_oct(oct, n, &s, f32x8::splat(tmax));
+            let (tn, hit) = slab8_oct(oct, n, &s, NodeF::splat(tmax));
             push_children(n, tn, hit.to_bitmask(), |_| 1, stack, &mut sp);
             loop {
                 if sp == 0 {
@@ -293,20 +293,20 @@ impl Bvh8 {
     }
 
     /// Any-hit (occlusion) traversal of one ray: true as soon as `leaf(prim, tmax)` returns true
-    /// ([`Bvh8::occluded_lanes`] with the ray in one lane). Nothing is visited when `tmax <= 0` (the
+    /// ([`WideBvh::occluded_lanes`] with the ray in one lane). Nothing is visited when `tmax <= 0` (the
     /// packet any-hit convention).
-    pub fn traverse_any_single(&self, o: Vec3, d: Vec3, tmax: f32, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, f32) -> bool) -> bool {
+    pub fn traverse_any_single(&self, o: Vec3, d: Vec3, tmax: f32, stack: &mut WideStack, mut leaf: impl FnMut(u32, f32) -> bool) -> bool {
         let ray = splat_ray(o, d, tmax);
         let hit = self.occluded_lanes(&ray, 1, stack, |_, first, count| self.indices[first..first + count].iter().any(|&p| leaf(p, tmax)));
         hit != 0
     }
 
     /// Any-hit traversal of the lanes `lanes` of a packet, one ray at a time (for incoherent shadow
-    /// rays, whose lanes share few nodes): lane `l` as [`Bvh8::traverse_any_single`] would traverse
+    /// rays, whose lanes share few nodes): lane `l` as [`WideBvh::traverse_any_single`] would traverse
     /// that ray, with the packet's slab constants. `leaf(l, first, count)` tests lane `l` against the
     /// leaf's primitives `indices[first..first + count]` and returns whether one occludes it; the lane
     /// stops at the first that does. Returns the occluded lanes.
-    pub fn occluded_lanes(&self, ray: &Ray8, lanes: u32, stack: &mut Bvh8Stack, mut leaf: impl FnMut(usize, usize, usize) -> bool) -> u32 {
+    pub fn occluded_lanes(&self, ray: &Ray8, lanes: u32, stack: &mut WideStack, mut leaf: impl FnMut(usize, usize, usize) -> bool) -> u32 {
         if self.nodes.is_empty() {
             return 0;
         }
@@ -314,21 +314,21 @@ impl Bvh8 {
         self.occluded_each(0, live, &LaneSlabs::new(ray), &ray.tmax.to_array(), &mut stack.0[..STACK + WIDTH], &mut leaf)
     }
 
-    /// [`Bvh8::occluded_lanes`] starting with the packet: from the root, each node's 8 children are
+    /// [`WideBvh::occluded_lanes`] starting with the packet: from the root, each node's children are
     /// tested with the packet's slab test ([`intersect_aabb_x8`], one child at a time for all lanes,
-    /// 8 independent tests), and a child is entered by the lanes that pass; a node reached by at most
-    /// [`SWITCH_LANES`] lanes is left to one-ray traversals of its subtree, one per lane. Rays towards
+    /// independent tests), and a child is entered by the lanes that pass; a node reached by at most
+    /// `SWITCH_LANES` lanes is left to one-ray traversals of its subtree, one per lane. Rays towards
     /// one light from nearby points share the nodes near the root: there the packet pays one test per
     /// child for all its lanes where one ray at a time pays a chain of dependent node visits per lane
     /// (Embree's hybrid traversal, Benthin et al. 2012, "Combining single and packet ray tracing for
     /// arbitrary ray distributions on the Intel MIC architecture", switches the same way). The packet
     /// test and the one-ray test agree on every lane (module doc), and leaves call `leaf` per lane as
-    /// the one-ray traversal does, so the occluded lanes are [`Bvh8::occluded_lanes`]'.
+    /// the one-ray traversal does, so the occluded lanes are [`WideBvh::occluded_lanes`]'.
     pub fn occluded_lanes_hybrid(
         &self,
         ray: &Ray8,
         lanes: u32,
-        stack: &mut Bvh8Stack,
+        stack: &mut WideStack,
         mut leaf: impl FnMut(usize, usize, usize) -> bool,
     ) -> u32 {
         if self.nodes.is_empty() {
@@ -382,7 +382,7 @@ impl Bvh8 {
     }
 
     /// The lanes `lanes` (each with `tmax` > 0) one at a time through the subtree of node `start`
-    /// ([`Bvh8::occluded_from`] per lane): the occluded ones.
+    /// ([`WideBvh::occluded_from`] per lane): the occluded ones.
     #[inline(always)]
     fn occluded_each(
         &self,
@@ -405,7 +405,7 @@ impl Bvh8 {
     }
 
     /// Lane `l` of the packet whose slab constants are `ls` (its `tmax` > 0), one ray at a time through
-    /// the subtree of node `start` (see [`Bvh8::occluded_lanes`]): whether a leaf's `leaf` call found
+    /// the subtree of node `start` (see [`WideBvh::occluded_lanes`]): whether a leaf's `leaf` call found
     /// it occluded.
     #[inline(always)]
     fn occluded_from(
@@ -417,18 +417,30 @@ impl Bvh8 {
         stack: &mut [Entry],
         leaf: &mut impl FnMut(usize, usize, usize) -> bool,
     ) -> bool {
-        let (s, oct, tm) = (ls.lane(l), ls.oct[l], f32x8::splat(tmax));
+        let (s, oct, tm) = (ls.lane(l), ls.oct[l], NodeF::splat(tmax));
         let mut sp = 0usize;
         let mut node = start;
         loop {
             let n = &self.nodes[node];
             let (_, hit) = slab8_oct(oct, n, &s, tm);
-            // Any hit ends the lane, so the order of the children does not matter: all 8 slots are
-            // written and the hit ones kept, without a branch per child.
+            // Any hit ends the lane, so the order of the children does not matter: with 8 children all
+            // slots are written and the hit ones kept, without a branch per child.
             let hit = hit.to_bitmask();
-            for i in 0..WIDTH {
-                stack[sp] = Entry { child: n.child[i], count: n.count[i], tn: 0.0, lanes: 1 };
-                sp += ((hit >> i) & 1) as usize;
+            if WIDTH <= 8 {
+                for i in 0..WIDTH {
+                    stack[sp] = Entry { child: n.child[i], count: n.count[i], tn: 0.0, lanes: 1 };
+                    sp += ((hit >> i) & 1) as usize;
+                }
+            } else {
+                // 16 slots: writing them all cost more than a loop over the hit ones (scattered
+                // shadow rays of peer scene (b), session 23).
+                let mut bits = hit;
+                while bits != 0 {
+                    let i = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    stack[sp] = Entry { child: n.child[i], count: n.count[i], tn: 0.0, lanes: 1 };
+                    sp += 1;
+                }
             }
             // The last child pushed (the highest hit slot) is taken from the node, not back from
             // the stack (no store-to-load round trip on the way down).
@@ -457,21 +469,21 @@ impl Bvh8 {
         }
     }
 
-    /// Closest-hit traversal of an 8-ray packet in which each lane tests a node's 8 children with one
+    /// Closest-hit traversal of an 8-ray packet in which each lane tests a node's children with one
     /// single-ray test, and only the lanes that entered a child test that child's children: every stack
-    /// entry carries its lane mask ([`transpose8x8`] turns the lanes' child masks into the children's
-    /// lane masks). Children are pushed near-first by the smallest entry distance over their lanes; a
+    /// entry carries its lane mask ([`transpose8x8`], per 8 children, turns the lanes' child masks into
+    /// the children's lane masks). Children are pushed near-first by the smallest entry distance over their lanes; a
     /// popped entry keeps only the lanes whose `tmax` still reaches that distance. Leaves test the whole
     /// packet. The callback contract is [`super::Bvh::traverse_closest_x8`]'s (lanes with `tmax < 0`
     /// are inactive), except that it is given each primitive's slot, its position in `indices` (leaf
     /// data kept in slot order, `scene::LeafSpheres`, is then read in order).
-    pub fn traverse_closest_x8(&self, ray: &mut Ray8, stack: &mut Bvh8Stack, mut leaf: impl FnMut(u32, &mut Ray8)) {
+    pub fn traverse_closest_x8(&self, ray: &mut Ray8, stack: &mut WideStack, mut leaf: impl FnMut(u32, &mut Ray8)) {
         let active = ray.tmax.simd_ge(f32x8::ZERO).to_bitmask();
         if self.nodes.is_empty() || active == 0 {
             return;
         }
         let ls = LaneSlabs::new(ray);
-        let inf = f32x8::splat(f32::INFINITY);
+        let inf = NodeF::splat(f32::INFINITY);
         let mut tm = ray.tmax.to_array();
         let stack = &mut stack.0[..];
         let mut sp = 0usize;
@@ -480,19 +492,21 @@ impl Bvh8 {
             let n = &self.nodes[node];
             // key: each child's smallest entry distance over the lanes that enter it; m: lane l's child
             // mask in byte l; any: the children some lane enters.
-            let (mut key, mut m, mut any) = (inf, 0u64, 0u32);
+            let (mut key, mut m, mut any) = (inf, [0u64; WIDTH / 8], 0u32);
             let mut rest = lanes;
             while rest != 0 {
                 let l = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
-                let (tn, hit) = slab8_oct(ls.oct[l], n, &ls.lane(l), f32x8::splat(tm[l]));
+                let (tn, hit) = slab8_oct(ls.oct[l], n, &ls.lane(l), NodeF::splat(tm[l]));
                 key = key.fast_min(hit.select(tn, inf));
                 let bits = hit.to_bitmask();
-                m |= (bits as u64) << (8 * l);
+                for (g, mg) in m.iter_mut().enumerate() {
+                    *mg |= (((bits >> (8 * g)) & 0xff) as u64) << (8 * l);
+                }
                 any |= bits;
             }
-            let m = transpose8x8(m);
-            let mut nearest = push_children_but_nearest(n, key, any, |i| ((m >> (8 * i)) & 0xff) as u32, stack, &mut sp);
+            let m = m.map(transpose8x8);
+            let mut nearest = push_children_but_nearest(n, key, any, |i| ((m[i / 8] >> (8 * (i % 8))) & 0xff) as u32, stack, &mut sp);
             loop {
                 let Some(e) = pop(&mut nearest, stack, &mut sp) else {
                     return;

@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 pub struct RenderArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Output image: .png (sRGB 8-bit) or .exr (linear float). Default: <scene name>.png.
+    /// Output image: .png (sRGB 8-bit) or .exr (linear float). Default: `<scene name>.png`.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Quality profile: a shipped name (preview, final, reference, bench, light1/9/36/100, caustic) or a path.

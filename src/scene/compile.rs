@@ -5,7 +5,7 @@
 use super::error::{read_text, InputError, Source};
 use super::format::{CameraDef, LightDef, MaterialDef, SceneFile, ShapeDef, TransformDef, S, V3};
 use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS};
-use crate::accel::{build_bvh, Aabb, Bound, BuildOptions, Bvh8, Collapse, LightBuffer, WIDE_MIN_NODES};
+use crate::accel::{build_bvh, Aabb, Bound, BuildOptions, Collapse, LightBuffer, WideBvh, WIDE_MIN_NODES};
 use crate::camera::Camera;
 use crate::csg::{self, Csg, CsgTree, Op};
 use crate::film::MAX_SAMPLE_VALUE;
@@ -189,7 +189,7 @@ impl Compiler<'_> {
         let bvh = build_bvh(&bvh_bounds, &BuildOptions::default());
         // Camera rays take the wide tree at every size; incoherent rays only from `WIDE_MIN_NODES`. The
         // collapse is linear in the node count, a few percent of the binary build.
-        let bvh8 = Bvh8::from_bvh(&bvh, Collapse::Sah);
+        let wide_bvh = WideBvh::from_bvh(&bvh, Collapse::Sah);
         let wide_incoherent = bvh.nodes.len() >= WIDE_MIN_NODES;
         let leaf_spheres = super::leaf_spheres::LeafSpheres::new(&bvh, &bounded, &self.prims);
         let prim_geo = self.prims.iter().map(super::PrimGeo::of).collect();
@@ -235,7 +235,7 @@ impl Compiler<'_> {
             prims: std::mem::take(&mut self.prims),
             bounds,
             bvh,
-            bvh8,
+            wide_bvh,
             wide_incoherent,
             prim_geo,
             leaf_spheres,

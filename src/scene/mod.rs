@@ -11,7 +11,7 @@ pub use compile::{load_scene, parse_scene};
 pub use error::InputError;
 pub use profile::{Branching, Profile};
 
-use crate::accel::{Aabb, Bvh, Bvh8};
+use crate::accel::{Aabb, Bvh, WideBvh};
 use crate::camera::Camera;
 use crate::csg::Csg;
 use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
@@ -257,10 +257,10 @@ pub struct Scene {
     pub bounds: Vec<Aabb>,
     /// The BVH indexes `bounded` (prim ids); unbounded prims (planes) are tested against every packet.
     pub bvh: Bvh,
-    /// The same tree collapsed to 8 children per node (`wavefront::intersect`): camera rays traverse it
+    /// The same tree collapsed to `accel::WIDTH` (16 or 8) children per node (`wavefront::intersect`): camera rays traverse it
     /// in groups of packets, incoherent rays as single packets when `wide_incoherent`.
-    pub bvh8: Bvh8,
-    /// Whether incoherent queues take `bvh8`: `bvh` has at least `accel::WIDE_MIN_NODES` nodes (below,
+    pub wide_bvh: WideBvh,
+    /// Whether incoherent queues take `wide_bvh`: `bvh` has at least `accel::WIDE_MIN_NODES` nodes (below,
     /// groups through the binary tree are faster for them).
     pub wide_incoherent: bool,
     /// Per prim, what Lambert shading reads of it ([`PrimGeo`]).

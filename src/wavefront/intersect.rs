@@ -1,10 +1,10 @@
 //! Stage 2: nearest hits of a ray queue: the unbounded planes first, then the BVH with the SIMD
 //! primitive kernels at the leaves. Coherent queues (camera rays, and any queue with at most one
-//! direction-octant change per 64 rays) traverse the 8-wide BVH in groups of up to 32 8-ray packets
+//! direction-octant change per 64 rays) traverse the wide BVH in groups of up to 32 8-ray packets
 //! (`accel/wide_group.rs`; the binary tree's groups of 16, `accel/group.rs`, only for a scene without a
 //! wide tree, i.e. without bounded primitives). Queues of incoherent rays are first partitioned by
 //! direction (octant, then, in queues of many rays per pixel, a patch of directions within it) and
-//! gathered into packets, which traverse the 8-wide BVH one packet at a time (`accel/wide_traverse.rs`) when `scene.wide_incoherent` (trees of at least `WIDE_MIN_NODES` binary
+//! gathered into packets, which traverse the wide BVH one packet at a time (`accel/wide_traverse.rs`) when `scene.wide_incoherent` (trees of at least `WIDE_MIN_NODES` binary
 //! nodes), else the binary tree in groups of 16 packets. CSG solids are not solved here: a packet that
 //! reaches a solid's bounds records (ray, solid) candidates for `csg_merge`.
 
@@ -230,7 +230,7 @@ fn counting_sort(start: &mut [usize], order: &mut [u32], key: impl Fn(usize) -> 
 pub enum Traversal {
     /// Groups of up to `GROUP` (16) octant-sorted packets through the binary BVH (`accel/group.rs`).
     Groups,
-    /// Octant-sorted 8-ray packets through the 8-wide BVH (`accel/wide_traverse.rs`), when the scene
+    /// Octant-sorted 8-ray packets through the wide BVH (`accel/wide_traverse.rs`), when the scene
     /// says so (`scene.wide_incoherent`: trees of at least `WIDE_MIN_NODES` binary nodes); else
     /// `Groups`.
     Wide,
@@ -244,7 +244,7 @@ pub fn intersect(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mu
 /// The traversal of incoherent queues that [`intersect`] uses. Chosen by measurement
 /// (`cargo bench --bench stages -- intersect/secondary`, and per scene size, see `WIDE_MIN_NODES`):
 /// on the benchmark's secondary rays (1000 spheres) the wide packets intersect 8% more rays per second
-/// than groups. One ray at a time through the wide BVH (`Bvh8::traverse_closest_single`, leaves
+/// than groups. One ray at a time through the wide BVH (`WideBvh::traverse_closest_single`, leaves
 /// testing the ray splatted over 8 lanes) was measured too and dropped: 7.6 M rays/s against 13.9 for
 /// groups and 15.1 for wide packets (one thread, best of 15): octant-sorted secondary rays of one tile
 /// are coherent enough that a packet shares most node tests and leaf calls (0.36 leaf calls per ray
@@ -318,7 +318,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     let mut order = std::mem::take(&mut hits.order);
     // Incoherent queues go one packet at a time through the wide tree, else in groups through the binary
     // one (direction cells were measured on the wide packets only: the groups keep octants alone).
-    let wide_packets = incoherent == Traversal::Wide && scene.wide_incoherent && !scene.bvh8.is_empty();
+    let wide_packets = incoherent == Traversal::Wide && scene.wide_incoherent && !scene.wide_bvh.is_empty();
     let sorted = direction_order(rays, &mut order, wide_packets);
     hits.scattered = sorted;
     if sorted && wide_packets {
@@ -331,7 +331,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     // Packets traverse together: coherent queues up to WIDE_GROUP packets (256 rays) through the wide
     // tree when the scene has one (`accel/wide_group.rs`), else up to GROUP (128 rays) through the
     // binary tree (`accel/group.rs`).
-    let wide = !sorted && !scene.bvh8.is_empty();
+    let wide = !sorted && !scene.wide_bvh.is_empty();
     let group = if wide { WIDE_GROUP } else { GROUP };
     let none = i32x8::splat(NONE as i32);
     let mut times = [None; WIDE_GROUP];
@@ -362,7 +362,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
             hit_slot(scene, slot, ray, &mut ids[j], times[j], cands, |l| ray_at(gbase + j * LANES + l) as u32);
         };
         if wide {
-            scene.bvh8.traverse_closest_group(&mut rs[..k], &mut hits.wide_stack, hit);
+            scene.wide_bvh.traverse_closest_group(&mut rs[..k], &mut hits.wide_stack, hit);
         } else {
             scene.bvh.traverse_closest_group(&mut rs[..k], hit);
         }
@@ -386,12 +386,12 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     hits.order = order;
 }
 
-/// An octant-sorted queue through the 8-wide BVH (`scene.bvh8`): packets of 8 rays gathered in `order`
-/// meet the planes, then traverse the wide BVH (`Bvh8::traverse_closest_x8`).
+/// An octant-sorted queue through the wide BVH (`scene.wide_bvh`): packets of 8 rays gathered in `order`
+/// meet the planes, then traverse the wide BVH (`WideBvh::traverse_closest_x8`).
 fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQueue, cands: &mut CsgCandidates) {
     let len = rays.len();
     let none = i32x8::splat(NONE as i32);
-    // The traversal stack is the queue's reusable scratch (7 KiB: not allocated per call).
+    // The traversal stack is the queue's reusable scratch (7 KiB with 8 children per node, 15 with 16: not allocated per call).
     let HitQueue { t: hit_t, prim: hit_prim, wide_stack: stack, .. } = hits;
     for base in (0..len).step_by(LANES) {
         let (mut ray, time) = gather_packet(rays, order, base, len);
@@ -400,7 +400,7 @@ fn intersect_wide(scene: &Scene, rays: &RayQueue, order: &[u32], hits: &mut HitQ
             let t = prim_t_ties(&scene.prims[pid as usize], &mut ray, &ids, None);
             record(&mut ray, &mut ids, t, pid);
         }
-        scene.bvh8.traverse_closest_x8(&mut ray, stack, |slot, r| {
+        scene.wide_bvh.traverse_closest_x8(&mut ray, stack, |slot, r| {
             hit_slot(scene, slot, r, &mut ids, time, cands, |l| order[base + l]);
         });
         let found = ids.simd_eq(none);

@@ -3,7 +3,7 @@
 //! `tmax = -1`, which no kernel hits). Queues are cleared, never freed: a wavefront reuses them for the
 //! next tile, so after warm-up nothing allocates.
 
-use crate::accel::Bvh8Stack;
+use crate::accel::WideStack;
 use crate::simd::{pad_to_lanes, LANES};
 use glam::Vec3;
 
@@ -325,7 +325,7 @@ pub struct HitQueue {
     /// Scratch of the intersect stage: ray indices partitioned by direction octant.
     pub order: Vec<u32>,
     /// Scratch of the intersect stage: the wide BVH's traversal stack (the shadow stage's too).
-    pub wide_stack: Bvh8Stack,
+    pub wide_stack: WideStack,
     /// Set by the intersect stage: the rays' directions were incoherent (it sorted them by octant), so
     /// the hit points are scattered (diffuse and glossy bounces), not a tile's coherent surface.
     pub scattered: bool,

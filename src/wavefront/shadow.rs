@@ -16,7 +16,7 @@ use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::queues::{NeeQueue, PathTable};
 use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, Walk};
 use crate::accel::{intersect_aabb_x8, PacketRay};
-use crate::accel::{Bvh8Stack, LightBuffer, GROUP, NO_CELL};
+use crate::accel::{LightBuffer, WideStack, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
 use crate::geometry::{occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, occludes_spheres_lanes, SpherePacket, SpherePacketOf};
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
@@ -194,7 +194,7 @@ pub fn shadow_with(
     nee: &NeeQueue,
     paths: &mut PathTable,
     arena: &mut CsgArena,
-    scattered: Option<&mut Bvh8Stack>,
+    scattered: Option<&mut WideStack>,
 ) -> (u64, u64) {
     // One batch per light in scenes of a few lights: a batch mixing lights in different directions has
     // directions of both signs on two or three axes, and its group is then traced packet by packet
@@ -244,7 +244,7 @@ pub fn shadow_with(
     // Only where it pays (measured): trees large enough that incoherent rays take the wide one in the
     // intersect stage too (in small trees groups share the top levels), and no CSG solids (a lone ray
     // would pay a whole 8-lane interval merge).
-    let mut single = scattered.filter(|_| !walk && scene.wide_incoherent && !scene.features.csg && !scene.bvh8.is_empty());
+    let mut single = scattered.filter(|_| !walk && scene.wide_incoherent && !scene.features.csg && !scene.wide_bvh.is_empty());
     let cones: Vec<Option<LightCone>> = scene
         .lights
         .iter()
@@ -664,7 +664,7 @@ fn flush_upto(
     credit: &mut Credit,
     arena: &mut CsgArena,
     walk: bool,
-    mut single: Option<&mut Bvh8Stack>,
+    mut single: Option<&mut WideStack>,
 ) -> u64 {
     let mut traced = 0;
     for pk in batches.iter_mut().filter(|b| b.len > 0) {
@@ -683,7 +683,7 @@ fn flush(
     credit: &mut Credit,
     arena: &mut CsgArena,
     walk: bool,
-    single: Option<&mut Bvh8Stack>,
+    single: Option<&mut WideStack>,
 ) -> u64 {
     let n = pk.len;
     pk.tmax[n..].fill(-1.0);
@@ -812,7 +812,7 @@ pub fn occlusion_group(
 }
 
 /// [`occlusion_group`] for scenes whose shadow rays walk through nothing (`!any_passable`), one ray at
-/// a time through the wide BVH (`Bvh8::occluded_lanes`): incoherent packets (shading points scattered
+/// a time through the wide BVH (`WideBvh::occluded_lanes`): incoherent packets (shading points scattered
 /// by bounces) share few nodes and leaves, so a packet's leaf tests would mostly test lanes that never
 /// reach the leaf. A leaf's static spheres meet the ray in one 8-lane call (spheres in lanes, the
 /// any-hit twin [`occludes_spheres_lanes`]: the verdict of the packet kernel per ray and sphere), its other prims
@@ -823,12 +823,12 @@ pub fn occlusion_single(
     rays: &[Ray8],
     times: &[Option<f32x8>],
     arena: &mut CsgArena,
-    stack: &mut Bvh8Stack,
+    stack: &mut WideStack,
 ) -> [f32x8; GROUP] {
     let none = f32x8::ZERO.simd_gt(f32x8::ONE); // all false
     let mut occ = [none; GROUP];
     let ls = &scene.leaf_spheres;
-    let idx = &scene.bvh8.indices;
+    let idx = &scene.wide_bvh.indices;
     for (j, ray) in rays.iter().enumerate() {
         let mut touched = 0;
         for &pid in &scene.unbounded {
@@ -839,7 +839,7 @@ pub fn occlusion_single(
         let time = times[j].map(|t| t.to_array());
         // The sphere twin's packet terms of each lane's ray in all 8 lanes: lane l of `pk`, splatted.
         let pk = SpherePacket::new(ray);
-        let bits = scene.bvh8.occluded_lanes_hybrid(ray, lanes, stack, |l, first, count| {
+        let bits = scene.wide_bvh.occluded_lanes_hybrid(ray, lanes, stack, |l, first, count| {
             // The lane's ray in all 8 lanes (its inverse direction as the packet computed it).
             let one = &Ray8 {
                 o: Vec3x8::splat(o.lane(l)),

@@ -224,7 +224,7 @@ fn sphere_pairs_x8(scene: &Scene, profile: &Profile, cr: &Walk, ray: &Ray8, time
 /// Shadow rays that can meet no surface but one sphere `prims[l]` (the light-cone test's verdict) of a
 /// dielectric they walk through ([`pair_sphere`]): per lane of `lanes`, the transmittance of the ray,
 /// exactly as the traversal and the walk would give it (1 where it misses the sphere; the pair's
-/// [`sphere_pairs_x8`] where it enters and leaves it within the segment). Lanes that cross the sphere
+/// `sphere_pairs_x8` where it enters and leaves it within the segment). Lanes that cross the sphere
 /// once (a segment starting or ending inside it) are left out of the returned mask: they are traced.
 pub fn single_sphere_x8(scene: &Scene, profile: &Profile, prims: &[u32; LANES], ray: &Ray8, lanes: u32) -> (u32, [Vec3; LANES]) {
     let mut tr = [Vec3::ONE; LANES];
