@@ -1,11 +1,13 @@
 //! Traversal of the wide BVH ([`WideBvh`], [`WIDTH`] = 16 or 8 children per node): 8-ray packets
-//! whose lanes each test a node's children at once (the intersect stage's traversal of incoherent rays), and one ray at a time (closest and any
-//! hit).
+//! whose lanes each test a node's children at once (the intersect stage's traversal of incoherent
+//! rays), and one ray at a time (closest and any hit).
 //!
-//! Node test: one ray against the node's child boxes, one [`NodeF`] (`f32x16` or `f32x8`) per plane (Wald, Benthin & Boulos 2008,
+//! Node test: one ray against the node's child boxes, one [`NodeF`] (`f32x16` or `f32x8`) per plane
+//! (Wald, Benthin & Boulos 2008,
 //! "Getting Rid of Packets"; Embree's single-ray kernels). The per-ray constants are the packet test's
 //! ([`PacketRay`]: every lane of it holds that lane's ray's constants bit for bit), and each plane
-//! distance is the same FMA with the same operands as in [`intersect_aabb_x8`]. The one difference:
+//! distance is the same FMA with the same operands as in
+//! [`intersect_aabb_x8`](super::aabb::intersect_aabb_x8). The one difference:
 //! the packet test sorts a slab's two distances with min/max, the single-ray test takes the near plane
 //! by the ray's direction sign (the min plane where `PacketRay`'s clamped `inv_d >= 0`, so a zero
 //! component counts with the sign of its zero, as there). The two agree whenever the padded distances
@@ -42,7 +44,6 @@
 
 use glam::Vec3;
 
-use super::aabb::intersect_aabb_x8;
 use super::aabb::PacketRay;
 use super::wide::{NodeF, WideBvh, WideNode, WIDTH};
 use super::MAX_DEPTH;
@@ -235,7 +236,7 @@ pub(super) fn pop(nearest: &mut Option<Entry>, stack: &[Entry], sp: &mut usize) 
 
 /// Ray `lane` of `ray` against the children of `n` with the single-ray kernel the traversals use:
 /// `(tnear, hit bits)`, bit `i` for child `i` (tnear of missed children is unspecified). Against
-/// [`intersect_aabb_x8`] in `tests/wide_bvh.rs`.
+/// [`intersect_aabb_x8`](super::aabb::intersect_aabb_x8) in `tests/wide_bvh.rs`.
 pub fn intersect_children_single(n: &WideNode, ray: &Ray8, lane: usize) -> (NodeF, u32) {
     let ls = LaneSlabs::new(ray);
     let (tn, hit) = slab8_oct(ls.oct[lane], n, &ls.lane(lane), NodeF::splat(ray.tmax.to_array()[lane]));
@@ -314,16 +315,22 @@ impl WideBvh {
         self.occluded_each(0, live, &LaneSlabs::new(ray), &ray.tmax.to_array(), &mut stack.0[..STACK + WIDTH], &mut leaf)
     }
 
-    /// [`WideBvh::occluded_lanes`] starting with the packet: from the root, each node's children are
-    /// tested with the packet's slab test ([`intersect_aabb_x8`], one child at a time for all lanes,
-    /// independent tests), and a child is entered by the lanes that pass; a node reached by at most
-    /// `SWITCH_LANES` lanes is left to one-ray traversals of its subtree, one per lane. Rays towards
-    /// one light from nearby points share the nodes near the root: there the packet pays one test per
-    /// child for all its lanes where one ray at a time pays a chain of dependent node visits per lane
-    /// (Embree's hybrid traversal, Benthin et al. 2012, "Combining single and packet ray tracing for
-    /// arbitrary ray distributions on the Intel MIC architecture", switches the same way). The packet
-    /// test and the one-ray test agree on every lane (module doc), and leaves call `leaf` per lane as
-    /// the one-ray traversal does, so the occluded lanes are [`WideBvh::occluded_lanes`]'.
+    /// [`WideBvh::occluded_lanes`] starting with the packet: from the root, the packet's live lanes
+    /// each test a node's children with the one-ray node test (as [`WideBvh::traverse_closest_x8`]
+    /// does: the lanes' tests are independent of each other, so they overlap), and a child is entered
+    /// by the lanes that pass; a node reached by at most `SWITCH_LANES` lanes is left to one-ray
+    /// traversals of its subtree, one per lane. Rays towards one light from nearby points share the
+    /// nodes near the root: there the lanes' node tests overlap where one ray at a time pays a chain of
+    /// dependent node visits per lane (Embree's hybrid traversal, Benthin et al. 2012, "Combining
+    /// single and packet ray tracing for arbitrary ray distributions on the Intel MIC architecture",
+    /// switches the same way). Every lane's verdict at every node is the one-ray test's, and leaves
+    /// call `leaf` per lane as the one-ray traversal does, so the occluded lanes are
+    /// [`WideBvh::occluded_lanes`]'.
+    ///
+    /// Session 22 tested each child with the packet's slab test (`intersect_aabb_x8`, one child at a
+    /// time for all lanes); at 16 children per node that is 16 tests per node where the lanes' own tests
+    /// are as many as the live lanes: scattered shadow rays of peer scene (b) 14.5-15.0 -> 17.8-18.1 M
+    /// rays/s on one thread (session 23).
     pub fn occluded_lanes_hybrid(
         &self,
         ray: &Ray8,
@@ -338,7 +345,7 @@ impl WideBvh {
         if live.count_ones() as usize <= SWITCH_LANES {
             return self.occluded_lanes(ray, live, stack, leaf);
         }
-        let (pr, ls, tmax) = (PacketRay::new(ray), LaneSlabs::new(ray), ray.tmax.to_array());
+        let (ls, tmax) = (LaneSlabs::new(ray), ray.tmax.to_array());
         let (single, packet) = stack.0.split_at_mut(STACK + WIDTH);
         let (mut occluded, mut psp) = (0u32, 1usize);
         packet[0] = Entry { child: 0, count: 0, tn: 0.0, lanes: live };
@@ -351,15 +358,23 @@ impl WideBvh {
                 continue;
             }
             let n = &self.nodes[e.child as usize];
-            let b = &n.bounds;
-            #[allow(clippy::needless_range_loop)] // (slot i of six bound rows, the child and the count)
-            for i in 0..WIDTH {
-                // (Empty slots, min = +inf and max = -inf, would pass the packet test: skipped.)
-                if !(b[0][i] <= b[3][i]) {
-                    continue;
+            // Each live lane's children with the one-ray node test (lanes independent of each
+            // other), then each child's lanes.
+            let (mut by_lane, mut any, mut rest) = ([0u64; WIDTH / 8], 0u32, m);
+            while rest != 0 {
+                let l = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                let bits = slab8_oct(ls.oct[l], n, &ls.lane(l), NodeF::splat(tmax[l])).1.to_bitmask();
+                any |= bits;
+                for (g, row) in by_lane.iter_mut().enumerate() {
+                    *row |= (((bits >> (8 * g)) & 0xff) as u64) << (8 * l);
                 }
-                let (lo, hi) = (Vec3::new(b[0][i], b[1][i], b[2][i]), Vec3::new(b[3][i], b[4][i], b[5][i]));
-                let hit = intersect_aabb_x8(lo, hi, &pr, ray.tmax).1.to_bitmask() & m & !occluded;
+            }
+            let by_child = by_lane.map(transpose8x8);
+            while any != 0 {
+                let i = any.trailing_zeros() as usize;
+                any &= any - 1;
+                let hit = ((by_child[i / 8] >> (8 * (i % 8))) & 0xff) as u32 & !occluded;
                 if hit == 0 {
                     continue;
                 }
