@@ -193,32 +193,35 @@ fn direction_order(rays: &RayQueue, order: &mut Vec<u32>, cells_allowed: bool) -
     if changes * 64 <= len {
         return false;
     }
-    order.clear();
-    order.resize(len, 0);
     if cells_allowed && rays.pixels > 0 && len >= MIN_RAYS_PER_PIXEL * rays.pixels as usize {
-        counting_sort(&mut [0; 8 * DIR_BINS * DIR_BINS + 1], order, |i| direction_bin(rays, i, DIR_BINS));
+        counting_sort(&mut [0; 8 * DIR_BINS * DIR_BINS + 1], order, len, |i| direction_bin(rays, i, DIR_BINS));
     } else {
         // (Octants alone: 9 counters, and no division per ray.)
-        counting_sort(&mut [0; 9], order, |i| octant(rays, i));
+        counting_sort(&mut [0; 9], order, len, |i| octant(rays, i));
     }
     true
 }
 
-/// Stable counting sort of `0..order.len()` by `key` (below `start.len() - 1`; `start` zeroed) into
-/// `order`.
+/// Stable counting sort of `0..len` by `key` (below `start.len() - 1`; `start` zeroed) into `order`
+/// (resized to `len`). Each key is computed once: kept in `order`'s second half until the scatter.
 #[inline(always)]
-fn counting_sort(start: &mut [usize], order: &mut [u32], key: impl Fn(usize) -> usize) {
-    for i in 0..order.len() {
-        start[key(i) + 1] += 1;
+fn counting_sort(start: &mut [usize], order: &mut Vec<u32>, len: usize, key: impl Fn(usize) -> usize) {
+    order.clear();
+    order.resize(2 * len, 0);
+    let (out, keys) = order.split_at_mut(len);
+    for (i, k) in keys.iter_mut().enumerate() {
+        let b = key(i);
+        *k = b as u32;
+        start[b + 1] += 1;
     }
     for b in 1..start.len() {
         start[b] += start[b - 1];
     }
-    for i in 0..order.len() {
-        let b = key(i);
-        order[start[b]] = i as u32;
-        start[b] += 1;
+    for (i, &b) in keys.iter().enumerate() {
+        out[start[b as usize]] = i as u32;
+        start[b as usize] += 1;
     }
+    order.truncate(len);
 }
 
 /// How [`intersect_with`] traverses a queue of incoherent rays (one that `direction_order` partitions).
