@@ -28,8 +28,9 @@
 //! position is the number of hit children farther than it (ties: the higher slot is farther).
 //!
 //! The stack is caller-owned scratch ([`WideStack`]): it has room for the worst case, `(WIDTH - 1) *
-//! MAX_DEPTH + 1` entries (7 KiB at 8 children, 15 at 16), and zeroing a local array that size on each call cost about 30% of
-//! the single-ray time (140 -> 97 ns/ray) and 10% of the packet time (62 -> 55 ns/ray).
+//! MAX_DEPTH + 1` entries (7 KiB at 8 children, 15 at 16), and zeroing a local array that size on
+//! each call cost about 30% of the single-ray time (140 -> 97 ns/ray) and 10% of the packet time (62
+//! -> 55 ns/ray).
 //!
 //! Packet variants measured (single thread, best of 9, secondary rays of the intersect benchmark,
 //! traversal with the bare sphere kernel at the leaves; binary packets 53 ns/ray, groups 54):
@@ -234,6 +235,41 @@ pub(super) fn pop(nearest: &mut Option<Entry>, stack: &[Entry], sp: &mut usize) 
     Some(stack[*sp])
 }
 
+/// Each child's lanes: the transposed lane-by-child hit matrix of [`lanes_children`], 8 children per
+/// word (lane `l`'s bit of child `i` is bit `8 * (i % 8) + l` of word `i / 8`).
+#[derive(Clone, Copy)]
+struct ChildLanes([u64; WIDTH / 8]);
+
+impl ChildLanes {
+    /// The lanes (bit `l` = lane `l`) that enter child `i`.
+    #[inline(always)]
+    fn lanes(&self, i: usize) -> u32 {
+        ((self.0[i / 8] >> (8 * (i % 8))) & 0xff) as u32
+    }
+}
+
+/// The lanes `lanes` of a packet (slab constants `ls`, `tmax` per lane) each against the children of
+/// `n` with the one-ray node test, independent of each other (so they overlap): the children some lane
+/// enters (bit `i` = child `i`) and each child's lanes. `per_lane(tn, hit)` sees each lane's entry
+/// distances and hit mask (the closest-hit traversal takes its children's keys from them).
+#[inline(always)]
+fn lanes_children(n: &WideNode, ls: &LaneSlabs, tmax: &[f32; 8], lanes: u32, mut per_lane: impl FnMut(NodeF, NodeF)) -> (u32, ChildLanes) {
+    // Lane l's child mask in byte l of one word per 8 children, then transposed.
+    let (mut by_lane, mut any, mut rest) = ([0u64; WIDTH / 8], 0u32, lanes);
+    while rest != 0 {
+        let l = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        let (tn, hit) = slab8_oct(ls.oct[l], n, &ls.lane(l), NodeF::splat(tmax[l]));
+        per_lane(tn, hit);
+        let bits = hit.to_bitmask();
+        any |= bits;
+        for (g, row) in by_lane.iter_mut().enumerate() {
+            *row |= (((bits >> (8 * g)) & 0xff) as u64) << (8 * l);
+        }
+    }
+    (any, ChildLanes(by_lane.map(transpose8x8)))
+}
+
 /// Ray `lane` of `ray` against the children of `n` with the single-ray kernel the traversals use:
 /// `(tnear, hit bits)`, bit `i` for child `i` (tnear of missed children is unspecified). Against
 /// [`intersect_aabb_x8`](super::aabb::intersect_aabb_x8) in `tests/wide_bvh.rs`.
@@ -360,21 +396,11 @@ impl WideBvh {
             let n = &self.nodes[e.child as usize];
             // Each live lane's children with the one-ray node test (lanes independent of each
             // other), then each child's lanes.
-            let (mut by_lane, mut any, mut rest) = ([0u64; WIDTH / 8], 0u32, m);
-            while rest != 0 {
-                let l = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
-                let bits = slab8_oct(ls.oct[l], n, &ls.lane(l), NodeF::splat(tmax[l])).1.to_bitmask();
-                any |= bits;
-                for (g, row) in by_lane.iter_mut().enumerate() {
-                    *row |= (((bits >> (8 * g)) & 0xff) as u64) << (8 * l);
-                }
-            }
-            let by_child = by_lane.map(transpose8x8);
+            let (mut any, by_child) = lanes_children(n, &ls, &tmax, m, |_, _| {});
             while any != 0 {
                 let i = any.trailing_zeros() as usize;
                 any &= any - 1;
-                let hit = ((by_child[i / 8] >> (8 * (i % 8))) & 0xff) as u32 & !occluded;
+                let hit = by_child.lanes(i) & !occluded;
                 if hit == 0 {
                     continue;
                 }
@@ -507,21 +533,9 @@ impl WideBvh {
             let n = &self.nodes[node];
             // key: each child's smallest entry distance over the lanes that enter it; m: lane l's child
             // mask in byte l; any: the children some lane enters.
-            let (mut key, mut m, mut any) = (inf, [0u64; WIDTH / 8], 0u32);
-            let mut rest = lanes;
-            while rest != 0 {
-                let l = rest.trailing_zeros() as usize;
-                rest &= rest - 1;
-                let (tn, hit) = slab8_oct(ls.oct[l], n, &ls.lane(l), NodeF::splat(tm[l]));
-                key = key.fast_min(hit.select(tn, inf));
-                let bits = hit.to_bitmask();
-                for (g, mg) in m.iter_mut().enumerate() {
-                    *mg |= (((bits >> (8 * g)) & 0xff) as u64) << (8 * l);
-                }
-                any |= bits;
-            }
-            let m = m.map(transpose8x8);
-            let mut nearest = push_children_but_nearest(n, key, any, |i| ((m[i / 8] >> (8 * (i % 8))) & 0xff) as u32, stack, &mut sp);
+            let mut key = inf;
+            let (any, by_child) = lanes_children(n, &ls, &tm, lanes, |tn, hit| key = key.fast_min(hit.select(tn, inf)));
+            let mut nearest = push_children_but_nearest(n, key, any, |i| by_child.lanes(i), stack, &mut sp);
             loop {
                 let Some(e) = pop(&mut nearest, stack, &mut sp) else {
                     return;
