@@ -79,7 +79,7 @@ impl WideBvh {
             pr[j] = PacketRay::new(&rays[j]);
         }
         let mut tmax = group_tmax(rays);
-        let all = u32::MAX >> (WIDE_GROUP - k);
+        let all = u32::MAX >> (u32::BITS as usize - k);
         let stack = &mut stack.0[..];
         let mut sp = 0usize;
         let mut node = 0usize;
