@@ -74,7 +74,7 @@ pub struct WideStack(pub(super) Vec<Entry>);
 
 impl Default for WideStack {
     fn default() -> Self {
-        // (WIDTH more: a branch-free push writes all of a node's slots past the top. The second half:
+        // (WIDTH more: at 8 children the one-ray any-hit writes all of a node's slots past the top. The second half:
         // the packet stack of `WideBvh::occluded_lanes_hybrid`, which never holds more entries.)
         Self(vec![Entry::default(); 2 * (STACK + WIDTH)])
     }
