@@ -19,6 +19,7 @@ use strata::wavefront::queues::NONE;
 use strata::wavefront::shade::{shade, ShadeOut};
 use strata::wavefront::shadow::{
     occluded_x8, occlusion_group, occlusion_light_buffer, occlusion_light_buffer_x16, occlusion_refused, occlusion_single, shadow,
+    PAIR_PACKETS,
 };
 use strata::wavefront::{CsgCandidates, HitQueue, NeeQueue, PathTable, RayQueue};
 
@@ -515,9 +516,10 @@ fn bench_shadow(c: &mut Criterion) {
 }
 
 /// Validate against the group traversal, then time, the shadow rays `packets` (towards the scene's
-/// first light, a point light) answered from its light buffer as the shadow stage answers them: two
-/// packets at a time as 16 lanes (row `name`; one packet at a time in `name_one_packet`), lanes on a
-/// static sphere skip it (`own`), lanes the buffer refuses go through the group traversal.
+/// first light, a point light) answered from its light buffer as the shadow stage answers them (row
+/// `name`: two packets at a time as 16 lanes where the target has AVX-512, else one packet at a time;
+/// the other way in `name_one_packet` or `name_pairs`), lanes on a static sphere skip it (`own`),
+/// lanes the buffer refuses go through the group traversal.
 #[allow(clippy::too_many_arguments)]
 fn time_light_buffer(
     g: &mut criterion::BenchmarkGroup<criterion::measurement::WallTime>,
@@ -551,8 +553,8 @@ fn time_light_buffer(
     }
     println!("{name}: {total} rays agree with the group traversal ({refused} refused, traced by it)");
     let work: Vec<(strata::simd::Ray8, [u32; 8])> = packets.iter().copied().zip(own.iter().copied()).collect();
-    // Pairs of packets as 16 lanes (what the shadow stage does: the timed row `name`), validated
-    // against single packets.
+    // Pairs of packets as 16 lanes (what the shadow stage does where the target has AVX-512),
+    // validated against single packets.
     let via_pair = |w: &[(strata::simd::Ray8, [u32; 8])], arena: &mut strata::csg::CsgArena| {
         let empty = strata::simd::Ray8 { tmax: f32x8::splat(-1.0), ..w[0].0 };
         let rays = [w[0].0, w.get(1).map_or(empty, |x| x.0)];
@@ -573,7 +575,11 @@ fn time_light_buffer(
             assert_eq!((pair >> (8 * h)) & 0xff, via_buffer(p, own, &mut arena), "a pair disagrees with its packets");
         }
     }
-    g.bench_function(name, |b| {
+    // Row `name` times what the shadow stage does on this target ([`PAIR_PACKETS`]: pairs where
+    // `f32x16` is one register, single packets elsewhere); the other way gets its own row.
+    let (pairs_row, single_row) =
+        if PAIR_PACKETS { (name.to_string(), format!("{name}_one_packet")) } else { (format!("{name}_pairs"), name.to_string()) };
+    g.bench_function(pairs_row, |b| {
         b.iter(|| {
             pool.install(|| {
                 work.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {
@@ -584,8 +590,7 @@ fn time_light_buffer(
             })
         })
     });
-    // One packet at a time (the 8-lane query: what the stage uses without AVX-512, and for a lone packet).
-    g.bench_function(format!("{name}_one_packet"), |b| {
+    g.bench_function(single_row, |b| {
         b.iter(|| {
             pool.install(|| {
                 work.par_chunks(512).for_each_init(strata::csg::CsgArena::new, |arena, ps| {

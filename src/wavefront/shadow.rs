@@ -926,8 +926,9 @@ pub fn occlusion_light_buffer_x16(
 }
 
 /// Whether the shadow stage pairs packets for the light buffer: where `f32x16` is one register. (On
-/// AVX2 a pair costs two packets' work, and pairing scattered packets measured 3% slower.)
-const PAIR_PACKETS: bool = cfg!(target_feature = "avx512f");
+/// AVX2 a pair costs two packets' work, and pairing scattered packets measured 3% slower.) Public for
+/// the criterion row that times what the stage does.
+pub const PAIR_PACKETS: bool = cfg!(target_feature = "avx512f");
 
 /// A lane type of the light-buffer query: one packet of 8 rays (`f32x8`) or two (`f32x16`), with
 /// the integer lanes (`U`) of its cells and own spheres.
