@@ -3,7 +3,8 @@
 
 Runs each binary in turn, N rounds, on the same scene and profile (one thread unless --threads), and
 prints every run's stage CPU seconds (from `--stats-json`, full precision) and, per binary, the median and range of
-each stage and of the wall time. Interleaving puts both binaries under the same host load; one batch of
+each stage and of the wall time; then, per binary after the first, the median of its round-by-round
+ratios to the first and in how many rounds it was faster (paired by round: robust to the VM's phases). Interleaving puts both binaries under the same host load; one batch of
 runs of A followed by one of B does not (the host's phases last minutes). Images are written to
 target/ab/<A, B, ...>.exr; when two binaries render the same image the script says so (`cmp`).
 
@@ -70,6 +71,16 @@ def main():
             v = [g.get(k, 0.0) for g in results[n]]
             cols.append(f"{k} {statistics.median(v):.4f} ({min(v):.4f}-{max(v):.4f})")
         print(f"{n}  median (range): " + "  ".join(cols))
+    # Paired by round: the VM's phases move whole rounds (by up to 1.6x within an hour on the Zen 3
+    # machine), so each round's ratio to A compares the binaries within one phase.
+    for n in names[1:]:
+        cols = []
+        for k in ["wall", *STAGES]:
+            ratios = [g[k] / a[k] for a, g in zip(results[names[0]], results[n]) if a.get(k, 0.0) > 0.0 and k in g]
+            if ratios:
+                faster = sum(x < 1.0 for x in ratios)
+                cols.append(f"{k} {statistics.median(ratios):.3f} ({faster}/{len(ratios)} faster)")
+        print(f"{n} / {names[0]} per round, median: " + "  ".join(cols))
     first = f"target/ab/{names[0]}.exr"
     for n in names[1:]:
         same = filecmp.cmp(first, f"target/ab/{n}.exr", shallow=False)
