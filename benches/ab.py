@@ -2,10 +2,11 @@
 """Interleaved A/B timing of two (or more) Strata binaries: the comparison to trust on a noisy VM.
 
 Runs each binary in turn, N rounds, on the same scene and profile (one thread unless --threads), and
-prints every run's stage CPU seconds (from `--stats-json`, full precision) and, per binary, the median and range of
-each stage and of the wall time; then, per binary after the first, the median of its round-by-round
-ratios to the first and in how many rounds it was faster (paired by round: robust to the VM's phases). Interleaving puts both binaries under the same host load; one batch of
-runs of A followed by one of B does not (the host's phases last minutes). Images are written to
+prints every run's stage CPU seconds (from `--stats-json`, full precision) and, per binary, the
+median and range of each stage and of the wall time; then, per binary after the first, the median of
+its round-by-round ratios to the first and in how many rounds it was faster (paired by round: robust
+to the VM's phases). Interleaving puts both binaries under the same host load; one batch of runs of A
+followed by one of B does not (the host's phases last minutes). Images are written to
 target/ab/<A, B, ...>.exr; when two binaries render the same image the script says so (`cmp`).
 
 Usage:
