@@ -948,8 +948,6 @@ trait PacketLanes: Lanes {
     fn load_u(v: &[u32]) -> Self::U;
     /// The lanes of `u` equal to `c`, as bits.
     fn eq_bits(u: Self::U, c: u32) -> u32;
-    /// The largest lane of `self` taken as unsigned integers (for non-negative floats: the largest).
-    fn max_bits(self) -> u32;
 }
 
 impl PacketLanes for f32x8 {
@@ -978,10 +976,6 @@ impl PacketLanes for f32x8 {
     #[inline(always)]
     fn eq_bits(u: u32x8, c: u32) -> u32 {
         u.simd_eq(u32x8::splat(c)).to_bitmask()
-    }
-    #[inline(always)]
-    fn max_bits(self) -> u32 {
-        bytemuck::cast::<f32x8, u32x8>(self).reduce_max()
     }
 }
 
@@ -1014,10 +1008,6 @@ impl PacketLanes for f32x16 {
     #[inline(always)]
     fn eq_bits(u: u32x16, c: u32) -> u32 {
         u.simd_eq(u32x16::splat(c)).to_bitmask()
-    }
-    #[inline(always)]
-    fn max_bits(self) -> u32 {
-        bytemuck::cast::<f32x16, u32x16>(self).reduce_max()
     }
 }
 
@@ -1066,18 +1056,18 @@ fn query_light_buffer<F: PacketLanes>(
         }
     }
     let own_v = F::load_u(own);
-    let len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    // Each lane's reach (its squared length, with room for the rounding of the lengths).
+    let reach = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) * F::splat(1.0 + 4e-6);
     let mut todo = q.pending;
     while todo != 0 {
         let c = cells[todo.trailing_zeros() as usize];
         let same = todo & F::eq_bits(cell_v, c);
         todo &= !same;
-        // The farthest reach of these lanes (with room for the rounding of their lengths). (Squares
-        // are >= 0, so their largest is the largest of their bit patterns.)
-        let reach = f32::from_bits(F::from_bits(same).select(len2, F::splat(0.0)).max_bits()) * (1.0 + 4e-6);
         let (prims, near2) = lb.cell(c);
         for (&pid, &n2) in prims.iter().zip(near2) {
-            if n2 > reach {
+            // The list is by nearest distance: done once it lies beyond every pending lane of the cell.
+            let live = q.pending & same;
+            if F::splat(n2).gt(reach).bits() & live == live {
                 break;
             }
             let mine = F::eq_bits(own_v, pid) & q.pending;
