@@ -357,7 +357,12 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
         // Unbounded planes first: their hits lower tmax, which culls the BVH beyond them.
         for j in 0..k {
             for &pid in &scene.unbounded {
-                let t = prim_t_ties(&scene.prims[pid as usize], &mut rs[j], &ids[j], None);
+                let prim = &scene.prims[pid as usize];
+                // Planes (the usual unbounded prim) by their kernel inline, not through the shape match.
+                let t = match &prim.shape {
+                    Shape::Plane(p) => t_ties(&mut rs[j], &ids[j], |r| intersect_plane_x8(p, r)),
+                    _ => prim_t_ties(prim, &mut rs[j], &ids[j], None),
+                };
                 record(&mut rs[j], &mut ids[j], t, pid);
             }
         }
