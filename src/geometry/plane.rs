@@ -1,7 +1,7 @@
 //! Infinite two-sided planes `normal . p = offset`.
 
 use super::{finish_t_x8, valid_f64};
-use crate::simd::{f32x8, Ray8};
+use crate::simd::{f32x8, Lanes, Ray8};
 use glam::{DVec3, Vec3};
 
 /// The plane of points `p` with `normal . p = offset`. `normal` need not be unit length (the
@@ -32,6 +32,18 @@ pub fn intersect_plane_x8(p: &Plane, ray: &Ray8) -> f32x8 {
     let num = nx.mul_neg_add(o.x, ny.mul_neg_add(o.y, nz.mul_neg_add(o.z, f32x8::splat(p.offset))));
     let den = ray.d.dot3(p.normal);
     finish_t_x8(num / den, ray)
+}
+
+/// Any-hit twin of [`intersect_plane_x8`] at any lane width (rays by axis; `finite` the rays'
+/// [`ray_finite`](super::ray_finite) mask): the lanes where `intersect_plane_x8(..) < tmax`, by the
+/// same operations on the same operands (`MISS` is +inf, which no `tmax` of a shadow ray exceeds).
+#[inline(always)]
+pub fn occludes_plane<F: Lanes>(o: [F; 3], d: [F; 3], tmax: F, p: &Plane, finite: F) -> F {
+    let (nx, ny, nz) = (F::splat(p.normal.x), F::splat(p.normal.y), F::splat(p.normal.z));
+    let num = nx.mul_neg_add(o[0], ny.mul_neg_add(o[1], nz.mul_neg_add(o[2], F::splat(p.offset))));
+    let den = d[0].mul_add(nx, d[1].mul_add(ny, d[2] * nz));
+    let t = num / den;
+    finite & t.gt(F::splat(0.0)) & t.lt(tmax)
 }
 
 /// f64 twin of [`intersect_plane_x8`] (textbook form, branches on the parallel case).

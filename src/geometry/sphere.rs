@@ -160,6 +160,12 @@ impl<F: Lanes> SpherePacketOf<F> {
         let a = d[0].mul_add(d[0], d[1].mul_add(d[1], d[2] * d[2]));
         SpherePacketOf { a, inv_a: F::splat(1.0) / a, finite: super::ray_finite(o, d) }
     }
+
+    /// The rays' finite mask ([`ray_finite`](super::ray_finite)), which every kernel's tail takes.
+    #[inline(always)]
+    pub fn finite(&self) -> F {
+        self.finite
+    }
 }
 
 /// Any-hit twin of the sphere kernel: the lanes whose nearest hit lies in `(0, tmax)`, exactly

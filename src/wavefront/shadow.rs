@@ -18,7 +18,9 @@ use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, trans
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{LightBuffer, WideStack, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
-use crate::geometry::{occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, occludes_spheres_lanes, SpherePacket, SpherePacketOf};
+use crate::geometry::{
+    occludes_plane, occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, occludes_spheres_lanes, SpherePacket, SpherePacketOf,
+};
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
@@ -1124,20 +1126,14 @@ impl<F: PacketLanes> Query<'_, F> {
     fn test(&mut self, pid: u32, arena: &mut CsgArena) -> bool {
         let (scene, profile) = (self.scene, self.profile);
         let g = &scene.prim_geo[pid as usize];
-        let occ = if g.r > 0.0 && (self.time.is_none() || g.motion == Vec3::ZERO) && blocks(scene, profile, g.material) {
+        let fixed = (self.time.is_none() || g.motion == Vec3::ZERO) && blocks(scene, profile, g.material);
+        let occ = if g.r > 0.0 && fixed {
             occludes_sphere(self.o, self.d, self.tmax, g.v, g.r, &self.pk).bits()
+        } else if let (true, Shape::Plane(p)) = (fixed && g.r < 0.0, &scene.prims[pid as usize].shape) {
+            // Unbounded planes (met by every packet): all lanes at once, as spheres.
+            occludes_plane(self.o, self.d, self.tmax, p, self.pk.finite()).bits()
         } else {
-            let mut occ = 0;
-            for (h, ray) in self.rays.iter().enumerate() {
-                if (self.pending >> (LANES * h)) & 0xff != 0 {
-                    let r = Ray8 { tmax: self.tmax.half(h), ..*ray };
-                    let mut touched = 0;
-                    let hit = prim_occlusion_with(scene, profile, pid, &r, None, self.time.map(|t| t[h]), arena, false, &mut touched);
-                    debug_assert_eq!(touched, 0, "no surface lets shadow rays through");
-                    occ |= hit.to_bitmask() << (LANES * h);
-                }
-            }
-            occ
+            other_prim_occlusion(scene, profile, pid, self.rays, self.tmax, self.pending, self.time, arena)
         } & self.pending;
         if occ != 0 {
             self.pending &= !occ;
@@ -1145,6 +1141,34 @@ impl<F: PacketLanes> Query<'_, F> {
         }
         self.pending != 0
     }
+}
+
+/// [`Query::test`] of a prim other than a static sphere or plane, packet by packet as the traversal's
+/// leaf test: out of line, so that the query's hot path keeps a small frame.
+#[allow(clippy::too_many_arguments)]
+#[cold]
+#[inline(never)]
+fn other_prim_occlusion<F: PacketLanes>(
+    scene: &Scene,
+    profile: &Profile,
+    pid: u32,
+    rays: &[Ray8],
+    tmax: F,
+    pending: u32,
+    time: Option<[f32x8; 2]>,
+    arena: &mut CsgArena,
+) -> u32 {
+    let mut occ = 0;
+    for (h, ray) in rays.iter().enumerate() {
+        if (pending >> (LANES * h)) & 0xff != 0 {
+            let r = Ray8 { tmax: tmax.half(h), ..*ray };
+            let mut touched = 0;
+            let hit = prim_occlusion_with(scene, profile, pid, &r, None, time.map(|t| t[h]), arena, false, &mut touched);
+            debug_assert_eq!(touched, 0, "no surface lets shadow rays through");
+            occ |= hit.to_bitmask() << (LANES * h);
+        }
+    }
+    occ
 }
 
 /// Any-hit test of 8 shadow rays against one prim (the traversal's leaf callback): the occluded lanes,
