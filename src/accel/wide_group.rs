@@ -74,10 +74,10 @@ impl WideBvh {
             return;
         };
         let k = rays.len();
+        // The packets' slab constants, made when the group first reaches a leaf: a group that reaches
+        // none (sky, or ground in front of every box) makes only packet 0's.
         let mut pr = [PacketRay::new(&rays[0]); WIDE_GROUP];
-        for j in 1..k {
-            pr[j] = PacketRay::new(&rays[j]);
-        }
+        let mut ready = k == 1;
         let mut tmax = group_tmax(rays);
         let all = u32::MAX >> (u32::BITS as usize - k);
         let stack = &mut stack.0[..];
@@ -92,6 +92,12 @@ impl WideBvh {
             while leaves != 0 {
                 let i = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
+                if !ready {
+                    for j in 1..k {
+                        pr[j] = PacketRay::new(&rays[j]);
+                    }
+                    ready = true;
+                }
                 packets[i] = packets_entering(n, i, &pr[..k], rays, all);
                 if packets[i] == 0 {
                     enter &= !(1 << i);
