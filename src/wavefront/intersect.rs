@@ -316,13 +316,20 @@ fn hit_slot(
 pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mut CsgCandidates, incoherent: Traversal) {
     let n = rays.padded_len();
     let len = rays.len();
-    hits.reset(n);
     cands.clear();
     let mut order = std::mem::take(&mut hits.order);
     // Incoherent queues go one packet at a time through the wide tree, else in groups through the binary
     // one (direction cells were measured on the wide packets only: the groups keep octants alone).
     let wide_packets = incoherent == Traversal::Wide && scene.wide_incoherent && !scene.wide_bvh.is_empty();
     let sorted = direction_order(rays, &mut order, wide_packets);
+    if sorted {
+        // Results are scattered through `order` to the queue's rays; padding keeps the misses.
+        hits.reset(n);
+    } else {
+        // Every packet of the queue stores all 8 lanes below.
+        debug_assert_eq!(n % LANES, 0, "queues are padded to whole packets");
+        hits.reset_for_overwrite(n);
+    }
     hits.scattered = sorted;
     if sorted && wide_packets {
         intersect_wide(scene, rays, &order, hits, cands);
