@@ -316,6 +316,10 @@ fn hit_slot(
 pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands: &mut CsgCandidates, incoherent: Traversal) {
     let n = rays.padded_len();
     let len = rays.len();
+    // Coherent queues store every packet's 8 lanes below; sorted ones scatter their results through
+    // `order`, and their padding keeps misses (`HitQueue::fill_misses`).
+    debug_assert_eq!(n % LANES, 0, "queues are padded to whole packets");
+    hits.reset_for_overwrite(n);
     cands.clear();
     let mut order = std::mem::take(&mut hits.order);
     // Incoherent queues go one packet at a time through the wide tree, else in groups through the binary
@@ -323,12 +327,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
     let wide_packets = incoherent == Traversal::Wide && scene.wide_incoherent && !scene.wide_bvh.is_empty();
     let sorted = direction_order(rays, &mut order, wide_packets);
     if sorted {
-        // Results are scattered through `order` to the queue's rays; padding keeps the misses.
-        hits.reset(n);
-    } else {
-        // Every packet of the queue stores all 8 lanes below.
-        debug_assert_eq!(n % LANES, 0, "queues are padded to whole packets");
-        hits.reset_for_overwrite(n);
+        hits.fill_misses();
     }
     hits.scattered = sorted;
     if sorted && wide_packets {

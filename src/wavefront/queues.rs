@@ -334,21 +334,25 @@ pub struct HitQueue {
 impl HitQueue {
     /// `n` entries of misses (`t` infinite, no prim, no CSG leaf, not flipped).
     pub fn reset(&mut self, n: usize) {
-        self.t.clear();
-        self.t.resize(n, f32::INFINITY);
-        self.prim.clear();
-        self.prim.resize(n, NONE);
-        self.reset_csg(n);
+        self.reset_for_overwrite(n);
+        self.fill_misses();
     }
 
-    /// `n` entries whose `t` and `prim` the caller writes, every one of them (their old values are
-    /// left in place, any new ones are misses), and whose CSG fields are reset as [`HitQueue::reset`] does.
+    /// `n` entries whose `t` and `prim` the caller writes, every one of them, or fills with
+    /// [`HitQueue::fill_misses`] (their old values are left in place, new ones are misses); the CSG
+    /// fields are reset as [`HitQueue::reset`] does.
     pub fn reset_for_overwrite(&mut self, n: usize) {
         self.t.truncate(n);
         self.t.resize(n, f32::INFINITY);
         self.prim.truncate(n);
         self.prim.resize(n, NONE);
         self.reset_csg(n);
+    }
+
+    /// Every entry's `t` and `prim` a miss.
+    pub fn fill_misses(&mut self) {
+        self.t.fill(f32::INFINITY);
+        self.prim.fill(NONE);
     }
 
     fn reset_csg(&mut self, n: usize) {
