@@ -1065,8 +1065,7 @@ fn query_light_buffer<F: PacketLanes>(
         let c = cells[todo.trailing_zeros() as usize];
         let same = todo & F::eq_bits(cell_v, c);
         todo &= !same;
-        let (prims, near2) = lb.cell(c);
-        for (&pid, &n2) in prims.iter().zip(near2) {
+        for &(n2, pid) in lb.cell(c) {
             // The list is by nearest distance: done once it lies beyond every pending lane of the cell.
             let live = q.pending & same;
             if F::splat(n2).gt(reach).bits() & live == live {
