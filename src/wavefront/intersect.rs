@@ -477,6 +477,71 @@ mod tests {
         assert!(!direction_order(&coherent, &mut Vec::new(), true));
     }
 
+    /// One hit queue reused across queues (as each worker reuses its own) gives, queue after queue, what a
+    /// fresh one gives, bit for bit and padding included: coherent queues overwrite every entry without
+    /// a fill first (`HitQueue::reset_for_overwrite`), sorted ones fill misses after the sort. The
+    /// sequence mixes camera-like and scattered queues of growing and shrinking sizes, and entries that
+    /// held a hit in the previous queue miss in the next (else stale hits could pass unseen).
+    #[test]
+    fn a_reused_hit_queue_gives_what_a_fresh_one_gives() {
+        let scene = crate::scene::load_scene(std::path::Path::new("scenes/bench_spheres.toml")).unwrap();
+        let mut u = test_uniforms(0x4e05e);
+        let camera_queue = |x0: u32, y0: u32, w: u32, h: u32| {
+            let mut q = RayQueue::new(false, false);
+            for y in y0..y0 + h {
+                for x in x0..x0 + w {
+                    let (o, d) = scene.camera.ray(x as f32 + 0.5, y as f32 + 0.5, [0.0, 0.0]);
+                    q.push(&RayItem { o, d, tmax: f32::INFINITY, ..Default::default() });
+                }
+            }
+            q.pixels = w * h;
+            q.pad();
+            q
+        };
+        let mut scattered_queue = |n: usize| {
+            let mut q = RayQueue::new(false, false);
+            for _ in 0..n {
+                let o = Vec3::new(u() * 30.0 - 15.0, u() * 3.0, u() * 30.0 - 15.0);
+                let d = Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5);
+                q.push(&RayItem { o, d, tmax: f32::INFINITY, ..Default::default() });
+            }
+            q.pixels = n as u32;
+            q.pad();
+            q
+        };
+        // (Rows 0-99 of bench_spheres look over the spheres at the sky; the lower rows meet them. The
+        // camera blocks stay off the image's centre column, where a block's directions change octant
+        // and the queue is sorted.)
+        let queues = [
+            (scattered_queue(3001), true),
+            (camera_queue(200, 0, 64, 40), false),
+            (camera_queue(100, 300, 50, 13), false),
+            (scattered_queue(93), true),
+            (camera_queue(0, 0, 64, 64), false),
+            (camera_queue(400, 250, 64, 64), false),
+            (camera_queue(400, 0, 64, 30), false),
+        ];
+        let (mut reused, mut cands) = (HitQueue::default(), CsgCandidates::default());
+        let (mut stale_tested, mut previous) = (0usize, Vec::new());
+        for (k, (q, scattered)) in queues.iter().enumerate() {
+            let mut fresh = HitQueue::default();
+            intersect(&scene, q, &mut fresh, &mut cands);
+            intersect(&scene, q, &mut reused, &mut cands);
+            assert_eq!(reused.scattered, *scattered, "queue {k}");
+            assert_eq!(reused.t.len(), q.padded_len(), "queue {k}");
+            assert_eq!(
+                reused.t.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
+                fresh.t.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
+                "queue {k}: t"
+            );
+            assert_eq!(reused.prim, fresh.prim, "queue {k}: prim");
+            assert_eq!((&reused.leaf, &reused.flip), (&fresh.leaf, &fresh.flip), "queue {k}: CSG fields");
+            stale_tested += (0..fresh.prim.len().min(previous.len())).filter(|&i| previous[i] != NONE && fresh.prim[i] == NONE).count();
+            previous = fresh.prim.clone();
+        }
+        assert!(stale_tested > 500, "{stale_tested} entries went from a hit to a miss");
+    }
+
     fn check_partition(rays: &RayQueue, cells: usize) {
         let mut order = Vec::new();
         assert!(direction_order(rays, &mut order, true), "random directions are incoherent");
