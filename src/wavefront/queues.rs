@@ -332,15 +332,9 @@ pub struct HitQueue {
 }
 
 impl HitQueue {
-    /// `n` entries of misses (`t` infinite, no prim, no CSG leaf, not flipped).
-    pub fn reset(&mut self, n: usize) {
-        self.reset_for_overwrite(n);
-        self.fill_misses();
-    }
-
     /// `n` entries whose `t` and `prim` the caller writes, every one of them, or fills with
     /// [`HitQueue::fill_misses`] (their old values are left in place, new ones are misses); the CSG
-    /// fields are reset as [`HitQueue::reset`] does.
+    /// fields are reset (no leaf, not flipped).
     pub fn reset_for_overwrite(&mut self, n: usize) {
         self.t.truncate(n);
         self.t.resize(n, f32::INFINITY);
