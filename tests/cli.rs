@@ -156,3 +156,46 @@ fn closed_pipes_do_not_panic() {
         assert!(study.join("study.csv").exists(), "the study with {closed} closed wrote no CSV");
     }
 }
+
+/// Outputs that name one file twice, or name an input (the scene, the profile, a film being merged),
+/// are refused before anything is written, whatever the spelling of the path; the inputs are left
+/// as they were. Writing the film back into the film a render resumes stays allowed.
+#[test]
+fn outputs_never_replace_each_other_or_an_input() {
+    let scene = tmp("clash.toml");
+    let text = std::fs::read_to_string("scenes/shapes/sphere.toml").unwrap();
+    std::fs::write(&scene, &text).unwrap();
+    let profile = tmp("clash_profile.toml");
+    let profile_text = std::fs::read_to_string("profiles/preview.toml").unwrap();
+    std::fs::write(&profile, &profile_text).unwrap();
+    let s = |p: &PathBuf| p.to_str().unwrap().to_string();
+    let dir = tmp("");
+    let twice = format!("{}/./clash.exr", dir.display());
+    let refused: [(Vec<String>, &str); 4] = [
+        (vec!["-o".into(), s(&tmp("clash.png")), "--stats-json".into(), s(&scene)], "the scene file"),
+        (vec!["-o".into(), s(&tmp("clash.exr")), "--film".into(), twice.clone()], "both name"),
+        (vec!["-o".into(), s(&tmp("clash.png")), "--profile".into(), s(&profile), "--stats-json".into(), s(&profile)], "the profile file"),
+        (vec!["-o".into(), s(&tmp("clash.exr")), "--stats-json".into(), twice], "both name"),
+    ];
+    for (args, want) in refused {
+        let mut a = vec!["render".to_string(), s(&scene), "--spp".into(), "1".into()];
+        a.extend(args.iter().cloned());
+        let out = strata().args(&a).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+    assert_eq!(std::fs::read_to_string(&scene).unwrap(), text);
+    assert_eq!(std::fs::read_to_string(&profile).unwrap(), profile_text);
+    assert!(!tmp("clash.exr").exists() && !tmp("clash.png").exists());
+
+    // A film, resumed into itself; then merged over itself (refused).
+    let film = tmp("clash.film");
+    let run = |a: &[&str]| strata().args(a).output().unwrap();
+    let (sc, fl, png) = (s(&scene), s(&film), s(&tmp("clash.png")));
+    assert_eq!(run(&["render", &sc, "--spp", "1", "-o", &png, "--film", &fl]).status.code(), Some(0));
+    assert_eq!(run(&["render", &sc, "--spp", "1", "-o", &png, "--resume", &fl, "--film", &fl]).status.code(), Some(0));
+    let out = run(&["merge", &fl, "-o", &png, "--film", &fl]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("an input film"));
+}

@@ -200,3 +200,65 @@ fn motion_of_a_placed_solid() {
     assert_eq!(line, line_of(&child, "children = "));
     assert!(msg.contains("top-level"), "{msg}");
 }
+
+/// A named solid is marked a hole where a group uses it (`{ use = "b", hole = true }`), which cuts it
+/// out exactly as the same solid written inline with `hole = true` does (equal CSG solids, so equal
+/// renders); `hole` on the definition itself is an error that says where it belongs, used or not.
+#[test]
+fn holes_of_named_solids_are_marked_where_they_are_used() {
+    let shape = |child: &str| {
+        format!("[[shapes]]\ntype = \"group\"\nmaterial = \"m\"\nchildren = [ {{ type = \"box\", min = [-1, -1, -1], max = [1, 1, 1] }}, {child} ]\n")
+    };
+    let ball = "[solids.b]\ntype = \"sphere\"\ncenter = [0, 0.5, 0]\nradius = 0.8\n";
+    let used = parse_scene(Path::new("ok.toml"), &format!("{BASE}{ball}{}", shape("{ use = \"b\", hole = true }"))).expect("a hole by use");
+    let inline = parse_scene(
+        Path::new("ok.toml"),
+        &format!("{BASE}{}", shape("{ type = \"sphere\", center = [0, 0.5, 0], radius = 0.8, hole = true }")),
+    )
+    .expect("an inline hole");
+    let added = parse_scene(Path::new("ok.toml"), &format!("{BASE}{ball}{}", shape("{ use = \"b\" }"))).expect("a union");
+    let dump = |s: &strata::scene::Scene| format!("{:?}", s.csg);
+    assert_eq!(dump(&used), dump(&inline), "the used hole and the inline hole differ");
+    assert_ne!(dump(&used), dump(&added), "the hole was added, not cut");
+
+    let marked = "[solids.b]\ntype = \"sphere\"\ncenter = [0, 0.5, 0]\nradius = 0.8\nhole = true\n";
+    for extra in [format!("{marked}{}", shape("{ use = \"b\" }")), marked.to_string()] {
+        let (line, field, msg) = fail(&extra);
+        assert_eq!((field.as_str(), line), ("solids.b.hole", line_of(&extra, "hole = true")));
+        assert!(msg.contains("use = \"b\", hole = true"), "{msg}");
+    }
+}
+
+/// Named solids no shape uses are checked as a use would check them: a bad radius, a missing
+/// material name, a reference to no solid, an open shape; a missing material alone is not an error
+/// (a use may give one).
+#[test]
+fn unused_named_solids_are_checked_too() {
+    let cases = [
+        ("[solids.u]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1\nmaterial = \"m\"\n", "solids.u.radius", "radius = -1"),
+        ("[solids.u]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"nope\"\n", "solids.u.material", "\"nope\""),
+        ("[solids.u]\nuse = \"ghost\"\n", "solids.u.use", "ghost"),
+        ("[solids.u]\ntype = \"quad\"\norigin = [0, 0, 0]\nu = [1, 0, 0]\nv = [0, 1, 0]\nmaterial = \"m\"\n", "solids.u.type", "quad"),
+    ];
+    for (extra, want, needle) in cases {
+        let (line, field, _) = fail(extra);
+        assert_eq!((field.as_str(), line), (want, line_of(extra, needle)), "{extra}");
+    }
+    let no_material = "[solids.u]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n";
+    parse_scene(Path::new("ok.toml"), &format!("{BASE}{no_material}")).expect("a solid that takes its material where it is used");
+}
+
+/// `children` on a shape that takes none is refused even when the list is empty; absorption on a
+/// thin sheet (which has no thickness to absorb along) is refused rather than ignored.
+#[test]
+fn fields_that_would_be_ignored_are_errors() {
+    let extra = "[[shapes]]\ntype = \"box\"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\nmaterial = \"m\"\nchildren = []\n";
+    let (line, field, _) = fail(extra);
+    assert_eq!((field.as_str(), line), ("shapes[0].children", line_of(extra, "children")));
+    for (key, value) in [("absorption", "[1, 1, 1]"), ("transmittance", "[0.5, 0.5, 0.5]")] {
+        let extra = format!("[materials.g]\ntype = \"dielectric\"\nior = 1.5\nthin = true\n{key} = {value}\n");
+        let (line, field, msg) = fail(&extra);
+        assert_eq!((field.as_str(), line), (format!("materials.g.{key}").as_str(), line_of(&extra, key)));
+        assert!(msg.contains("thin"), "{msg}");
+    }
+}

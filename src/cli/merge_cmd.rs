@@ -11,7 +11,7 @@ use clap::Args;
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::ops::Range;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug, Clone)]
 pub struct MergeArgs {
@@ -41,6 +41,12 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     if let Some(f) = &a.film {
         check_film_writable(f).map_err(Failure::input)?;
     }
+    let mut outputs: Vec<(&str, &Path)> = vec![("-o", &out)];
+    if let Some(f) = &a.film {
+        outputs.push(("--film", f));
+    }
+    let inputs: Vec<(&str, &Path)> = a.films.iter().map(|f| ("an input film", f.as_path())).collect();
+    super::check_distinct_files(&outputs, &inputs, &[])?;
     let mut films = Vec::new();
     for p in &a.films {
         films.push((p.clone(), read_film(p).map_err(Failure::input)?));

@@ -7,6 +7,7 @@ pub mod render_cmd;
 pub mod study_cmd;
 
 use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser, Debug)]
@@ -49,6 +50,40 @@ pub fn apply_sets(profile: &mut crate::scene::Profile, before: &[(&str, String)]
         pairs.push(s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?);
     }
     profile.set_all(pairs).map_err(|e| Failure::input(format!("command line: {e}")))
+}
+
+/// A path as the file system names it, so that two spellings of one file compare equal: canonical
+/// when the file exists, else its canonical directory joined with its name.
+fn file_identity(p: &Path) -> PathBuf {
+    if let Ok(c) = std::fs::canonicalize(p) {
+        return c;
+    }
+    let dir = match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    match (std::fs::canonicalize(dir), p.file_name()) {
+        (Ok(d), Some(name)) => d.join(name),
+        _ => p.to_path_buf(),
+    }
+}
+
+/// Refuse a command whose output files (flag, path) name one file twice, or name one of its input
+/// files (what, path): the later write would silently replace the earlier, or the input. `allowed`:
+/// (output flag, input) pairs that may name one file (a film written back into the film it resumes).
+pub fn check_distinct_files(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)], allowed: &[(&str, &str)]) -> Result<(), Failure> {
+    let outs: Vec<(&str, &Path, PathBuf)> = outputs.iter().map(|&(f, p)| (f, p, file_identity(p))).collect();
+    for (i, (fa, pa, ia)) in outs.iter().enumerate() {
+        if let Some((fb, _, _)) = outs[..i].iter().find(|(_, _, ib)| ib == ia) {
+            return Err(Failure::input(format!("{fb} and {fa} both name {}: give each output its own file", pa.display())));
+        }
+        for &(what, q) in inputs {
+            if !allowed.contains(&(fa, what)) && file_identity(q) == *ia {
+                return Err(Failure::input(format!("{fa} {} is {what}: writing it would replace that input", pa.display())));
+            }
+        }
+    }
+    Ok(())
 }
 
 pub fn main() -> ExitCode {

@@ -155,6 +155,23 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     if let Some(f) = &film_path {
         check_film_writable(f).map_err(Failure::input)?;
     }
+    let mut outputs: Vec<(&str, &Path)> = vec![("-o", &out)];
+    if let Some(j) = &a.stats_json {
+        outputs.push(("--stats-json", j));
+    }
+    if let Some(f) = &film_path {
+        outputs.push((if a.film.is_some() { "--film" } else { "--resume" }, f));
+    }
+    let profile_file =
+        [PathBuf::from(&a.profile), Path::new("profiles").join(format!("{}.toml", a.profile))].into_iter().find(|p| p.is_file());
+    let mut inputs: Vec<(&str, &Path)> = vec![("the scene file", &a.scene)];
+    if let Some(p) = &profile_file {
+        inputs.push(("the profile file", p));
+    }
+    if let Some(r) = &a.resume {
+        inputs.push(("the --resume film", r));
+    }
+    super::check_distinct_files(&outputs, &inputs, &[("--film", "the --resume film"), ("--resume", "the --resume film")])?;
     let checkpoint_every = match a.checkpoint_every {
         None => None,
         Some(s) if s.is_finite() && s > 0.0 && s < 1e9 => Some(Duration::from_secs_f64(s)),

@@ -12,7 +12,7 @@ use crate::film::MAX_SAMPLE_VALUE;
 use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
 use crate::optics::{sigma_from_transmittance, Ior};
 use glam::{Affine3A, EulerRot, Mat3, Quat, Vec3};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::ops::Range;
 use std::path::Path;
 
@@ -42,6 +42,8 @@ pub fn parse_scene(path: &Path, text: &str) -> R<Scene> {
         prims: Vec::new(),
         csg: Csg::new(),
         lights: Vec::new(),
+        used_solids: BTreeSet::new(),
+        lenient_material: false,
     };
     c.compile(hash_text(text))
 }
@@ -59,6 +61,10 @@ struct Compiler<'a> {
     prims: Vec<Prim>,
     csg: Csg,
     lights: Vec<Light>,
+    /// Named solids some shape uses (the others are checked on their own, after the shapes).
+    used_solids: BTreeSet<String>,
+    /// While checking an unused solid: a leaf may lack a material (a use would give it one).
+    lenient_material: bool,
 }
 
 impl Compiler<'_> {
@@ -157,6 +163,16 @@ impl Compiler<'_> {
             self.top_shape(def, &format!("shapes[{i}]"))?;
             if self.prims.len() > MAX_PRIMS {
                 return Err(self.err(def.span(), format!("shapes[{i}]"), format!("more than {MAX_PRIMS} primitives")));
+            }
+        }
+        // Named solids no shape uses are checked as a use would check them (a missing material
+        // excepted: a use may give it).
+        for (name, def) in &file.solids {
+            if !self.used_solids.contains(name) {
+                self.solid_definition(name, def)?;
+                self.lenient_material = true;
+                self.csg_tree(def, &format!("solids.{name}"), Affine3A::IDENTITY, None, 1, &mut vec![name.clone()])?;
+                self.lenient_material = false;
             }
         }
         for (i, def) in file.lights.iter().enumerate() {
@@ -460,6 +476,19 @@ impl Compiler<'_> {
                     if let Some(p) = &m.priority {
                         return Err(self.err(p.span(), f("priority"), "a thin sheet is not a medium: priority does not apply"));
                     }
+                    // A sheet of no thickness absorbs nothing along a path through it.
+                    for (name, v) in [
+                        ("absorption", m.absorption.as_ref().map(|x| x.span())),
+                        ("transmittance", m.transmittance.as_ref().map(|x| x.span())),
+                    ] {
+                        if let Some(span) = v {
+                            return Err(self.err(
+                                span,
+                                f(name),
+                                format!("a thin sheet has no thickness to absorb along: {name} does not apply"),
+                            ));
+                        }
+                    }
                 }
                 Material::Dielectric(Dielectric { ior, sigma_a, thin, schlick, priority, passable: false })
             }
@@ -515,6 +544,19 @@ impl Compiler<'_> {
             None => Vec3::ZERO,
         };
         Ok(Affine3A::from_scale_rotation_translation(scale, rot, tr))
+    }
+
+    /// What a named solid's definition may not hold, whether or not it is used: `hole` (a hole is a
+    /// place in a group, marked where the solid is used).
+    fn solid_definition(&self, name: &str, def: &S<ShapeDef>) -> R<()> {
+        match &def.get_ref().hole {
+            Some(h) => Err(self.err(
+                h.span(),
+                format!("solids.{name}.hole"),
+                format!("a named solid is not a hole by itself: mark the group child that uses it, `{{ use = \"{name}\", hole = true }}`"),
+            )),
+            None => Ok(()),
+        }
     }
 
     fn check_fields(&self, def: &S<ShapeDef>, field: &str, kind: &str, allowed: &[&str]) -> R<()> {
@@ -706,8 +748,11 @@ impl Compiler<'_> {
                 ));
             }
             // (`motion` reaches here only at the top level, where `top_shape` applies it to the
-            // placed solid: a CSG child's motion was refused above.)
-            self.check_fields(def, field, "use", &["motion"])?;
+            // placed solid: a CSG child's motion was refused above; `hole`, only in a group's
+            // children, where the group reads it.)
+            self.check_fields(def, field, "use", &["motion", "hole"])?;
+            self.solid_definition(name, target)?;
+            self.used_solids.insert(name.clone());
             uses.push(name.clone());
             let r = self.csg_tree(target, &format!("solids.{name}"), t, material, depth + 1, uses);
             uses.pop();
@@ -716,7 +761,7 @@ impl Compiler<'_> {
         let kind_s = self.req(&s.kind, def.span(), &f("type"))?;
         let kind = kind_s.get_ref().as_str();
         let mat = |c: &Self| -> R<u32> {
-            material.ok_or_else(|| {
+            material.or(c.lenient_material.then_some(0)).ok_or_else(|| {
                 c.err(
                     def.span(),
                     f("material"),
@@ -784,7 +829,7 @@ impl Compiler<'_> {
             }
             "csg" | "group" => {
                 self.check_fields(def, field, kind, &["op", "children", "motion", "hole"])?;
-                let children = s.children.as_ref().filter(|c| !c.is_empty()).ok_or_else(|| self.err(sp.clone(), f("children"), "missing required field (a non-empty list of solids)"))?;
+                let children = s.children.as_ref().map(|c| c.get_ref()).filter(|c| !c.is_empty()).ok_or_else(|| self.err(sp.clone(), f("children"), "missing required field (a non-empty list of solids)"))?;
                 if kind == "group" {
                     if let Some(op) = &s.op {
                         return Err(self.err(op.span(), f("op"), "a `group` has no op: it is the union of its children minus those marked `hole = true`"));

@@ -145,7 +145,7 @@ pub struct ShapeDef {
     pub motion: Option<V3>,
     pub transform: Option<S<TransformDef>>,
     pub op: Option<S<String>>,
-    pub children: Option<Vec<S<ShapeDef>>>,
+    pub children: Option<S<Vec<S<ShapeDef>>>>,
     pub hole: Option<S<bool>>,
 }
 
@@ -158,9 +158,7 @@ impl ShapeDef {
         }
         check!(center, radius, point, normal, min, max, origin, u, v, height, radius_top, major_radius, minor_radius, motion, op, hole);
         if let Some(c) = &self.children {
-            if let Some(first) = c.first() {
-                v.push(("children", first.span()));
-            }
+            v.push(("children", c.span()));
         }
         v
     }
