@@ -99,6 +99,10 @@ fn camera_errors() {
     assert_eq!(parse_scene(Path::new("c.toml"), &bad).unwrap_err().field, "camera.fov");
     let bad = BASE.replace("fov = 40", "fov = nan");
     assert_eq!(parse_scene(Path::new("c.toml"), &bad).unwrap_err().field, "camera.fov");
+    // Points that differ, at a distance beyond f32: said as such, not as equal points.
+    let bad = BASE.replace("position = [0, 1, 5]", "position = [0, 1, 1e20]").replace("look_at = [0, 0, 0]", "look_at = [0, 0, -1e20]");
+    let e = parse_scene(Path::new("c.toml"), &bad).unwrap_err();
+    assert!(e.field == "camera.look_at" && e.message.contains("overflows"), "{}", e.message);
 }
 
 #[test]

@@ -276,7 +276,10 @@ impl Compiler<'_> {
             None => Vec3::Y,
         };
         let forward = look_at - position;
-        if forward.length_squared() <= f32::MIN_POSITIVE || !forward.length().is_finite() {
+        if !forward.length().is_finite() {
+            return Err(self.err(c.look_at.span(), "camera.look_at", "too far from camera.position: their distance overflows f32"));
+        }
+        if forward.length_squared() <= f32::MIN_POSITIVE {
             return Err(self.err(c.look_at.span(), "camera.look_at", "must differ from camera.position"));
         }
         let up_span = c.up.as_ref().map_or(def.span(), |u| u.span());
