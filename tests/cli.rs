@@ -199,3 +199,49 @@ fn outputs_never_replace_each_other_or_an_input() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("an input film"));
 }
+
+/// A profile file's combination is checked after the command line's overrides: an error that no
+/// override touches is the file's, at its line; `--set` (or `--max-depth`) can make it valid; an
+/// override that breaks it is the command line's. `--set name=...` renames the profile.
+#[test]
+fn profile_overrides_are_checked_with_the_file() {
+    let profile = tmp("deep.toml");
+    let text: String = std::fs::read_to_string("profiles/preview.toml")
+        .unwrap()
+        .lines()
+        .map(|l| {
+            if l.starts_with("diffuse_depth") {
+                "diffuse_depth = 9\n".to_string()
+            } else if l.starts_with("max_depth") {
+                "max_depth = 4\n".to_string()
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    assert!(text.contains("diffuse_depth = 9"));
+    std::fs::write(&profile, &text).unwrap();
+    let line = text.lines().position(|l| l.starts_with("diffuse_depth")).unwrap() + 1;
+    let (pf, png) = (profile.to_str().unwrap().to_string(), tmp("deep.png").to_str().unwrap().to_string());
+    let run = |extra: &[&str]| {
+        let mut a = vec!["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", &png, "--profile", &pf];
+        a.extend(extra);
+        strata().args(&a).output().unwrap()
+    };
+    let out = run(&[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains(&format!("deep.toml:{line}:")) && err.contains("diffuse_depth"), "{err}");
+    for fix in [&["--set", "max_depth=9"][..], &["--max-depth", "3"], &["--set", "diffuse_depth=1"]] {
+        let out = run(fix);
+        assert_eq!(out.status.code(), Some(0), "{fix:?}: {}", String::from_utf8_lossy(&out.stderr));
+    }
+    let out =
+        strata().args(["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", &png, "--set", "diffuse_depth=9"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.starts_with("error: command line: diffuse_depth"), "{err}");
+    let out = strata().args(["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", &png, "--set", "name=mine"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("profile mine"), "{}", String::from_utf8_lossy(&out.stdout));
+}

@@ -42,14 +42,21 @@ impl Failure {
     }
 }
 
-/// Apply `--set KEY=VALUE` flags (after `before`, overrides of the command's own flags) to `profile`,
-/// validated together after the last ([`crate::scene::Profile::set_all`]).
-pub fn apply_sets(profile: &mut crate::scene::Profile, before: &[(&str, String)], sets: &[String]) -> Result<(), Failure> {
-    let mut pairs: Vec<(&str, &str)> = before.iter().map(|(k, v)| (*k, v.as_str())).collect();
+/// Load `--profile NAME|PATH`, apply `before` (overrides from the command's own flags, which may depend
+/// on the file's values), then the `--set KEY=VALUE` flags, in order, and check the result as a whole
+/// ([`crate::scene::Profile::load_with`]): an override may make a file's combination valid.
+pub fn load_profile(
+    name: &str,
+    before: impl FnOnce(&crate::scene::Profile) -> Vec<(&'static str, String)>,
+    sets: &[String],
+) -> Result<crate::scene::Profile, Failure> {
+    let mut split = Vec::with_capacity(sets.len());
     for s in sets {
-        pairs.push(s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?);
+        let (k, v) = s.split_once('=').ok_or_else(|| Failure::input(format!("--set {s}: expected KEY=VALUE")))?;
+        split.push((k.to_string(), v.to_string()));
     }
-    profile.set_all(pairs).map_err(|e| Failure::input(format!("command line: {e}")))
+    crate::scene::Profile::load_with(name, |p| before(p).into_iter().map(|(k, v)| (k.to_string(), v)).chain(split).collect())
+        .map_err(Failure::input)
 }
 
 /// A path as the file system names it, so that two spellings of one file compare equal: canonical

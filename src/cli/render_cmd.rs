@@ -73,25 +73,29 @@ pub struct RenderArgs {
 
 /// Load the profile named on the command line and apply the overrides.
 pub fn resolve_profile(a: &RenderArgs) -> Result<Profile, Failure> {
-    let mut p = Profile::load(&a.profile).map_err(Failure::input)?;
-    let mut flags: Vec<(&str, String)> = Vec::new();
-    if let Some(v) = a.spp {
-        flags.push(("spp", v.to_string()));
-    }
-    if let Some(v) = &a.strategy {
-        flags.push(("strategy", v.clone()));
-    }
-    if let Some(v) = a.light_samples {
-        flags.push(("light_samples", v.to_string()));
-    }
-    if let Some(v) = a.max_depth {
-        flags.push(("max_depth", v.to_string()));
-        if p.diffuse_depth > v {
-            flags.push(("diffuse_depth", v.to_string()));
-        }
-    }
-    super::apply_sets(&mut p, &flags, &a.set)?;
-    Ok(p)
+    super::load_profile(
+        &a.profile,
+        |p| {
+            let mut flags: Vec<(&str, String)> = Vec::new();
+            if let Some(v) = a.spp {
+                flags.push(("spp", v.to_string()));
+            }
+            if let Some(v) = &a.strategy {
+                flags.push(("strategy", v.clone()));
+            }
+            if let Some(v) = a.light_samples {
+                flags.push(("light_samples", v.to_string()));
+            }
+            if let Some(v) = a.max_depth {
+                flags.push(("max_depth", v.to_string()));
+                if p.diffuse_depth > v {
+                    flags.push(("diffuse_depth", v.to_string()));
+                }
+            }
+            flags
+        },
+        &a.set,
+    )
 }
 
 pub fn default_output(scene: &Path, ext: &str) -> PathBuf {

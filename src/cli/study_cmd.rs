@@ -107,8 +107,7 @@ struct Setup {
 
 fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     let scene = load_scene(&a.scene).map_err(Failure::input)?;
-    let mut profile = Profile::load(&a.profile).map_err(Failure::input)?;
-    super::apply_sets(&mut profile, &[], &a.set)?;
+    let profile = super::load_profile(&a.profile, |_| Vec::new(), &a.set)?;
     let mut strategies = parse_list("--strategies", &a.strategies, parse_strategy)?;
     dedup(&mut strategies);
     let mut counts = parse_list("--spp", &a.spp, parse_count)?;

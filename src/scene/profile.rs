@@ -102,18 +102,50 @@ impl Profile {
     /// `--profile NAME|PATH`: a path to a file, else `profiles/NAME.toml` in the working directory, else
     /// the built-in copy of a shipped profile.
     pub fn load(name_or_path: &str) -> Result<Profile, InputError> {
+        let (path, text) = Self::find(name_or_path)?;
+        Profile::parse(&path, &text)
+    }
+
+    /// [`Profile::load`], then the overrides `pairs` (`--set` and the flags, in order), then the checks
+    /// of the result: a file's combination that the overrides make valid is valid (`max_depth = 4` with
+    /// `diffuse_depth = 9`, fixed by `--set max_depth=9`). Errors are whole messages: a field the
+    /// overrides set is the command line's error, any other the file's, at its line.
+    /// `overrides` sees the file's profile as read (a flag's meaning may depend on it).
+    pub fn load_with(name_or_path: &str, overrides: impl FnOnce(&Profile) -> Vec<(String, String)>) -> Result<Profile, String> {
+        let (path, text) = Self::find(name_or_path).map_err(|e| e.to_string())?;
+        let src = Source { path: &path, text: &text };
+        let mut p: Profile = toml::from_str(&text).map_err(|e| src.from_toml(&e).to_string())?;
+        let pairs = overrides(&p);
+        let mut set = Vec::new();
+        for (k, v) in &pairs {
+            p.set_field(k.trim(), v).map_err(|e| format!("command line: {e}"))?;
+            set.push(k.trim());
+        }
+        p.validate().map_err(|(field, msg)| {
+            // (`strategy` sets every strategy field; none of them has a check of its own.)
+            if set.contains(&field) {
+                format!("command line: {field}: {msg}")
+            } else {
+                src.error(find_key(&text, field).unwrap_or(0..0), field, msg).to_string()
+            }
+        })?;
+        Ok(p)
+    }
+
+    /// The path errors name and the text of `--profile NAME|PATH` (see [`Profile::load`]).
+    fn find(name_or_path: &str) -> Result<(PathBuf, String), InputError> {
         let as_path = PathBuf::from(name_or_path);
         if name_or_path.ends_with(".toml") || as_path.is_file() {
             let text = read_text(&as_path)?;
-            return Profile::parse(&as_path, &text);
+            return Ok((as_path, text));
         }
         let local = PathBuf::from("profiles").join(format!("{name_or_path}.toml"));
         if local.is_file() {
             let text = read_text(&local)?;
-            return Profile::parse(&local, &text);
+            return Ok((local, text));
         }
         if let Some((_, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
-            return Profile::parse(Path::new(&format!("<built-in profile {name_or_path}>")), text);
+            return Ok((PathBuf::from(format!("<built-in profile {name_or_path}>")), text.to_string()));
         }
         Err(InputError {
             file: PathBuf::from("command line"),
@@ -220,6 +252,7 @@ impl Profile {
                     _ => return Err(format!("{key}: expected box, tent or gaussian, got `{value}`")),
                 }
             }
+            "name" => self.name = value.trim().to_string(),
             _ => return Err(format!("unknown profile field `{key}`")),
         }
         Ok(())
