@@ -387,10 +387,13 @@ fn reference_cache_is_reused_only_when_fresh() {
 fn cli_input_errors_exit_2_with_a_message() {
     let dir = tmp_dir("errors");
     let d = dir.to_str().unwrap();
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 9] = [
         (&["--strategies", "random,magic"], "unknown strategy `magic`"),
         (&["--spp", ","], "--spp: the list is empty"),
         (&["--spp", "4,zero"], "is not a sample count"),
+        (&["--spp", "1,,4"], "an empty item"),
+        (&["--spp", "4,16,4"], "`4` is listed twice"),
+        (&["--strategies", "jittered,random,jittered"], "`jittered` is listed twice"),
         (&["--integrals", "pixel,colour"], "unknown integral `colour`"),
         (&["--seeds", "0"], "--seeds"),
         (&["--reference", "analytic"], "Lambert plane lit by one quad light"),
@@ -404,4 +407,12 @@ fn cli_input_errors_exit_2_with_a_message() {
         assert!(err.contains(msg), "{extra:?}: expected `{msg}` in: {err}");
     }
     assert!(!dir.join("study.csv").exists(), "nothing is written on an input error");
+    // A study that fails on its reference leaves no output directory it created.
+    let fresh = dir.join("not-yet");
+    let out = strata()
+        .args(["study", "scenes/soft_shadows.toml", "--out", fresh.to_str().unwrap(), "--reference", "missing.exr"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!fresh.exists(), "an empty --out directory was left behind");
 }

@@ -75,12 +75,24 @@ pub struct StudyArgs {
 }
 
 /// Parse a comma-separated list with `parse`; empty items are ignored, an empty list is an error.
-fn parse_list<T>(flag: &str, text: &str, parse: impl Fn(&str) -> Result<T, String>) -> Result<Vec<T>, Failure> {
-    let items: Vec<&str> = text.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
-    if items.is_empty() {
+/// A comma-separated list: no empty item (`1,,4`), no item twice (`4,4`: a silent merge would run
+/// fewer series than asked for).
+fn parse_list<T: PartialEq>(flag: &str, text: &str, parse: impl Fn(&str) -> Result<T, String>) -> Result<Vec<T>, Failure> {
+    if text.split(',').all(|i| i.trim().is_empty()) {
         return Err(Failure::input(format!("{flag}: the list is empty")));
     }
-    items.into_iter().map(|s| parse(s).map_err(|e| Failure::input(format!("{flag}: {e}")))).collect()
+    let mut out: Vec<T> = Vec::new();
+    for item in text.split(',').map(str::trim) {
+        if item.is_empty() {
+            return Err(Failure::input(format!("{flag} {text}: an empty item")));
+        }
+        let v = parse(item).map_err(|e| Failure::input(format!("{flag}: {e}")))?;
+        if out.contains(&v) {
+            return Err(Failure::input(format!("{flag} {text}: `{item}` is listed twice")));
+        }
+        out.push(v);
+    }
+    Ok(out)
 }
 
 fn parse_strategy(s: &str) -> Result<Strategy, String> {
@@ -108,11 +120,9 @@ struct Setup {
 fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     let scene = load_scene(&a.scene).map_err(Failure::input)?;
     let profile = super::load_profile(&a.profile, |_| Vec::new(), &a.set)?;
-    let mut strategies = parse_list("--strategies", &a.strategies, parse_strategy)?;
-    dedup(&mut strategies);
+    let strategies = parse_list("--strategies", &a.strategies, parse_strategy)?;
     let mut counts = parse_list("--spp", &a.spp, parse_count)?;
     counts.sort_unstable();
-    counts.dedup();
     let integrals = IntegralSet::parse(&a.integrals).map_err(|e| Failure::input(format!("--integrals: {e}")))?;
     if a.seeds == 0 || a.seeds > 1000 {
         return Err(Failure::input(format!("--seeds must be in 1..=1000, got {}", a.seeds)));
@@ -143,15 +153,6 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     };
     let plan = Plan { integrals, strategies, counts, seeds: a.seeds, light_from_spp: a.light_samples_from_spp, threads: a.threads };
     Ok(Setup { scene, profile, plan, source })
-}
-
-fn dedup(v: &mut Vec<Strategy>) {
-    let mut seen = Vec::new();
-    v.retain(|s| {
-        let new = !seen.contains(s);
-        seen.push(*s);
-        new
-    });
 }
 
 /// Integrals the scene does not exercise (their strategy changes nothing).
@@ -189,6 +190,7 @@ fn describe_mapping(plan: &Plan) -> String {
 
 pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     let Setup { scene, profile, plan, source } = setup(&a)?;
+    let created = !a.out.exists();
     std::fs::create_dir_all(&a.out).map_err(|e| Failure::input(format!("--out {}: cannot create: {e}", a.out.display())))?;
     let unused = unused_integrals(&scene, &plan.integrals);
     if !unused.is_empty() {
@@ -197,9 +199,15 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     outln!("strata study: {}  {}x{}  profile {}", a.scene.display(), scene.width, scene.height, profile.name);
     outln!("  sampling: {}", describe_mapping(&plan));
     errln!("reference: preparing...");
-    let reference = obtain(&source, &scene, &profile, &plan.integrals, &a.out, plan.threads).map_err(|e| match e {
-        RefError::Input(m) => Failure::input(m),
-        RefError::Runtime(m) => Failure::runtime(m),
+    let reference = obtain(&source, &scene, &profile, &plan.integrals, &a.out, plan.threads).map_err(|e| {
+        // A study that never started leaves no empty output directory behind.
+        if created {
+            let _ = std::fs::remove_dir(&a.out);
+        }
+        match e {
+            RefError::Input(m) => Failure::input(m),
+            RefError::Runtime(m) => Failure::runtime(m),
+        }
     })?;
     if reference.image.iter().any(|p| !p.is_finite()) {
         return Err(Failure::input("the reference image has non-finite pixels"));
