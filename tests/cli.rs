@@ -202,7 +202,8 @@ fn outputs_never_replace_each_other_or_an_input() {
 
 /// A profile file's combination is checked after the command line's overrides: an error that no
 /// override touches is the file's, at its line; `--set` (or `--max-depth`) can make it valid; an
-/// override that breaks it is the command line's. `--set name=...` renames the profile.
+/// override that breaks it is the command line's. A field given by its own flag and by `--set` is an
+/// error. `--set name=...` renames the profile.
 #[test]
 fn profile_overrides_are_checked_with_the_file() {
     let profile = tmp("deep.toml");
@@ -241,6 +242,13 @@ fn profile_overrides_are_checked_with_the_file() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.starts_with("error: command line: diffuse_depth"), "{err}");
+    let out = strata().args(["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", &png, "--set", "spp=8"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--spp and --set spp=8 both set spp"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let out = strata().args(["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", &png, "--set", "name=mine"]).output().unwrap();
     assert_eq!(out.status.code(), Some(0));
     assert!(String::from_utf8_lossy(&out.stdout).contains("profile mine"), "{}", String::from_utf8_lossy(&out.stdout));

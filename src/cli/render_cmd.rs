@@ -73,6 +73,19 @@ pub struct RenderArgs {
 
 /// Load the profile named on the command line and apply the overrides.
 pub fn resolve_profile(a: &RenderArgs) -> Result<Profile, Failure> {
+    // A field set by its own flag and by `--set` too: one of them would be dropped without a word.
+    let flagged = [
+        ("spp", "--spp", a.spp.is_some()),
+        ("strategy", "--strategy", a.strategy.is_some()),
+        ("light_samples", "--light-samples", a.light_samples.is_some()),
+        ("max_depth", "--max-depth", a.max_depth.is_some()),
+    ];
+    for s in &a.set {
+        let key = s.split_once('=').map_or(s.as_str(), |(k, _)| k).trim();
+        if let Some((_, flag, _)) = flagged.iter().find(|(k, _, given)| *given && *k == key) {
+            return Err(Failure::input(format!("{flag} and --set {s} both set {key}: give one")));
+        }
+    }
     super::load_profile(
         &a.profile,
         |p| {
