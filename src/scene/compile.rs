@@ -24,6 +24,12 @@ pub const MAX_PRIORITY: i64 = 1_000_000;
 /// Deepest CSG nesting (and chain of named-solid references) accepted.
 pub const MAX_CSG_DEPTH: usize = 64;
 
+/// Largest coordinate or length a scene may hold, before and after its transforms: the sphere kernel
+/// takes squares of differences of coordinates, which overflow f32 a little beyond (a ground sphere of
+/// radius 1e16 loses a third of its hits). Fidelity is measured to 1e5 ("Numerical robustness").
+pub const MAX_MAGNITUDE: f32 = 1e15;
+const BEYOND: &str = "beyond that the kernels' f32 squares overflow";
+
 /// Read, parse, validate and compile a scene file.
 pub fn load_scene(path: &Path) -> R<Scene> {
     let text = read_text(path)?;
@@ -72,7 +78,8 @@ impl Compiler<'_> {
         self.src.error(span, field, msg)
     }
 
-    fn vec3(&self, v: &V3, field: &str) -> R<Vec3> {
+    /// Three finite numbers (colours, intensities).
+    fn finite3(&self, v: &V3, field: &str) -> R<Vec3> {
         let a = v.get_ref().0;
         if a.iter().any(|x| !x.is_finite()) {
             return Err(self.err(v.span(), field, "components must be finite numbers"));
@@ -80,14 +87,23 @@ impl Compiler<'_> {
         Ok(Vec3::from_array(a))
     }
 
+    /// A point or vector of the scene's space: finite and within [`MAX_MAGNITUDE`].
+    fn vec3(&self, v: &V3, field: &str) -> R<Vec3> {
+        let a = self.finite3(v, field)?.to_array();
+        if a.iter().any(|x| x.abs() > MAX_MAGNITUDE) {
+            return Err(self.err(v.span(), field, format!("components must be within +-{MAX_MAGNITUDE:e} ({BEYOND})")));
+        }
+        Ok(Vec3::from_array(a))
+    }
+
     fn color(&self, v: &V3, field: &str, max: Option<f32>) -> R<Vec3> {
-        let c = self.vec3(v, field)?;
+        let c = self.finite3(v, field)?;
         if c.min_element() < 0.0 {
             return Err(self.err(v.span(), field, "colour components must not be negative"));
         }
         if let Some(m) = max {
             if c.max_element() > m {
-                return Err(self.err(v.span(), field, format!("reflectance components must be at most {m} (energy conservation)")));
+                return Err(self.err(v.span(), field, format!("components must be at most {m} (energy conservation)")));
             }
         }
         Ok(c)
@@ -117,6 +133,9 @@ impl Compiler<'_> {
         let x = *v.get_ref();
         if !(x.is_finite() && x > 0.0) {
             return Err(self.err(v.span(), field, format!("must be a finite number > 0, got {x}")));
+        }
+        if x > MAX_MAGNITUDE {
+            return Err(self.err(v.span(), field, format!("must be at most {MAX_MAGNITUDE:e} ({BEYOND}), got {x:e}")));
         }
         Ok(x)
     }
@@ -276,9 +295,7 @@ impl Compiler<'_> {
             None => Vec3::Y,
         };
         let forward = look_at - position;
-        if !forward.length().is_finite() {
-            return Err(self.err(c.look_at.span(), "camera.look_at", "too far from camera.position: their distance overflows f32"));
-        }
+        // (Both within MAX_MAGNITUDE: their distance is finite.)
         if forward.length_squared() <= f32::MIN_POSITIVE {
             return Err(self.err(c.look_at.span(), "camera.look_at", "must differ from camera.position"));
         }
@@ -549,6 +566,24 @@ impl Compiler<'_> {
         Ok(Affine3A::from_scale_rotation_translation(scale, rot, tr))
     }
 
+    /// A placed shape (after its transforms) within [`MAX_MAGNITUDE`] of the origin: its box, or a
+    /// plane's distance.
+    fn within_range(&self, shape: &Shape, def: &S<ShapeDef>, field: &str) -> R<()> {
+        let reach = match (shape, prim_bounds(shape, &self.csg)) {
+            (Shape::Plane(p), _) => p.offset.abs(),
+            (_, Some(b)) if !b.is_empty() => b.min.abs().max(b.max.abs()).max_element(),
+            _ => 0.0,
+        };
+        if reach > MAX_MAGNITUDE {
+            return Err(self.err(
+                def.span(),
+                field,
+                format!("placed, it reaches {reach:e} from the origin; the limit is {MAX_MAGNITUDE:e} ({BEYOND})"),
+            ));
+        }
+        Ok(())
+    }
+
     /// What a named solid's definition may not hold, whether or not it is used: `hole` (a hole is a
     /// place in a group, marked where the solid is used).
     fn solid_definition(&self, name: &str, def: &S<ShapeDef>) -> R<()> {
@@ -600,6 +635,7 @@ impl Compiler<'_> {
             if matches!(shape, Shape::Plane(_)) && motion != Vec3::ZERO {
                 return Err(self.err(s.motion.as_ref().unwrap().span(), format!("{field}.motion"), "an infinite plane cannot move"));
             }
+            self.within_range(&shape, def, field)?;
             self.prims.push(Prim { shape, material, motion, is_light: false });
             return Ok(());
         }
@@ -616,7 +652,9 @@ impl Compiler<'_> {
         if !lo.cmple(hi).all() {
             return Ok(()); // an empty solid (e.g. a disjoint intersection) contributes nothing
         }
-        self.prims.push(Prim { shape: Shape::Csg { solid }, material: material.unwrap_or(0), motion, is_light: false });
+        let shape = Shape::Csg { solid };
+        self.within_range(&shape, def, field)?;
+        self.prims.push(Prim { shape, material: material.unwrap_or(0), motion, is_light: false });
         Ok(())
     }
 
