@@ -137,8 +137,23 @@ pub fn gather8<T: Copy>(v: &[T], run: bool, first: usize, at: impl Fn(usize) -> 
     if run {
         v[first..first + LANES].try_into().unwrap()
     } else {
-        std::array::from_fn(|l| v[at(l)])
+        // (A plain loop, not `array::from_fn`: under some codegen-unit partitions `from_fn` stayed an
+        // out-of-line call per use, 17 of them in the Lambert shading of 8 hits: shade 8% slower.)
+        let mut out = [v[at(0)]; LANES];
+        for (l, x) in out.iter_mut().enumerate().skip(1) {
+            *x = v[at(l)];
+        }
+        out
     }
+}
+
+/// Lanes of entries `base..base + m` of a queue field (`1 <= m <= 8`; lanes past `m` repeat the last):
+/// one load for a whole chunk. A function, not a closure in the caller: a closure of this in the shadow
+/// stage's chunk loop was left out of line when an unrelated change moved the codegen-unit partition,
+/// and the stage ran 25% slower (session 27).
+#[inline(always)]
+pub fn chunk8(v: &[f32], base: usize, m: usize) -> f32x8 {
+    f32x8::from(gather8(v, m == LANES, base, |l| base + l.min(m - 1)))
 }
 
 /// Whether `v` is 8 consecutive values `v[0], v[0] + 1, ..` (ids that [`gather8`] can load as a run;

@@ -24,7 +24,9 @@ use crate::geometry::{
 use crate::light::{light_points_x8, sample_light_x8, samples_for};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
-use crate::simd::{f32x16, f32x8, gather8, i32x16, lane_bits, load8, mask_from_bits, store8, u32x16, u32x8, Lanes, Ray8, Vec3x8, LANES};
+use crate::simd::{
+    chunk8, f32x16, f32x8, gather8, i32x16, lane_bits, load8, mask_from_bits, store8, u32x16, u32x8, Lanes, Ray8, Vec3x8, LANES,
+};
 use glam::Vec3;
 
 /// Shadow rays stop this fraction short of an area light's sample point (the light is geometry too).
@@ -272,13 +274,12 @@ pub fn shadow_with(
         let m = (nee.len() - base).min(LANES);
         let live = (1u32 << m) - 1;
         // Lanes past `m` repeat the last request (masked off by `live`).
-        let f = |v: &Vec<f32>| f32x8::from(gather8(v, m == LANES, base, |l| base + l.min(m - 1)));
-        let p = Vec3x8::new(f(&nee.px), f(&nee.py), f(&nee.pz));
-        let n = Vec3x8::new(f(&nee.nx), f(&nee.ny), f(&nee.nz));
-        let w = Vec3x8::new(f(&nee.wr), f(&nee.wg), f(&nee.wb));
+        let p = Vec3x8::new(chunk8(&nee.px, base, m), chunk8(&nee.py, base, m), chunk8(&nee.pz, base, m));
+        let n = Vec3x8::new(chunk8(&nee.nx, base, m), chunk8(&nee.ny, base, m), chunk8(&nee.nz, base, m));
+        let w = Vec3x8::new(chunk8(&nee.wr, base, m), chunk8(&nee.wg, base, m), chunk8(&nee.wb, base, m));
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
-        let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
-        let time = f(&nee.time);
+        let o = Vec3x8::new(chunk8(&nee.ox, base, m), chunk8(&nee.oy, base, m), chunk8(&nee.oz, base, m));
+        let time = chunk8(&nee.time, base, m);
         let req = u32x8::from(std::array::from_fn(|l| (base + l.min(m - 1)) as u32));
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
@@ -608,11 +609,10 @@ fn resolve_buffered(
     // A job's rays as the chunk loop makes them: from the spawn points to the light, tmax 1.
     let rays_of = |j: &BufferJob| {
         let (base, m) = (j.base, (nee.len() - j.base).min(LANES));
-        let f = |v: &Vec<f32>| f32x8::from(gather8(v, m == LANES, base, |l| base + l.min(m - 1)));
-        let o = Vec3x8::new(f(&nee.ox), f(&nee.oy), f(&nee.oz));
+        let o = Vec3x8::new(chunk8(&nee.ox, base, m), chunk8(&nee.oy, base, m), chunk8(&nee.oz, base, m));
         let tmax = mask_from_bits(j.lanes).select(f32x8::ONE, f32x8::splat(-1.0));
         let own = gather8(&nee.own, m == LANES, base, |l| base + l.min(m - 1));
-        (Ray8::new(o, Vec3x8::splat(position) - o, tmax), own, motion.then(|| f(&nee.time)))
+        (Ray8::new(o, Vec3x8::splat(position) - o, tmax), own, motion.then(|| chunk8(&nee.time, base, m)))
     };
     let mut rays = [Ray8::new(Vec3x8::splat(Vec3::ZERO), Vec3x8::splat(Vec3::ONE), f32x8::splat(-1.0)); 2];
     let mut own = [super::queues::NONE; 2 * LANES];
