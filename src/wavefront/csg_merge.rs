@@ -2,13 +2,20 @@
 //! time, and each group is solved by the solid's interval merge (Roth 1982, `csg::first_hit_x8`). A CSG
 //! boundary nearer than the ray's current hit replaces it.
 
-use super::intersect::in_prim_frame;
+use super::intersect::{in_prim_frame, planes_over_glass};
 use super::queues::{CsgCandidates, HitQueue, RayQueue};
 use crate::csg::{first_hit_x8, CsgArena, CsgHit};
 use crate::scene::{Scene, Shape};
 use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
 
 pub fn csg_merge(scene: &Scene, rays: &RayQueue, cands: &mut CsgCandidates, hits: &mut HitQueue, arena: &mut CsgArena) {
+    csg_merge_candidates(scene, rays, cands, hits, arena);
+    // Then glass faces that lie on an opaque plane give way to it (see `planes_over_glass`).
+    planes_over_glass(scene, rays, hits);
+}
+
+/// The candidates' CSG hits, nearer than the rays' current hits, replace them.
+pub(crate) fn csg_merge_candidates(scene: &Scene, rays: &RayQueue, cands: &mut CsgCandidates, hits: &mut HitQueue, arena: &mut CsgArena) {
     if cands.is_empty() {
         return;
     }
