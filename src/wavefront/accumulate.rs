@@ -3,6 +3,7 @@
 
 use super::queues::PathTable;
 use crate::film::{quantize_x8, small_x8, square_fixed_x8, valid_x8, Film, Pixel};
+use crate::simd::gather8;
 
 /// Make `px` the pixel of the run, merging the previous run into the film.
 #[inline(always)]
@@ -32,12 +33,9 @@ pub fn accumulate(paths: &PathTable, film: &mut Film) -> u64 {
             film.prefetch(ahead as usize);
         }
         // A whole chunk is one block copy (lane by lane stores would stall the vector loads after them).
-        let lanes = |v: &[f32]| -> [f32; 8] {
-            match v.get(base..base + 8) {
-                Some(s) => s.try_into().unwrap(),
-                None => std::array::from_fn(|l| v[base + l.min(m - 1)]),
-            }
-        };
+        // (Lanes past `m` repeat the last sample; `gather8`, not a closure with `array::from_fn`, whose
+        // inlining varied with the codegen-unit partition.)
+        let lanes = |v: &[f32]| gather8(v, v.len() >= base + 8, base, |l| base + l.min(m - 1));
         let (r, g, b) = (lanes(&paths.lr), lanes(&paths.lg), lanes(&paths.lb));
         let q = [quantize_x8(&r), quantize_x8(&g), quantize_x8(&b)];
         let valid = valid_x8(&r, &g, &b);
