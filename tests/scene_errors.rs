@@ -31,6 +31,19 @@ fn fail(extra: &str) -> (usize, String, String) {
     }
 }
 
+/// Each case (scene text after BASE, the field its error must name, a needle on the line it must
+/// name) fails there; returns the messages, in order.
+fn fails_at(cases: &[(&str, &str, &str)]) -> Vec<String> {
+    cases
+        .iter()
+        .map(|&(extra, want, needle)| {
+            let (line, field, msg) = fail(extra);
+            assert_eq!((field.as_str(), line), (want, line_of(extra, needle)), "{extra}");
+            msg
+        })
+        .collect()
+}
+
 fn line_of(extra: &str, needle: &str) -> usize {
     let text = format!("{BASE}{extra}");
     text.lines().position(|l| l.contains(needle)).expect("needle") + 1
@@ -244,10 +257,7 @@ fn unused_named_solids_are_checked_too() {
         ("[solids.u]\nuse = \"ghost\"\n", "solids.u.use", "ghost"),
         ("[solids.u]\ntype = \"quad\"\norigin = [0, 0, 0]\nu = [1, 0, 0]\nv = [0, 1, 0]\nmaterial = \"m\"\n", "solids.u.type", "quad"),
     ];
-    for (extra, want, needle) in cases {
-        let (line, field, _) = fail(extra);
-        assert_eq!((field.as_str(), line), (want, line_of(extra, needle)), "{extra}");
-    }
+    fails_at(&cases);
     let no_material = "[solids.u]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n";
     parse_scene(Path::new("ok.toml"), &format!("{BASE}{no_material}")).expect("a solid that takes its material where it is used");
 }
@@ -287,9 +297,7 @@ fn magnitudes_beyond_the_kernels_range_are_errors() {
             "[[shapes]]",
         ),
     ];
-    for (extra, want, needle) in cases {
-        let (line, field, msg) = fail(extra);
-        assert_eq!((field.as_str(), line), (want, line_of(extra, needle)), "{extra}");
+    for msg in fails_at(&cases) {
         assert!(msg.contains("1e15"), "{msg}");
     }
     let big = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, -4e14, 0]\nradius = 4e14\nmaterial = \"m\"\n";
