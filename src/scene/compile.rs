@@ -4,7 +4,7 @@
 
 use super::error::{read_text, InputError, Source};
 use super::format::{CameraDef, LightDef, MaterialDef, SceneFile, ShapeDef, TransformDef, S, V3};
-use super::{Dielectric, Features, Light, Material, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS};
+use super::{Dielectric, Features, Light, Material, MaterialKind, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS};
 use crate::accel::{build_bvh, Aabb, Bound, BuildOptions, Collapse, LightBuffer, WideBvh, WIDE_MIN_NODES};
 use crate::camera::Camera;
 use crate::csg::{self, Csg, CsgTree, Op};
@@ -261,6 +261,18 @@ impl Compiler<'_> {
         }
         let prim_kind = self.prims.iter().map(|p| self.materials[p.material as usize].kind()).collect();
         let leaf_kind = (0..self.csg.leaf_count()).map(|l| self.materials[self.csg.leaf(l as u32).material as usize].kind()).collect();
+        let glass_planes = if features.dielectric {
+            unbounded
+                .iter()
+                .copied()
+                .filter(|&p| {
+                    matches!(self.prims[p as usize].shape, Shape::Plane(_))
+                        && self.materials[self.prims[p as usize].material as usize].kind() != MaterialKind::Dielectric
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         Ok(Scene {
             width,
             height,
@@ -282,6 +294,7 @@ impl Compiler<'_> {
             features,
             prim_kind,
             leaf_kind,
+            glass_planes,
             hash,
         })
     }

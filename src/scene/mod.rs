@@ -280,6 +280,9 @@ pub struct Scene {
     pub prim_kind: Vec<MaterialKind>,
     /// The kind of each CSG leaf's material (global leaf ids).
     pub leaf_kind: Vec<MaterialKind>,
+    /// The opaque unbounded planes that glass faces lying on them give way to
+    /// (`wavefront::intersect::planes_over_glass`); empty in a scene without a dielectric surface.
+    pub glass_planes: Vec<u32>,
     /// A stable hash of the scene file text (films from different scenes are never merged).
     pub hash: u64,
 }

@@ -415,18 +415,7 @@ pub fn intersect_with(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, cands
 #[inline(never)]
 pub fn planes_over_glass(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue) {
     use crate::scene::MaterialKind;
-    if !scene.features.dielectric || scene.unbounded.is_empty() {
-        return;
-    }
-    let planes: Vec<(u32, &crate::geometry::Plane)> = scene
-        .unbounded
-        .iter()
-        .filter_map(|&pid| match &scene.prims[pid as usize].shape {
-            Shape::Plane(p) if scene.prim_kind[pid as usize] != MaterialKind::Dielectric => Some((pid, p)),
-            _ => None,
-        })
-        .collect();
-    if planes.is_empty() {
+    if scene.glass_planes.is_empty() {
         return;
     }
     // Only rays inside a medium can meet a glass face that lies on the plane from the glass side, which
@@ -451,7 +440,7 @@ pub fn planes_over_glass(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue) {
             let i = c * 64 + bits.trailing_zeros() as usize;
             bits &= bits - 1;
             if dielectric(hits, i) {
-                glass_hit_on_plane(&planes, rays, hits, i);
+                glass_hit_on_plane(scene, rays, hits, i);
             }
         }
     }
@@ -459,12 +448,13 @@ pub fn planes_over_glass(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue) {
 
 /// [`planes_over_glass`] for ray `i`, whose hit is a dielectric surface.
 #[inline(always)]
-fn glass_hit_on_plane(planes: &[(u32, &crate::geometry::Plane)], rays: &RayQueue, hits: &mut HitQueue, i: usize) {
+fn glass_hit_on_plane(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: usize) {
     let eps = crate::csg::COINCIDENT_EPS;
     let (o, d, t) = (Vec3::new(rays.ox[i], rays.oy[i], rays.oz[i]), Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]), hits.t[i]);
     let (o_inf, d_1) = (o.abs().max_element(), d.abs().element_sum());
     let hit = o + d * t;
-    for &(pid, p) in planes {
+    for &pid in &scene.glass_planes {
+        let Shape::Plane(p) = &scene.prims[pid as usize].shape else { continue };
         // A plane within the tolerance beyond the hit is within `tol |n.d| <= eps (|o|_inf + t |d|)`
         // of the hit point (no division or root for the usual hit far from every plane); the
         // generous slack covers the roundings of this estimate.
