@@ -3,7 +3,7 @@
 
 use super::queues::PathTable;
 use crate::film::{quantize_x8, small_x8, square_fixed_x8, valid_x8, Film, Pixel};
-use crate::simd::gather8;
+use crate::simd::chunk8;
 
 /// Make `px` the pixel of the run, merging the previous run into the film.
 #[inline(always)]
@@ -33,10 +33,9 @@ pub fn accumulate(paths: &PathTable, film: &mut Film) -> u64 {
             film.prefetch(ahead as usize);
         }
         // A whole chunk is one block copy (lane by lane stores would stall the vector loads after them).
-        // (Lanes past `m` repeat the last sample; `gather8`, not a closure with `array::from_fn`, whose
-        // inlining varied with the codegen-unit partition.)
-        let lanes = |v: &[f32]| gather8(v, v.len() >= base + 8, base, |l| base + l.min(m - 1));
-        let (r, g, b) = (lanes(&paths.lr), lanes(&paths.lg), lanes(&paths.lb));
+        // (Lanes past `m` repeat the last sample.)
+        let (r, g, b) =
+            (chunk8(&paths.lr, base, m).to_array(), chunk8(&paths.lg, base, m).to_array(), chunk8(&paths.lb, base, m).to_array());
         let q = [quantize_x8(&r), quantize_x8(&g), quantize_x8(&b)];
         let valid = valid_x8(&r, &g, &b);
         // Samples below SMALL_SAMPLE_VALUE (nearly all) have their squared terms computed 8 at a time

@@ -280,7 +280,12 @@ pub fn shadow_with(
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(chunk8(&nee.ox, base, m), chunk8(&nee.oy, base, m), chunk8(&nee.oz, base, m));
         let time = chunk8(&nee.time, base, m);
-        let req = u32x8::from(std::array::from_fn(|l| (base + l.min(m - 1)) as u32));
+        // (Plain loops rather than `array::from_fn` in this loop: see `simd::chunk8`.)
+        let mut req = [0u32; LANES];
+        for (l, r) in req.iter_mut().enumerate() {
+            *r = (base + l.min(m - 1)) as u32;
+        }
+        let req = u32x8::from(req);
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
@@ -308,7 +313,11 @@ pub fn shadow_with(
             } else if li < KEY_CACHE {
                 lane_keys[li]
             } else {
-                std::array::from_fn(|l| if l < m { light_key(base + l, li) } else { 0 })
+                let mut k = [0u64; LANES];
+                for (l, key) in k.iter_mut().enumerate().take(m) {
+                    *key = light_key(base + l, li);
+                }
+                k
             };
             let end = if point { 1.0 } else { SHADOW_END };
             let ns_lanes = f32x8::splat(ns as f32);
