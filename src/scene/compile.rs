@@ -259,19 +259,27 @@ impl Compiler<'_> {
                 _ => {}
             }
         }
-        let prim_kind = self.prims.iter().map(|p| self.materials[p.material as usize].kind()).collect();
-        let leaf_kind = (0..self.csg.leaf_count()).map(|l| self.materials[self.csg.leaf(l as u32).material as usize].kind()).collect();
-        let glass_planes = if features.dielectric {
-            unbounded
+        let prim_kind: Vec<MaterialKind> = self.prims.iter().map(|p| self.materials[p.material as usize].kind()).collect();
+        let leaf_kind: Vec<MaterialKind> =
+            (0..self.csg.leaf_count()).map(|l| self.materials[self.csg.leaf(l as u32).material as usize].kind()).collect();
+        let glass_neighbours = if features.dielectric {
+            // The largest coordinate a ray's origin or hit can have (bounded prims, the camera and its lens).
+            let extent = bvh_bounds
                 .iter()
-                .copied()
-                .filter(|&p| {
-                    matches!(self.prims[p as usize].shape, Shape::Plane(_))
-                        && self.materials[self.prims[p as usize].material as usize].kind() != MaterialKind::Dielectric
-                })
-                .collect()
+                .fold(camera.position.abs().max_element() + camera.lens_radius, |e, b| e.max(b.min.abs().max(b.max.abs()).max_element()));
+            super::glass_neighbours::GlassNeighbours::build(
+                &self.prims,
+                &self.csg,
+                &prim_kind,
+                &leaf_kind,
+                &bounds,
+                &bounded,
+                &unbounded,
+                &bvh,
+                extent,
+            )
         } else {
-            Vec::new()
+            Default::default()
         };
         Ok(Scene {
             width,
@@ -294,7 +302,7 @@ impl Compiler<'_> {
             features,
             prim_kind,
             leaf_kind,
-            glass_planes,
+            glass_neighbours,
             hash,
         })
     }

@@ -4,6 +4,7 @@
 pub mod compile;
 pub mod error;
 pub mod format;
+pub mod glass_neighbours;
 pub mod leaf_spheres;
 pub mod profile;
 
@@ -280,9 +281,10 @@ pub struct Scene {
     pub prim_kind: Vec<MaterialKind>,
     /// The kind of each CSG leaf's material (global leaf ids).
     pub leaf_kind: Vec<MaterialKind>,
-    /// The opaque unbounded planes that glass faces lying on them give way to
-    /// (`wavefront::intersect::planes_over_glass`); empty in a scene without a dielectric surface.
-    pub glass_planes: Vec<u32>,
+    /// Per prim with a dielectric surface, the opaque prims (unbounded planes included) that its glass
+    /// faces may lie on and give way to (`wavefront::intersect::glass_gives_way`); empty in a scene
+    /// where no glass can touch an opaque surface.
+    pub glass_neighbours: glass_neighbours::GlassNeighbours,
     /// A stable hash of the scene file text (films from different scenes are never merged).
     pub hash: u64,
 }

@@ -2,7 +2,7 @@
 //! time, and each group is solved by the solid's interval merge (Roth 1982, `csg::first_hit_x8`). A CSG
 //! boundary nearer than the ray's current hit replaces it.
 
-use super::intersect::{in_prim_frame, planes_over_glass};
+use super::intersect::{glass_gives_way, in_prim_frame};
 use super::queues::{CsgCandidates, HitQueue, RayQueue};
 use crate::csg::{first_hit_x8, CsgArena, CsgHit};
 use crate::scene::{Scene, Shape};
@@ -10,8 +10,8 @@ use crate::simd::{f32x8, Ray8, Vec3x8, LANES};
 
 pub fn csg_merge(scene: &Scene, rays: &RayQueue, cands: &mut CsgCandidates, hits: &mut HitQueue, arena: &mut CsgArena) {
     csg_merge_candidates(scene, rays, cands, hits, arena);
-    // Then glass faces that lie on an opaque plane give way to it (see `planes_over_glass`).
-    planes_over_glass(scene, rays, hits);
+    // Then glass faces that lie on an opaque surface give way to it (see `glass_gives_way`).
+    glass_gives_way(scene, rays, hits, arena);
 }
 
 /// The candidates' CSG hits, nearer than the rays' current hits, replace them.
