@@ -12,6 +12,7 @@ use glam::Vec3;
 use super::{MaterialKind, Prim, Shape};
 use crate::accel::{Aabb, Bvh};
 use crate::csg::{Csg, COINCIDENT_EPS};
+use crate::geometry::OFFSET_ULPS;
 
 /// Per prim, the opaque prims a dielectric surface of it may lie on (compressed rows; empty in a scene
 /// where no glass surface can touch an opaque one).
@@ -45,8 +46,9 @@ impl GlassNeighbours {
     /// coordinate a ray origin or hit of the scene can have among its bounded prims and camera.
     ///
     /// The rule's tolerance along a ray is `COINCIDENT_EPS (|o|_inf + t |d|)`: with origin and hit
-    /// within `extent`, at most `COINCIDENT_EPS (extent + 2 sqrt(3) extent)`; bounds within 8 times
-    /// that (and 2^-20 of the prim's own size) of each other are neighbours.
+    /// within `extent`, at most `COINCIDENT_EPS (extent + 2 sqrt(3) extent)`; its reach across a
+    /// surface twice the spawn offset, `2 OFFSET_ULPS ulp(extent)`. Bounds within 8 times their sum
+    /// (and 2^-20 of the prim's own size) of each other are neighbours.
     #[allow(clippy::too_many_arguments)]
     pub fn build(
         prims: &[Prim],
@@ -78,7 +80,7 @@ impl GlassNeighbours {
         }
         let planes: Vec<u32> =
             unbounded.iter().copied().filter(|&p| matches!(prims[p as usize].shape, Shape::Plane(_)) && surfaces(p as usize).1).collect();
-        let margin = 8.0 * COINCIDENT_EPS * (1.0 + 2.0 * 3f32.sqrt()) * extent;
+        let margin = 8.0 * (COINCIDENT_EPS * (1.0 + 2.0 * 3f32.sqrt()) + OFFSET_ULPS * f32::EPSILON) * extent;
         let mut start = vec![0u32; prims.len() + 1];
         let mut list = Vec::new();
         let mut stack = Vec::new();

@@ -451,16 +451,25 @@ pub fn glass_gives_way(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, aren
 }
 
 /// [`glass_gives_way`] for ray `i`, whose hit is a dielectric surface of a prim with neighbours.
+///
+/// An opaque neighbour's hit at `t_n >= t` takes the ray when it lies within the coincidence tolerance
+/// beyond the glass hit `p`, or when the neighbour's surface (its tangent plane at that hit) passes
+/// within twice the spawn offset of `p`: the ray the glass would spawn at `p` (`offset_ray_origin`,
+/// moved off the glass by `OFFSET_ULPS` ULPs of the larger of `|p|` and `|o|`) could start beyond
+/// that surface, under the floor a glass sphere touches, and see what lies behind it.
 #[inline(never)]
 fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: usize, arena: &mut CsgArena) {
     let eps = crate::csg::COINCIDENT_EPS;
     let (o, d, t) = (Vec3::new(rays.ox[i], rays.oy[i], rays.oz[i]), Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]), hits.t[i]);
     let (o_inf, d_1) = (o.abs().max_element(), d.abs().element_sum());
     let hit = o + d * t;
+    // Twice the spawn offset at the hit (an ULP of the magnitude is at most 2^-23 of it).
+    let reach = 2.0 * crate::geometry::OFFSET_ULPS * f32::EPSILON * hit.abs().max_element().max(o_inf);
     // A surface within the tolerance beyond the hit passes within `tol |d| <= eps (|o|_inf + t |d|)`
-    // of the hit point: no kernel runs for a neighbour farther than that (the usual case); the
-    // generous slack covers the roundings of this estimate.
-    let near = 2.0 * eps * (o_inf + t * d_1) + 1e-5 * (o_inf + t * d_1);
+    // of the hit point, one within reach of the spawn offset within `reach`: no kernel runs for a
+    // neighbour farther than both (the usual case); the generous slack covers the roundings of this
+    // estimate.
+    let near = 2.0 * eps * (o_inf + t * d_1) + 1e-5 * (o_inf + t * d_1) + 2.0 * reach;
     let tol = eps * (o_inf / d.length() + t);
     let time = rays.with_time.then(|| f32x8::splat(rays.time[i]));
     // The packet kernels on the ray in every lane, as the intersect and CSG stages computed them.
@@ -494,11 +503,18 @@ fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: u
                 }
             }
         };
-        if let Some((tn, leaf, flip)) = found {
-            let nearer = best.is_none_or(|(bt, bp, ..)| tn < bt || (tn == bt && pid < bp));
-            if tn >= t && tn - t <= tol && tn < rays.tmax[i] && nearer {
-                best = Some((tn, pid, leaf, flip));
-            }
+        let Some((tn, leaf, flip)) = found else { continue };
+        if !(tn >= t && tn < rays.tmax[i]) || best.is_some_and(|(bt, bp, ..)| bt < tn || (bt == tn && bp < pid)) {
+            continue;
+        }
+        let within = tn - t <= tol || {
+            // The neighbour's tangent plane at its hit, against the spawn offset at the glass hit.
+            let r = crate::wavefront::RayItem { o, d, time: rays.with_time.then(|| rays.time[i]).unwrap_or(0.0), ..Default::default() };
+            let n = crate::wavefront::shade::surface_hit(scene, &r, tn, pid, leaf, flip).n_facing;
+            ((tn - t) * d.dot(n)).abs() <= reach
+        };
+        if within {
+            best = Some((tn, pid, leaf, flip));
         }
     }
     if let Some((tn, pid, leaf, flip)) = best {

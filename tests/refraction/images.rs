@@ -59,6 +59,42 @@ fn index_one_glass_vanishes() {
     }
 }
 
+/// An index-1 glass sphere resting on a floor (a plane, or a box's top face), seen from close by at the
+/// point where it touches: rays that leave the sphere within a spawn offset of the floor must not start
+/// below it (they saw the magenta background through the floor, in a band of 28 pixels at the contact
+/// before session 28's rule, `glass_gives_way`). With a uniform floor the image is the empty room's.
+#[test]
+fn index_one_glass_resting_on_the_floor_hides_nothing() {
+    for table in [false, true] {
+        let floor = if table {
+            "[[shapes]]\ntype = \"box\"\nmin = [-5, -1, -5]\nmax = [5, 0, 5]\nmaterial = \"floor\"\n"
+        } else {
+            "[[shapes]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\nmaterial = \"floor\"\n"
+        };
+        let room = format!(
+            "[image]\nwidth = 32\nheight = 256\nbackground = [1, 0, 1]\n\
+             [camera]\nposition = [0, 1, 6]\nlook_at = [-2.4, 0, 0]\nfov = 2\n\
+             [materials.floor]\ntype = \"lambert\"\nalbedo = [0.6, 0.6, 0.6]\n\
+             [materials.clear]\ntype = \"dielectric\"\nior = 1.0\n\
+             [[lights]]\ntype = \"point\"\nposition = [1, 5, 4]\nintensity = [20, 20, 20]\n{floor}"
+        );
+        // The sphere first: on an exact tie the lower id would take the ray.
+        let with = format!("{room}[[shapes]]\ntype = \"sphere\"\ncenter = [-2.4, 0.6, 0]\nradius = 0.6\nmaterial = \"clear\"\n");
+        let mut profile = Profile::builtin("final");
+        profile.spp = 1;
+        profile.pixel_strategy = strata::sample::Strategy::Center;
+        profile.light_strategy = strata::sample::Strategy::Center;
+        let a = render(&scene(&with), profile.clone(), 1).to_rgb();
+        let b = render(&scene(&room), profile, 1).to_rgb();
+        let floor_px = b.iter().filter(|c| c.y > 0.0).count();
+        let leaks = a.iter().zip(&b).filter(|(x, y)| y.y > 0.0 && x.y == 0.0 && x.x > 0.5).count();
+        let worst = a.iter().zip(&b).map(|(x, y)| (*x - *y).abs().max_element()).fold(0.0, f32::max);
+        assert!(floor_px > 48 * 20, "table {table}: the view shows the floor ({floor_px} pixels)");
+        assert_eq!(leaks, 0, "table {table}: {leaks} pixels see the background through the floor");
+        assert!(worst < 1e-2 * b.iter().map(|c| c.max_element()).fold(0.0, f32::max), "table {table}: worst difference {worst}");
+    }
+}
+
 const FURNACE_CAMERA: &str = "[image]\nwidth = 32\nheight = 32\nbackground = [1, 1, 1]\n\
 [camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\nfov = 34\n";
 
