@@ -232,7 +232,8 @@ impl Compiler<'_> {
 
         let mut features = Features {
             csg: self.prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })),
-            motion: self.prims.iter().any(|p| p.motion != Vec3::ZERO) && shutter[1] > shutter[0],
+            // (A shutter of no length at a time other than 0 still places moving prims at that time.)
+            motion: self.prims.iter().any(|p| p.motion != Vec3::ZERO) && (shutter[1] > shutter[0] || shutter[0] != 0.0),
             lens: camera.lens_radius > 0.0,
             planes: !unbounded.is_empty(),
             point_lights: self.lights.iter().any(Light::is_point),

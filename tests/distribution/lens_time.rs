@@ -167,3 +167,38 @@ material = "glow"
         assert!(worst <= 2.0 / n as f64 + 1e-5, "{strategy}: worst error {worst:.3e} above 2 / {n}");
     }
 }
+
+/// A shutter of no length at time `t0 != 0` (`shutter = [0.5, 0.5]`) shows each moving prim where it is
+/// at `t0`: the same image as the scene with the prims placed there and no motion. (The motion feature
+/// was off for such a shutter, so prims were tested at time 0 inside bounds swept at `t0`: clipped.)
+#[test]
+fn an_instant_shutter_places_moving_prims_at_its_time() {
+    let text = |shutter: &str, offset: f64, motion: bool| {
+        let m = |v: &str| if motion { format!("motion = {v}\n") } else { String::new() };
+        format!(
+            "[image]\nwidth = 40\nheight = 30\n[camera]\nposition = [0, 0, 0]\nlook_at = [0, 0, -1]\nfov = 40\nshutter = {shutter}\n\
+             [materials.glow]\ntype = \"emissive\"\nradiance = [1, 1, 1]\n\
+             [materials.dim]\ntype = \"emissive\"\nradiance = [0.3, 0.5, 0.2]\n\
+             [[shapes]]\ntype = \"sphere\"\ncenter = [{}, 0.3, -6]\nradius = 0.8\nmaterial = \"glow\"\n{}\
+             [[shapes]]\ntype = \"box\"\nmin = [-0.5, {}, -7]\nmax = [0.5, {}, -6]\nmaterial = \"dim\"\n{}",
+            -1.5 + 2.0 * offset,
+            m("[2, 0, 0]"),
+            -1.6 - 1.2 * offset,
+            -0.9 - 1.2 * offset,
+            m("[0, -1.2, 0]")
+        )
+    };
+    let p = profile(1, "center", 1, "center");
+    for t0 in [0.5, 1.0] {
+        let moving = scene(&text(&format!("[{t0}, {t0}]"), 0.0, true));
+        let placed = scene(&text("[0, 0]", t0, false));
+        assert!(!placed.features.motion);
+        let (a, _) = render_image(&moving, &p, 1);
+        let (b, _) = render_image(&placed, &p, 1);
+        let lit = b.iter().filter(|c| c.max_element() > 0.0).count();
+        let differ = a.iter().zip(&b).filter(|(x, y)| (**x - **y).abs().max_element() > 1e-3).count();
+        assert!(lit > 100, "the prims cover {lit} pixels");
+        // (A silhouette pixel may flip: the moving sphere's test shifts the ray, not the sphere.)
+        assert!(differ <= 2, "shutter [{t0}, {t0}]: {differ} of {lit} lit pixels differ from the placed prims");
+    }
+}
