@@ -50,6 +50,7 @@ pub fn parse_scene(path: &Path, text: &str) -> R<Scene> {
         lights: Vec::new(),
         used_solids: BTreeSet::new(),
         lenient_material: false,
+        warnings: Vec::new(),
     };
     c.compile(hash_text(text))
 }
@@ -71,6 +72,8 @@ struct Compiler<'a> {
     used_solids: BTreeSet<String>,
     /// While checking an unused solid: a leaf may lack a material (a use would give it one).
     lenient_material: bool,
+    /// What the scene says that is valid but likely not meant (`Scene::warnings`).
+    warnings: Vec<String>,
 }
 
 impl Compiler<'_> {
@@ -304,6 +307,7 @@ impl Compiler<'_> {
             prim_kind,
             leaf_kind,
             glass_neighbours,
+            warnings: std::mem::take(&mut self.warnings),
             hash,
         })
     }
@@ -672,7 +676,12 @@ impl Compiler<'_> {
         let solid = self.csg.add_solid(&tree).map_err(|e| self.err(def.span(), field, format!("{e}")))?;
         let (lo, hi) = self.csg.bounds(solid);
         if !lo.cmple(hi).all() {
-            return Ok(()); // an empty solid (e.g. a disjoint intersection) contributes nothing
+            // An empty solid (e.g. a disjoint intersection) contributes nothing.
+            self.warnings.push(
+                self.err(def.span(), field, "this CSG solid is empty (an intersection of solids that do not overlap?): it is left out")
+                    .to_string(),
+            );
+            return Ok(());
         }
         let shape = Shape::Csg { solid };
         self.within_range(&shape, def, field)?;

@@ -285,6 +285,9 @@ pub struct Scene {
     /// faces may lie on and give way to (`wavefront::intersect::glass_gives_way`); empty in a scene
     /// where no glass can touch an opaque surface.
     pub glass_neighbours: glass_neighbours::GlassNeighbours,
+    /// Valid input that is likely not what was meant (an empty CSG solid), each naming its file, line
+    /// and field; the CLI prints them as warnings.
+    pub warnings: Vec<String>,
     /// A stable hash of the scene file text (films from different scenes are never merged).
     pub hash: u64,
 }
