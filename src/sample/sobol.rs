@@ -18,6 +18,7 @@
 //! blocks in different orders, which decorrelates the 2D pairs (Burley's "padding" by shuffling).
 
 use super::hash::{mix64, unit_f32};
+use crate::simd::{f32x8, i32x8, u32x8};
 
 /// Generator of Sobol dimension 1: row `k` is the direction number for index bit `k`.
 const SOBOL_DIM1: [u32; 32] = sobol_dim1_directions();
@@ -129,6 +130,62 @@ pub fn sobol_owen_1d(key: u64, index: u32) -> f32 {
     unit_f32(owen_hash_reversed(shuffled, s_x).reverse_bits())
 }
 
+/// [`u32::reverse_bits`] in 8 lanes: five swap stages of halves, quarters, ... bits.
+#[inline(always)]
+fn reverse_bits_x8(v: u32x8) -> u32x8 {
+    let swap = |v: u32x8, s: u32, m: u32| ((v >> s) & u32x8::splat(m)) | ((v & u32x8::splat(m)) << s);
+    let v = swap(v, 1, 0x5555_5555);
+    let v = swap(v, 2, 0x3333_3333);
+    let v = swap(v, 4, 0x0f0f_0f0f);
+    let v = swap(v, 8, 0x00ff_00ff);
+    (v >> 16) | (v << 16)
+}
+
+/// [`owen_hash_reversed`] in 8 lanes, a seed per lane (the same wrapping steps).
+#[inline(always)]
+fn owen_hash_reversed_x8(x: u32x8, seed: u32x8) -> u32x8 {
+    let k = |c: u32| u32x8::splat(c);
+    let mut x = x;
+    x ^= x * k(0x9e37_79ba);
+    x += seed;
+    x = x * ((seed >> 15) | k(1));
+    x ^= x * k(0x2545_f492);
+    x += ((seed << 11) | (seed >> 21)) ^ k(0x68e3_1da4);
+    x ^= x * k(0x5851_f42e);
+    x ^= x * k(0x7feb_352a);
+    x
+}
+
+/// [`unit_f32`] in 8 lanes (24-bit integers are exact in f32).
+#[inline(always)]
+fn unit_f32_x8(bits: u32x8) -> f32x8 {
+    f32x8::from_i32x8(bytemuck::cast::<u32x8, i32x8>(bits >> 8)) * f32x8::splat(1.0 / 16_777_216.0)
+}
+
+/// Eight lanes of [`sobol_owen_2d`] (lane `l`: point `index[l]` of sequence `keys[l]`), bit for bit, in
+/// vector operations. With `r(x)` the bit reversal and `h_s` the reversed-order hash, the scalar path
+/// computes `shuffled = r(h_i(r(index)))`, `x = r(h_x(r(r(shuffled))))` and `y = r(h_y(r(M shuffled)))`
+/// (`M` the generator matrix); here `r(r(shuffled)) = shuffled`, and `r(M v)` is the superset transform
+/// of `v`'s bits (bit `j` of `r(M v)` is the xor of `v`'s bits `k` with `C(k, j)` odd, that is with
+/// `j` a bit subset of `k`: Lucas), five shift-and-xor steps instead of the byte tables.
+#[inline(always)]
+pub fn sobol_owen_2d_x8(keys: &[u64; 8], index: &[u32; 8]) -> [f32x8; 2] {
+    let mut s = [[0u32; 8]; 3];
+    for l in 0..8 {
+        let [a, b, c] = if l > 0 && keys[l] == keys[l - 1] { [s[0][l - 1], s[1][l - 1], s[2][l - 1]] } else { seeds(keys[l]) };
+        (s[0][l], s[1][l], s[2][l]) = (a, b, c);
+    }
+    let [s_index, s_x, s_y] = s.map(u32x8::from);
+    let shuffled = reverse_bits_x8(owen_hash_reversed_x8(reverse_bits_x8(u32x8::from(*index)), s_index));
+    let mut z = shuffled;
+    for (sh, m) in [(1, 0x5555_5555u32), (2, 0x3333_3333), (4, 0x0f0f_0f0f), (8, 0x00ff_00ff), (16, 0x0000_ffff)] {
+        z ^= (z >> sh) & u32x8::splat(m);
+    }
+    let x = reverse_bits_x8(owen_hash_reversed_x8(shuffled, s_x));
+    let y = reverse_bits_x8(owen_hash_reversed_x8(z, s_y));
+    [unit_f32_x8(x), unit_f32_x8(y)]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -177,6 +234,41 @@ mod tests {
             for i in 0..64 {
                 let vdc = owen_scramble(i, s_index).reverse_bits();
                 assert_eq!(sobol_owen_1d(key, i), unit_f32(owen_scramble(vdc, s_x)));
+            }
+        }
+    }
+
+    /// The 8-lane points are the scalar ones, bit for bit: one key and keys per lane, indices small,
+    /// consecutive, random and at the ends of the range.
+    #[test]
+    fn eight_lanes_equal_the_scalar_points() {
+        let mut h = 0x1234_5678_9abc_def0u64;
+        let mut next = || {
+            h = mix64(h.wrapping_add(0x9e37_79b9_7f4a_7c15));
+            h
+        };
+        for case in 0..4000u32 {
+            let one = next();
+            let keys: [u64; 8] = std::array::from_fn(|l| {
+                if case % 2 == 0 {
+                    one
+                } else if l % 3 == 0 {
+                    one
+                } else {
+                    next()
+                }
+            });
+            let index: [u32; 8] = match case % 4 {
+                0 => std::array::from_fn(|l| case * 8 + l as u32),
+                1 => std::array::from_fn(|_| next() as u32),
+                2 => std::array::from_fn(|l| [0, 1, u32::MAX, 1 << 31, 0x8000_0001, 4095, 4096, 7][l]),
+                _ => std::array::from_fn(|l| (next() as u32) >> (l * 4)),
+            };
+            let [x, y] = sobol_owen_2d_x8(&keys, &index);
+            let (x, y) = (x.to_array(), y.to_array());
+            for l in 0..8 {
+                let [sx, sy] = sobol_owen_2d(keys[l], index[l]);
+                assert_eq!((x[l].to_bits(), y[l].to_bits()), (sx.to_bits(), sy.to_bits()), "case {case} lane {l}: index {}", index[l]);
             }
         }
     }

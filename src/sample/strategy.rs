@@ -274,6 +274,10 @@ impl Sampler2d {
     /// [`Sampler2d::sample_x8`] for every set but the power-of-two jittered ones.
     #[inline(never)]
     fn sample_x8_general(&self, keys: &[u64; LANES], index: &[u32; LANES], permuted: bool) -> [f32x8; 2] {
+        if self.strategy == Strategy::Sobol {
+            // (Points of the sequence, whatever the set's size: vector operations, no scalar path.)
+            return super::sobol::sobol_owen_2d_x8(keys, index);
+        }
         let mut u = [[0.0f32; LANES]; 2];
         if self.strategy == Strategy::Jittered && self.n <= 1 << 24 && index.iter().all(|&i| i < self.n) {
             // Other counts (48, 100, 1000 spp): the same strata and jitter as `sample_impl`, with the
