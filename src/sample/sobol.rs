@@ -148,7 +148,7 @@ fn owen_hash_reversed_x8(x: u32x8, seed: u32x8) -> u32x8 {
     let mut x = x;
     x ^= x * k(0x9e37_79ba);
     x += seed;
-    x = x * ((seed >> 15) | k(1));
+    x *= (seed >> 15) | k(1);
     x ^= x * k(0x2545_f492);
     x += ((seed << 11) | (seed >> 21)) ^ k(0x68e3_1da4);
     x ^= x * k(0x5851_f42e);
@@ -249,15 +249,8 @@ mod tests {
         };
         for case in 0..4000u32 {
             let one = next();
-            let keys: [u64; 8] = std::array::from_fn(|l| {
-                if case % 2 == 0 {
-                    one
-                } else if l % 3 == 0 {
-                    one
-                } else {
-                    next()
-                }
-            });
+            // One key for all lanes in even cases; in odd ones, every third lane's key is shared.
+            let keys: [u64; 8] = std::array::from_fn(|l| if case % 2 == 0 || l % 3 == 0 { one } else { next() });
             let index: [u32; 8] = match case % 4 {
                 0 => std::array::from_fn(|l| case * 8 + l as u32),
                 1 => std::array::from_fn(|_| next() as u32),

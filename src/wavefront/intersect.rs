@@ -509,7 +509,7 @@ fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: u
         }
         let within = tn - t <= tol || {
             // The neighbour's tangent plane at its hit, against the spawn offset at the glass hit.
-            let r = crate::wavefront::RayItem { o, d, time: rays.with_time.then(|| rays.time[i]).unwrap_or(0.0), ..Default::default() };
+            let r = crate::wavefront::RayItem { o, d, time: if rays.with_time { rays.time[i] } else { 0.0 }, ..Default::default() };
             let n = crate::wavefront::shade::surface_hit(scene, &r, tn, pid, leaf, flip).n_facing;
             ((tn - t) * d.dot(n)).abs() <= reach
         };
