@@ -253,3 +253,319 @@ fn profile_overrides_are_checked_with_the_file() {
     assert_eq!(out.status.code(), Some(0));
     assert!(String::from_utf8_lossy(&out.stdout).contains("profile mine"), "{}", String::from_utf8_lossy(&out.stdout));
 }
+
+/// A copy of a shipped scene at `w` x `h` pixels (for cheap renders of its features).
+fn tiny_scene(path: &str, w: u32, h: u32) -> PathBuf {
+    let text: String = std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| match l {
+            l if l.starts_with("width =") => format!("width = {w}\n"),
+            l if l.starts_with("height =") => format!("height = {h}\n"),
+            l => format!("{l}\n"),
+        })
+        .collect();
+    let out = tmp(&format!("tiny-{}", path.replace('/', "-")));
+    std::fs::write(&out, text).unwrap();
+    out
+}
+
+/// `preview.toml` with some lines replaced (`key = ...` lines by their key), and the 1-based line of
+/// each replaced key.
+fn profile_with(name: &str, fields: &[(&str, &str)]) -> (PathBuf, Vec<usize>) {
+    let text = std::fs::read_to_string("profiles/preview.toml").unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut at = Vec::new();
+    for (k, v) in fields {
+        let i = lines.iter().position(|l| l.split('=').next().unwrap().trim() == *k).unwrap_or_else(|| panic!("no {k} in preview"));
+        lines[i] = format!("{k} = {v}");
+        at.push(i + 1);
+    }
+    let path = tmp(name);
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    (path, at)
+}
+
+/// Split branching with a throughput cut-off of 0 spawns 2^depth rays per camera sample (a 160 x 100
+/// render at depth 64 took 24 GB and was killed): it is refused before rendering, at the file's line,
+/// or as the command line's when an override made the combination, with a message that says what to
+/// use instead. Roulette with cut-off 0 stays valid.
+#[test]
+fn split_branching_with_zero_cutoff_is_refused() {
+    let png = tmp("cut0.png");
+    let p = png.to_str().unwrap();
+    let render = |extra: &[&str]| {
+        let mut a = vec!["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", p];
+        a.extend(extra);
+        let out = strata().args(&a).output().unwrap();
+        (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let advice = |err: &str| err.contains("2^max_depth") && err.contains("cutoff > 0") && err.contains("branching = \"roulette\"");
+
+    let (split0, at) = profile_with("split0.toml", &[("branching", "\"split\""), ("throughput_cutoff", "0")]);
+    let (code, err) = render(&["--profile", split0.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(&format!("split0.toml:{}:", at[1])) && err.contains("field `throughput_cutoff`"), "{err}");
+    assert!(advice(&err), "{err}");
+    assert!(!png.exists());
+    // The same by --set, from a split profile; the message is the command line's.
+    let (code, err) = render(&["--profile", "final", "--set", "throughput_cutoff=0"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.starts_with("error: command line: throughput_cutoff: ") && advice(&err), "{err}");
+    // A roulette file with cut-off 0 is valid; `--set branching=split` makes it invalid, and the error
+    // names the override and the file's line of the cut-off.
+    let (roulette0, at) = profile_with("roulette0.toml", &[("branching", "\"roulette\""), ("throughput_cutoff", "0")]);
+    let (code, err) = render(&["--profile", roulette0.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, err) = render(&["--profile", roulette0.to_str().unwrap(), "--set", "branching=split"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.starts_with("error: command line: branching: ") && err.contains(&format!("roulette0.toml:{}", at[1])), "{err}");
+    // ... and an override fixes the split file.
+    let (code, err) = render(&["--profile", split0.to_str().unwrap(), "--set", "branching=roulette"]);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, err) = render(&["--profile", split0.to_str().unwrap(), "--set", "throughput_cutoff=1e-3"]);
+    assert_eq!(code, Some(0), "{err}");
+}
+
+/// The summary's `sampling:` line and `--stats-json` name the filter and the strategy of every integral
+/// the scene samples, as profile files spell them, and no other: lens only with a lens, time only with
+/// motion, glossy only with glossy materials, diffuse only with diffuse_depth > 0.
+#[test]
+fn summary_and_json_name_the_strategies_the_scene_uses() {
+    let sets = [
+        "pixel_strategy=sobol",
+        "light_strategy=grid",
+        "lens_strategy=random",
+        "time_strategy=center",
+        "glossy_strategy=random",
+        "diffuse_strategy=grid",
+        "filter=gaussian",
+    ];
+    type Case<'a> = (&'a str, &'a [&'a str], &'a [(&'a str, &'a str)]);
+    let cases: [Case; 4] = [
+        ("scenes/shapes/sphere.toml", &[], &[("pixel", "sobol"), ("light", "grid")]),
+        ("scenes/dof.toml", &[], &[("pixel", "sobol"), ("light", "grid"), ("lens", "random"), ("glossy", "random")]),
+        ("scenes/motion.toml", &[], &[("pixel", "sobol"), ("light", "grid"), ("time", "center")]),
+        (
+            "scenes/glossy.toml",
+            &["--set", "diffuse_depth=1"],
+            &[("pixel", "sobol"), ("light", "grid"), ("glossy", "random"), ("diffuse", "grid")],
+        ),
+    ];
+    for (scene, extra, want) in cases {
+        let tiny = tiny_scene(scene, 8, 4);
+        let json = tmp("strategies.json");
+        let mut c = strata();
+        c.args(["render", tiny.to_str().unwrap(), "--spp", "1", "-o", tmp("strategies.png").to_str().unwrap()]);
+        c.args(["--stats-json", json.to_str().unwrap()]).args(extra);
+        for s in sets {
+            c.args(["--set", s]);
+        }
+        let out = c.output().unwrap();
+        assert_eq!(out.status.code(), Some(0), "{scene}: {}", String::from_utf8_lossy(&out.stderr));
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let line = stdout.lines().find(|l| l.trim_start().starts_with("sampling:")).unwrap_or_else(|| panic!("{stdout}"));
+        let listed = want.iter().map(|(k, v)| format!("{k} {v}")).collect::<Vec<_>>().join(", ");
+        assert!(line.ends_with(&format!("filter gaussian; strategies: {listed}")), "{scene}: {line}");
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(v["filter"], "gaussian", "{scene}");
+        let got: Vec<(String, String)> =
+            v["strategies"].as_object().unwrap().iter().map(|(k, s)| (k.clone(), s.as_str().unwrap().to_string())).collect();
+        let want: Vec<(String, String)> = want.iter().map(|(k, s)| (k.to_string(), s.to_string())).collect();
+        // (serde_json sorts object keys; compare as sets.)
+        let (mut got, mut want) = (got, want);
+        got.sort();
+        want.sort();
+        assert_eq!(got, want, "{scene}");
+        assert_eq!(v["work_units"]["done"], v["work_units"]["total"], "{scene}");
+        assert_eq!(v["completed"], true, "{scene}");
+    }
+}
+
+/// A single strategy refines the general one whichever order they are given in, by `--strategy` or by
+/// `--set strategy=`: all four spellings render the same image, byte for byte, with pixel random and
+/// light grid.
+#[test]
+fn single_strategy_refines_the_general_one_in_either_order() {
+    let orders: [&[&str]; 4] = [
+        &["--set", "pixel_strategy=random", "--strategy", "grid"],
+        &["--strategy", "grid", "--set", "pixel_strategy=random"],
+        &["--set", "pixel_strategy=random", "--set", "strategy=grid"],
+        &["--set", "strategy=grid", "--set", "pixel_strategy=random"],
+    ];
+    let mut images = Vec::new();
+    for (i, args) in orders.iter().enumerate() {
+        let (png, json) = (tmp(&format!("order{i}.png")), tmp(&format!("order{i}.json")));
+        let out = strata()
+            .args(["render", "scenes/shapes/sphere.toml", "--spp", "4", "-o", png.to_str().unwrap()])
+            .args(["--stats-json", json.to_str().unwrap(), "-q"])
+            .args(*args)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!((v["strategies"]["pixel"].as_str(), v["strategies"]["light"].as_str()), (Some("random"), Some("grid")), "{args:?}");
+        images.push(std::fs::read(&png).unwrap());
+    }
+    assert!(images.iter().all(|i| *i == images[0]), "the four orders rendered different images");
+}
+
+/// Names of strategies, filters and branching policies are exact and lowercase, in files and flags
+/// alike; a wrong name is an error that lists the accepted ones (`centre` stays accepted).
+#[test]
+fn names_are_lowercase_in_files_and_flags_alike() {
+    let png = tmp("case.png");
+    let p = png.to_str().unwrap();
+    let (upper, at) = profile_with("upper.toml", &[("light_strategy", "\"GRID\"")]);
+    let refused: [(Vec<&str>, &str); 5] = [
+        (
+            vec!["--set", "light_strategy=GRID"],
+            "command line: light_strategy: unknown strategy `GRID` (one of center, grid, random, jittered, sobol)",
+        ),
+        (
+            vec!["--strategy", "Jittered"],
+            "command line: strategy: unknown strategy `Jittered` (one of center, grid, random, jittered, sobol)",
+        ),
+        (vec!["--set", "filter=TENT"], "command line: filter: expected box, tent or gaussian, got `TENT`"),
+        (vec!["--set", "branching=Split"], "command line: branching: expected split or roulette, got `Split`"),
+        (vec!["--profile", upper.to_str().unwrap()], "`GRID`, expected one of `center`, `centre`, `grid`, `random`, `jittered`, `sobol`"),
+    ];
+    for (args, want) in refused {
+        let out = strata().args(["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", p]).args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+    let out = strata()
+        .args(["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", p, "--profile", upper.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains(&format!("upper.toml:{}:", at[0])));
+    let out = strata()
+        .args(["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", p, "--set", "light_strategy=grid", "--set", "filter=tent"])
+        .args(["--set", "pixel_strategy=centre", "--set", "branching=split"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// `--profile DIR` says that it is a directory (not that there is no such file).
+#[test]
+fn a_directory_as_profile_is_named_a_directory() {
+    let dir = tmp("profdir");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = strata()
+        .args([
+            "render",
+            "scenes/shapes/sphere.toml",
+            "--spp",
+            "1",
+            "-o",
+            tmp("dir.png").to_str().unwrap(),
+            "--profile",
+            dir.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains(&format!("`{}` is a directory, not a profile file", dir.display())), "{err}");
+}
+
+/// A render whose work units take about half a second each on one thread (64 x 64 pixels, one unit per
+/// sample at tile 64; every pixel sees two area lights through an occluder, so all 2 x 4096 shadow
+/// rays per sample are traced), started with stderr piped; returns the child and its stderr lines.
+#[cfg(unix)]
+fn slow_render(name: &str, extra: &[&str]) -> (std::process::Child, std::io::Lines<std::io::BufReader<std::process::ChildStderr>>) {
+    use std::io::BufRead;
+    let light =
+        |x: f32| format!("[[lights]]\ntype = \"quad\"\norigin = [{x}, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]\nradiance = [1, 1, 1]\n");
+    let scene = tmp(&format!("{name}.toml"));
+    let text = "[image]\nwidth = 64\nheight = 64\n[camera]\nposition = [0, 1, 0]\nlook_at = [0, 0, 0.01]\nfov = 40\n\
+                [materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
+                [[shapes]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\nmaterial = \"m\"\n\
+                [[shapes]]\ntype = \"quad\"\norigin = [-5, 2, -5]\nu = [10, 0, 0]\nv = [0, 0, 10]\nmaterial = \"m\"\n"
+        .to_string()
+        + &light(-2.0)
+        + &light(0.0);
+    std::fs::write(&scene, text).unwrap();
+    let mut child = strata()
+        .args(["render", scene.to_str().unwrap(), "--spp", "10", "--tile", "64", "--threads", "1", "--light-samples", "4096"])
+        .args(extra)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    (child, lines)
+}
+
+#[cfg(unix)]
+fn sigint(child: &std::process::Child) {
+    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(status.success());
+}
+
+/// Read stderr lines up to the first containing `what` (all lines read so far are returned).
+#[cfg(unix)]
+fn read_until(lines: &mut impl Iterator<Item = std::io::Result<String>>, what: &str) -> String {
+    let mut seen = String::new();
+    for l in lines {
+        let l = l.unwrap();
+        seen += &l;
+        seen += "\n";
+        if l.contains(what) {
+            return seen;
+        }
+    }
+    panic!("stderr ended before a line with `{what}`:\n{seen}");
+}
+
+/// Ctrl-C once: one line says what happens, the units in flight finish, the image and the film of what
+/// was done are written, the summary says how much was done (and the JSON agrees), exit 130.
+/// The signal is sent after the first unit's progress line (so the handler is installed); the render
+/// has 9 more units of ~0.5 s, so it cannot have finished.
+#[cfg(unix)]
+#[test]
+fn interrupt_writes_what_was_done_and_says_so() {
+    use std::io::Read;
+    let (png, film, json) = (tmp("int1.png"), tmp("int1.film"), tmp("int1.json"));
+    let (mut child, mut lines) = slow_render("int1", &["-o", png.to_str().unwrap(), "--stats-json", json.to_str().unwrap()]);
+    read_until(&mut lines, "work units");
+    sigint(&child);
+    let notice = read_until(&mut lines, "interrupted: finishing the work units in flight");
+    assert!(notice.contains(&format!("then writing {} and the film {} (Ctrl-C again", png.display(), film.display())), "{notice}");
+    let rest: String = lines.map(|l| l.unwrap() + "\n").collect();
+    let status = child.wait().unwrap();
+    let mut stdout = String::new();
+    child.stdout.take().unwrap().read_to_string(&mut stdout).unwrap();
+    assert_eq!(status.code(), Some(130), "{rest}");
+    assert!(rest.contains("interrupted: wrote the") && rest.contains("--resume"), "{rest}");
+    assert!(png.exists() && film.exists());
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["completed"], false);
+    let done = v["work_units"]["done"].as_u64().unwrap();
+    assert_eq!(v["work_units"]["total"], 10);
+    assert!((1..10).contains(&done), "{done}");
+    assert!(stdout.contains(&format!("  interrupted: {done} of 10 work units of samples 0..10 of 10")), "{stdout}");
+    assert!(!stdout.contains("  samples 0..10 of 10"), "{stdout}");
+}
+
+/// Ctrl-C twice: the second, while the unit in flight (~0.5 s) finishes, quits at once and says that
+/// nothing was written; nothing is. (The second signal follows the first's notice by milliseconds.)
+#[cfg(unix)]
+#[test]
+fn second_interrupt_quits_at_once_and_says_nothing_was_written() {
+    let png = tmp("int2.png");
+    let (mut child, mut lines) = slow_render("int2", &["-o", png.to_str().unwrap()]);
+    read_until(&mut lines, "work units");
+    sigint(&child);
+    read_until(&mut lines, "interrupted: finishing the work units in flight");
+    sigint(&child);
+    let rest: String = lines.map(|l| l.unwrap() + "\n").collect();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{rest}");
+    assert!(rest.contains("interrupted again: quit at once; nothing was written"), "{rest}");
+    assert!(!png.exists() && !tmp("int2.film").exists(), "{rest}");
+}

@@ -485,6 +485,7 @@ fn huge_images_and_sample_counts_are_errors() {
 
     let base = "spp = 4\npixel_strategy = \"jittered\"\nlight_samples = 1\nlight_strategy = \"jittered\"\nmax_depth = 4\n";
     assert!(Profile::parse(Path::new("p.toml"), &base.replace("spp = 4", "spp = 1048576")).is_ok());
+    assert!(Profile::parse(Path::new("p.toml"), &(base.to_string() + "throughput_cutoff = 0\nbranching = \"roulette\"\n")).is_ok());
     for (from, to, field) in [
         ("spp = 4", "spp = 1048577", "spp"),
         ("spp = 4", "spp = 0", "spp"),
@@ -493,6 +494,9 @@ fn huge_images_and_sample_counts_are_errors() {
         ("light_samples = 1", "light_samples = 4097", "light_samples"),
         ("max_depth = 4", "max_depth = 1025", "max_depth"),
         ("max_depth = 4", "max_depth = 4\nthroughput_cutoff = nan", "throughput_cutoff"),
+        // Split branching (the default) with no cut-off: 2^max_depth rays per camera sample.
+        ("max_depth = 4", "max_depth = 4\nthroughput_cutoff = 0", "throughput_cutoff"),
+        ("max_depth = 4", "max_depth = 4\nthroughput_cutoff = 0.0\nbranching = \"split\"", "throughput_cutoff"),
     ] {
         let text = base.replace(from, to);
         let e = Profile::parse(Path::new("p.toml"), &text).expect_err(to);

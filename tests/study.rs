@@ -11,7 +11,7 @@ use strata::scene::{load_scene, parse_scene, Profile, Scene};
 use strata::study::analytic::{gauss_legendre, polygon_irradiance, Footprint, QuadIrradiance};
 use strata::study::metrics::{efficiency, fit_loglog, mse, relmse};
 use strata::study::reference::{obtain, ReferenceSource};
-use strata::study::run::{configure, render_once, run_series, slopes, summarize, Plan, Summary};
+use strata::study::run::{configure, render_once, run_series, slopes, summarize, time_slope_meaningful, Plan, Summary};
 use strata::study::{Integral, IntegralSet};
 
 fn root() -> PathBuf {
@@ -209,7 +209,6 @@ fn analytic_reference_has_no_error_floor() {
     let base = Profile::builtin("preview");
     let integrals = IntegralSet::of(&[Integral::Light]);
     let dir = tmp_dir("floor");
-    let reference = obtain(&ReferenceSource::Analytic, &scene, &base, &integrals, &dir, 0).ok().unwrap();
     let counts = vec![1, 4, 16, 64, 256, 1024];
     let plan = Plan {
         integrals,
@@ -218,7 +217,9 @@ fn analytic_reference_has_no_error_floor() {
         seeds: 4,
         light_from_spp: false,
         threads: 0,
+        cancel: None,
     };
+    let reference = obtain(&ReferenceSource::Analytic, &scene, &base, &plan, &dir).ok().unwrap();
     let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
     let summary = summarize(&series.runs);
     for s in &summary {
@@ -252,7 +253,6 @@ fn soft_shadow_slopes_random_and_jittered() {
     let base = Profile::builtin("preview");
     let integrals = IntegralSet::of(&[Integral::Light]);
     let dir = tmp_dir("slopes");
-    let reference = obtain(&ReferenceSource::Samples(16384), &scene, &base, &integrals, &dir, 0).ok().unwrap();
     let plan = Plan {
         integrals,
         strategies: vec![Strategy::Random, Strategy::Jittered],
@@ -260,7 +260,9 @@ fn soft_shadow_slopes_random_and_jittered() {
         seeds: 8,
         light_from_spp: false,
         threads: 0,
+        cancel: None,
     };
+    let reference = obtain(&ReferenceSource::Samples(16384), &scene, &base, &plan, &dir).ok().unwrap();
     let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
     let summary = summarize(&series.runs);
     let (r, _) = slopes(&summary, Strategy::Random);
@@ -273,6 +275,135 @@ fn soft_shadow_slopes_random_and_jittered() {
     for n in [4, 16, 64, 256] {
         assert!(mse_of(&summary, Strategy::Jittered, n) < mse_of(&summary, Strategy::Random, n));
     }
+}
+
+/// The studied strategy drives the wavelength (dispersion) and diffuse-bounce dimensions: on the prism
+/// (dispersive glass) a study's run equals an independent render with *every* strategy set to the
+/// studied one (`render --strategy random`), and with the light alone studied, one with every strategy
+/// at `center` but the light's. And independent samples converge as 1/n: the profile's jittered
+/// wavelength, left in place, made `random` converge at -1.6.
+#[test]
+fn study_strategy_drives_wavelength_and_diffuse_dimensions() {
+    let scene = resized("scenes/prism.toml", 48, 30);
+    assert!(scene.features.dispersion);
+    let base = Profile::builtin("preview");
+    assert_eq!((base.wavelength_strategy, base.diffuse_strategy), (Strategy::Jittered, Strategy::Jittered));
+    let dir = tmp_dir("prism");
+    let plan = Plan {
+        integrals: IntegralSet::all(),
+        strategies: vec![Strategy::Random, Strategy::Jittered],
+        counts: vec![1, 4, 16],
+        seeds: 4,
+        light_from_spp: false,
+        threads: 0,
+        cancel: None,
+    };
+    let reference = obtain(&ReferenceSource::Samples(256), &scene, &base, &plan, &dir).ok().unwrap();
+    let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
+    for strategy in [Strategy::Random, Strategy::Jittered] {
+        let mut p = base.clone();
+        p.set("strategy", strategy.name()).unwrap();
+        p.spp = 4;
+        let (film, _, _) = render_once(&scene, p, 1, 0);
+        let independent = mse(&film.to_rgb(), &reference.image);
+        let run = series.runs.iter().find(|r| r.strategy == strategy && r.n == 4 && r.seed == 1).unwrap();
+        assert_eq!(run.mse, independent, "{strategy}: the study's run is not `render --strategy {strategy}`");
+    }
+    let summary = summarize(&series.runs);
+    let r = slopes(&summary, Strategy::Random).0.unwrap().slope;
+    println!("prism, all integrals: random slope {r:.3}");
+    // Independent samples: MSE = s^2 / n + the reference's s^2 / 256, a slope of -0.98 over 1..16; the
+    // prism's caustic makes the per-seed error heavy-tailed, hence +-0.2 (the bug gave -1.61).
+    assert!((-1.2..-0.8).contains(&r), "random slope {r}");
+
+    // `light` alone: everything but the light at `center`, the wavelength and diffuse bounces included.
+    let light =
+        Plan { integrals: IntegralSet::of(&[Integral::Light]), strategies: vec![Strategy::Random], counts: vec![4], seeds: 1, ..plan };
+    let series = run_series(&scene, &base, &light, &reference.image, false, &mut |_| {}).unwrap();
+    let mut p = base.clone();
+    p.set("strategy", "center").unwrap();
+    p.set("light_strategy", "random").unwrap();
+    (p.spp, p.light_samples) = (1, 4);
+    let (film, _, _) = render_once(&scene, p, 1, 0);
+    assert_eq!(series.runs[0].mse, mse(&film.to_rgb(), &reference.image), "light alone: not every other dimension at center");
+}
+
+/// With --light-samples-from-spp the default reference (16 x the largest count, spp) also takes the
+/// largest count of light samples, so it has 16 x the largest run's light samples per pixel: the
+/// measured MSE is the run's error plus at most 1/16 of it (random; less for jittered), checked against
+/// MSEs measured in the test against an independent reference with 64 x. (A reference with the
+/// profile's one light sample had as many stratified light samples per pixel as the largest jittered
+/// run, so it measured the reference's noise as much as the run's: about twice the error.)
+#[test]
+fn light_samples_from_spp_reference_is_converged() {
+    let scene = resized("scenes/soft_shadows.toml", 32, 24);
+    let base = Profile::builtin("preview");
+    assert_eq!(base.light_samples, 1);
+    let integrals = IntegralSet::of(&[Integral::Pixel, Integral::Light]);
+    let dir = tmp_dir("lsfs");
+    let plan = Plan {
+        integrals,
+        strategies: vec![Strategy::Random, Strategy::Jittered],
+        counts: vec![1, 4, 16],
+        seeds: 2,
+        light_from_spp: true,
+        threads: 0,
+        cancel: None,
+    };
+    let reference = obtain(&ReferenceSource::Samples(256), &scene, &base, &plan, &dir).ok().unwrap();
+    let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
+    // Independent: 1024 jittered spp x 16 jittered light samples (16384 per pixel, 64 x the largest run).
+    let mut p = base.clone();
+    p.set("strategy", "jittered").unwrap();
+    (p.spp, p.light_samples) = (1024, 16);
+    let (film, _, _) = render_once(&scene, p, 12345, 0);
+    let exact: Vec<DVec3> = film.to_rgb().iter().map(|c| c.as_dvec3()).collect();
+    for strategy in [Strategy::Random, Strategy::Jittered] {
+        let big: Vec<_> = series.runs.iter().filter(|r| r.n == 16 && r.strategy == strategy).collect();
+        assert!(big.len() == 2 && big.iter().all(|r| (r.camera_spp, r.light_samples) == (16, 16)));
+        let measured: f64 = big.iter().map(|r| r.mse).sum();
+        let independent: f64 = big
+            .iter()
+            .map(|r| {
+                let mut q = base.clone();
+                q.set("strategy", strategy.name()).unwrap();
+                (q.spp, q.light_samples) = (16, 16);
+                let (f, _, _) = render_once(&scene, q, r.seed, 0);
+                mse(&f.to_rgb(), &exact)
+            })
+            .sum();
+        let ratio = measured / independent;
+        println!("--light-samples-from-spp, {strategy} n = 16: study MSE / MSE against a 64 x reference = {ratio:.3}");
+        // Expected at most 1 + 1/16 - 1/64 = 1.05 (random); statistical spread a few percent.
+        assert!((0.95..1.15).contains(&ratio), "{strategy}: ratio {ratio}");
+    }
+}
+
+/// The slope against seconds is reported only over 3+ counts whose times span 4x and grow at least as
+/// n^0.5 (else fixed costs and timing noise set it).
+#[test]
+fn time_slope_needs_three_counts_and_growing_times() {
+    // (samples, seconds)
+    assert!(!time_slope_meaningful(&[(1.0, 0.01), (16.0, 0.16)]), "two counts");
+    assert!(!time_slope_meaningful(&[(1.0, 0.010), (2.0, 0.012), (3.0, 0.015)]), "1.5x in time");
+    // The analytic study's random row: 2.1 ms at 1 sample, 9.2 ms at 1024: n^0.2.
+    let fixed = [(1.0, 0.0021), (4.0, 0.0029), (16.0, 0.0039), (64.0, 0.0038), (256.0, 0.0040), (1024.0, 0.0092)];
+    assert!(!time_slope_meaningful(&fixed), "fixed costs");
+    assert!(time_slope_meaningful(&[(1.0, 0.01), (4.0, 0.04), (16.0, 0.16)]));
+    let row = |n: u32, seconds: f64, mse: f64| Summary {
+        strategy: Strategy::Random,
+        n,
+        seeds: 1,
+        seconds,
+        rays: 0.0,
+        mse,
+        relmse: 0.0,
+        efficiency: 0.0,
+    };
+    let (vs_n, vs_t) = slopes(&[row(1, 0.010, 1.0), row(4, 0.011, 0.25)], Strategy::Random);
+    assert!((vs_n.unwrap().slope + 1.0).abs() < 1e-12 && vs_t.is_none());
+    let (_, vs_t) = slopes(&[row(1, 0.01, 1.0), row(4, 0.04, 0.25), row(16, 0.16, 1.0 / 16.0)], Strategy::Random);
+    assert!((vs_t.unwrap().slope + 1.0).abs() < 1e-12);
 }
 
 // ---------------------------------------------------------------- the command line
@@ -387,7 +518,7 @@ fn reference_cache_is_reused_only_when_fresh() {
 fn cli_input_errors_exit_2_with_a_message() {
     let dir = tmp_dir("errors");
     let d = dir.to_str().unwrap();
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 11] = [
         (&["--strategies", "random,magic"], "unknown strategy `magic`"),
         (&["--spp", ","], "--spp: the list is empty"),
         (&["--spp", "4,zero"], "is not a sample count"),
@@ -397,6 +528,8 @@ fn cli_input_errors_exit_2_with_a_message() {
         (&["--integrals", "pixel,colour"], "unknown integral `colour`"),
         (&["--seeds", "0"], "--seeds"),
         (&["--reference", "analytic"], "Lambert plane lit by one quad light"),
+        (&["--integrals", "pixel", "--light-samples-from-spp"], "--light-samples-from-spp needs `light`"),
+        (&["--integrals", "light", "--light-samples-from-spp"], "--light-samples-from-spp needs `light`"),
     ];
     for (extra, msg) in cases {
         let mut a = vec!["study", "scenes/soft_shadows.toml", "--out", d];
@@ -415,4 +548,77 @@ fn cli_input_errors_exit_2_with_a_message() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(!fresh.exists(), "an empty --out directory was left behind");
+}
+
+/// A progress line per run on stderr (none with --quiet), and a warning for a reference with fewer than
+/// 4 x the largest count.
+#[test]
+fn cli_progress_lines_and_reference_warning() {
+    let dir = tmp_dir("progress");
+    let d = dir.to_str().unwrap();
+    let args = |extra: &[&'static str]| {
+        let mut a = vec!["study", "scenes/quad_irradiance.toml", "--integrals", "light", "--strategies", "random,jittered"];
+        a.extend_from_slice(&["--spp", "1,4", "--seeds", "2", "--out", d]);
+        a.extend_from_slice(extra);
+        a
+    };
+    let stderr = |a: &[&str]| {
+        let out = strata().args(a).output().unwrap();
+        assert!(out.status.success(), "{a:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let e = stderr(&args(&["--reference-spp", "8"]));
+    let lines: Vec<&str> = e.lines().filter(|l| l.trim_start().starts_with("run ")).collect();
+    assert_eq!(lines.len(), 8, "{e}");
+    assert!(lines[0].contains("run 1/8: random n=1 seed 1") && lines[7].contains("run 8/8: jittered n=4 seed 2"), "{e}");
+    assert!(e.contains("warning: --reference-spp 8 is less than 4 x the largest count 4"), "{e}");
+    // 16 = 4 x 4: no warning; --quiet: no progress (and the default reference, 64, no warning either).
+    assert!(!stderr(&args(&["--reference-spp", "16"])).contains("warning"));
+    let quiet = stderr(&args(&["--quiet"]));
+    assert!(!quiet.contains("run 1/") && !quiet.contains("warning"), "{quiet}");
+}
+
+/// Ctrl-C (SIGINT) stops the study: exit 130, and study.csv holds exactly the runs reported finished.
+#[test]
+fn cli_interrupt_writes_the_finished_runs() {
+    use std::io::{BufRead, BufReader};
+    let dir = tmp_dir("interrupt");
+    let mut child = strata()
+        .args(["study", "scenes/quad_irradiance.toml", "--reference", "analytic", "--integrals", "light", "--strategies", "random"])
+        .args(["--spp", "16", "--seeds", "1000", "--threads", "1", "--out", dir.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    let mut reported = Vec::new();
+    for line in lines.by_ref() {
+        let line = line.unwrap();
+        if line.trim_start().starts_with("run ") {
+            reported.push(line);
+            if reported.len() == 3 {
+                let ok = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+                assert!(ok.success());
+                break;
+            }
+        }
+    }
+    let mut rest = String::new();
+    for line in lines {
+        let line = line.unwrap();
+        if line.trim_start().starts_with("run ") {
+            reported.push(line);
+        } else {
+            rest.push_str(&line);
+            rest.push('\n');
+        }
+    }
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{rest}");
+    assert!(rest.contains("interrupted: wrote") && rest.contains(&format!("the {} of 1000 runs", reported.len())), "{rest}");
+    let csv = std::fs::read_to_string(dir.join("study.csv")).unwrap();
+    let seeds: Vec<String> = csv.lines().skip(1).map(|l| l.split(',').nth(2).unwrap().to_string()).collect();
+    assert!(reported.len() >= 3 && reported.len() < 1000, "{}", reported.len());
+    assert_eq!(seeds, (1..=reported.len()).map(|s| s.to_string()).collect::<Vec<_>>());
+    assert!(!dir.join("study.png").exists());
 }

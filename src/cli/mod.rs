@@ -1,6 +1,7 @@
 //! Command-line interface. Exit codes: 0 success, 1 a failure while running (e.g. writing output),
 //! 2 bad input (scene, profile, flags), 130 interrupted by SIGINT or SIGTERM (the accumulated image and its
-//! film are still written).
+//! film are still written; a second signal while the work units in flight finish quits at once, writing
+//! nothing, and says so).
 
 pub mod merge_cmd;
 pub mod render_cmd;
@@ -43,7 +44,8 @@ impl Failure {
 }
 
 /// Load `--profile NAME|PATH`, apply `before` (overrides from the command's own flags, which may depend
-/// on the file's values), then the `--set KEY=VALUE` flags, in order, and check the result as a whole
+/// on the file's values), then the `--set KEY=VALUE` flags, in order (except that a general `strategy`
+/// comes before every single one, which refines it), and check the result as a whole
 /// ([`crate::scene::Profile::load_with`]): an override may make a file's combination valid.
 pub fn load_profile(
     name: &str,

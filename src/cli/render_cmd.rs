@@ -5,6 +5,7 @@ use crate::film::file::{check_film_writable, profile_record, read_film, write_fi
 use crate::film::output::{check_file_writable, check_writable, write_image};
 use crate::film::Film;
 use crate::render::{check_render_size, render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
+use crate::sample::Strategy;
 use crate::scene::{load_scene, Profile, Scene};
 use crate::wavefront::Settings;
 use clap::Args;
@@ -12,7 +13,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -151,6 +152,9 @@ fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
 pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     let scene = load_scene(&a.scene).map_err(Failure::input)?;
     let profile = resolve_profile(&a)?;
+    for w in &scene.warnings {
+        errln!("warning: {w}");
+    }
     if a.threads > 1024 {
         return Err(Failure::input("--threads must be at most 1024"));
     }
@@ -222,25 +226,31 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     let resumed_units = header.units_done();
     let start_completed = std::mem::take(&mut header.completed);
 
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let c = cancel.clone();
-        // A second Ctrl-C while stopping exits at once.
-        let _ = ctrlc::set_handler(move || {
-            if c.swap(true, Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-        });
-    }
     let settings = Settings { profile, seed: a.seed };
     let label = format!("samples {}..{}", samples.start, samples.end);
     let progress = Progress::new(&label, a.quiet, n_units, resumed_units);
     let report = |d: usize, n: usize| progress.update(d, n);
+    // The film an interrupted render writes (an interrupted render always leaves one, to resume).
+    let film_out_interrupted = film_path.clone().unwrap_or_else(|| interrupt_film_path(&out));
+    let cancel = Arc::new(AtomicBool::new(false));
+    let state = Arc::new(AtomicU8::new(RUNNING));
+    let checkpointed = Arc::new(AtomicBool::new(false));
+    install_interrupt_handler(
+        &cancel,
+        &state,
+        &checkpointed,
+        &progress,
+        &out,
+        &film_out_interrupted,
+        film_path.as_deref(),
+        a.resume.as_deref(),
+    );
     let write_checkpoint = |f: &Film, completed: &[bool]| {
         let path = film_path.as_deref().expect("checkpoints need a film path");
         let h = FilmHeader { completed: completed.to_vec(), ..header.clone() };
-        if let Err(e) = write_film(path, &h, f) {
-            progress.println(&format!("warning: checkpoint not written: {e}"));
+        match write_film(path, &h, f) {
+            Ok(()) => checkpointed.store(true, Ordering::SeqCst),
+            Err(e) => progress.println(&format!("warning: checkpoint not written: {e}")),
         }
     };
     let mut job = RenderJob::new(&scene, settings);
@@ -251,6 +261,15 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     job.progress = Some(&report);
     job.checkpoint = checkpoint_every.map(|every| Checkpoint { every, write: &write_checkpoint });
     let (film, completed, stats) = render_resumable(&job, film, start_completed);
+    // From here on a signal no longer quits: the outputs are written (quickly, and all or nothing).
+    // Unless a second signal has just started quitting: then wait for the handler to end the process.
+    loop {
+        match state.load(Ordering::SeqCst) {
+            QUITTING => std::thread::sleep(Duration::from_millis(50)),
+            s if state.compare_exchange(s, WRITING, Ordering::SeqCst, Ordering::SeqCst).is_ok() => break,
+            _ => {}
+        }
+    }
     let header = FilmHeader { completed, ..header.clone() };
     progress.finish();
 
@@ -266,13 +285,23 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             Some(r) => format!(", resumed {resumed_units} of {n_units} work units from {}", r.display()),
             None => String::new(),
         };
-        outln!("  {label} of {}{resumed}", header.spp);
+        if stats.completed {
+            outln!("  {label} of {}{resumed}", header.spp);
+        } else {
+            outln!("  interrupted: {} of {n_units} work units of {label} of {}{resumed}", header.units_done(), header.spp);
+        }
         if let Some(f) = &film_out {
             outln!("  wrote film {}", f.display());
         }
     }
     if let Some(j) = &a.stats_json {
-        let text = serde_json::to_string_pretty(&stats).map_err(Failure::runtime)?;
+        let json = StatsJson {
+            stats: &stats,
+            work_units: WorkUnitsJson { done: header.units_done(), total: n_units, resumed: resumed_units },
+            filter: job.settings.profile.filter.name(),
+            strategies: UsedStrategies(used_strategies(&scene, &job.settings.profile)),
+        };
+        let text = serde_json::to_string_pretty(&json).map_err(Failure::runtime)?;
         crate::film::output::write_atomic(j, |tmp| std::fs::write(tmp, text).map_err(|e| e.to_string())).map_err(Failure::runtime)?;
     }
     crate::film::warn_discarded(stats.nonfinite_samples);
@@ -290,6 +319,103 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         return Ok(130);
     }
     Ok(0)
+}
+
+/// `--stats-json`: the render's statistics and what the summary adds to them.
+#[derive(serde::Serialize)]
+struct StatsJson<'a> {
+    #[serde(flatten)]
+    stats: &'a RenderStats,
+    work_units: WorkUnitsJson,
+    filter: &'static str,
+    strategies: UsedStrategies,
+}
+
+#[derive(serde::Serialize)]
+struct WorkUnitsJson {
+    /// Completed, counting those resumed from a film.
+    done: usize,
+    total: usize,
+    resumed: usize,
+}
+
+/// Integral -> strategy name, as a JSON object in the summary's order.
+struct UsedStrategies(Vec<(&'static str, Strategy)>);
+
+impl serde::Serialize for UsedStrategies {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_map(self.0.iter().map(|(k, v)| (k, v.name())))
+    }
+}
+
+/// The integrals this render samples, with their strategies: pixel always, light with area lights,
+/// lens with a lens, time with motion, glossy with glossy materials, diffuse with `diffuse_depth > 0`,
+/// wavelength with dispersion.
+pub fn used_strategies(scene: &Scene, p: &Profile) -> Vec<(&'static str, Strategy)> {
+    let f = &scene.features;
+    [
+        ("pixel", p.pixel_strategy, true),
+        ("light", p.light_strategy, f.area_lights),
+        ("lens", p.lens_strategy, f.lens),
+        ("time", p.time_strategy, f.motion),
+        ("glossy", p.glossy_strategy, f.glossy),
+        ("diffuse", p.diffuse_strategy, p.diffuse_depth > 0),
+        ("wavelength", p.wavelength_strategy, f.dispersion),
+    ]
+    .into_iter()
+    .filter(|&(_, _, used)| used)
+    .map(|(k, s, _)| (k, s))
+    .collect()
+}
+
+/// The states of a render towards signals (see [`install_interrupt_handler`]).
+const RUNNING: u8 = 0;
+const STOPPING: u8 = 1;
+const QUITTING: u8 = 2;
+const WRITING: u8 = 3;
+
+/// SIGINT / SIGTERM: the first stops handing out work units (`cancel`), says so, and lets the units in
+/// flight finish, after which the image and the film are written; a second while those finish quits at
+/// once, writing nothing, and says so (and which film, if any, still holds a resumable state). Once
+/// rendering has stopped (`state` WRITING) signals wait for the outputs: writing them is quick.
+#[allow(clippy::too_many_arguments)]
+fn install_interrupt_handler(
+    cancel: &Arc<AtomicBool>,
+    state: &Arc<AtomicU8>,
+    checkpointed: &Arc<AtomicBool>,
+    progress: &Progress,
+    out: &Path,
+    film_out: &Path,
+    film_path: Option<&Path>,
+    resume: Option<&Path>,
+) {
+    let (cancel, state, checkpointed, bar) = (cancel.clone(), state.clone(), checkpointed.clone(), progress.bar.clone());
+    let (out, film_out) = (out.display().to_string(), film_out.display().to_string());
+    let (film_path, resume) = (film_path.map(|p| p.display().to_string()), resume.map(|p| p.display().to_string()));
+    let say = move |m: &str| match &bar {
+        Some(b) => b.suspend(|| errln!("{m}")),
+        None => errln!("{m}"),
+    };
+    let _ = ctrlc::set_handler(move || match state.compare_exchange(RUNNING, STOPPING, Ordering::SeqCst, Ordering::SeqCst) {
+        Ok(_) => {
+            cancel.store(true, Ordering::SeqCst);
+            say(&format!(
+                "interrupted: finishing the work units in flight, then writing {out} and the film {film_out} \
+                 (Ctrl-C again to quit at once without writing)"
+            ));
+        }
+        Err(STOPPING) if state.compare_exchange(STOPPING, QUITTING, Ordering::SeqCst, Ordering::SeqCst).is_ok() => {
+            let kept = match (&film_path, &resume) {
+                (Some(f), _) if checkpointed.load(Ordering::SeqCst) => format!("; {f} holds the last checkpoint: --resume {f}"),
+                (_, Some(r)) => format!("; {r} is as it was: --resume {r}"),
+                _ => String::new(),
+            };
+            say(&format!("interrupted again: quit at once; nothing was written ({out} and the film {film_out} were not){kept}"));
+            std::process::exit(130);
+        }
+        Err(WRITING) => say(&format!("interrupted: rendering has stopped; writing {out}, please wait")),
+        Err(_) => {}
+    });
 }
 
 /// Progress of this process's sample range: a bar on a terminal, else a line per 10% (for job logs).
@@ -353,11 +479,24 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
     macro_rules! wl { ($($t:tt)*) => {{ use std::fmt::Write as _; let _ = writeln!(o, $($t)*); }}; }
     let p = &job.settings.profile;
     wl!("strata: {}  {}x{}  profile {}  seed {}  {} threads", path.display(), s.width, s.height, p.name, s.seed, s.threads);
-    wl!("  sampling: {}", crate::wavefront::pipeline::describe(p));
+    let branching = match p.branching {
+        crate::scene::Branching::Split => "split",
+        crate::scene::Branching::Roulette => "roulette",
+    };
+    let strategies: Vec<String> = used_strategies(scene, p).iter().map(|(k, s)| format!("{k} {}", s.name())).collect();
+    wl!(
+        "  sampling: {} spp, {} light samples, max depth {}, diffuse depth {}, branching {branching}, filter {}; strategies: {}",
+        p.spp,
+        p.light_samples,
+        p.max_depth,
+        p.diffuse_depth,
+        p.filter.name(),
+        strategies.join(", ")
+    );
     wl!(
         "  scene: {} prims, {} CSG solids, {} lights; features {}",
         scene.prims.len(),
-        scene.csg.solid_count(),
+        scene.prims.iter().filter(|p| matches!(p.shape, crate::scene::Shape::Csg { .. })).count(),
         scene.lights.len(),
         feature_list(&scene.features)
     );

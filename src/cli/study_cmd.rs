@@ -4,31 +4,47 @@ use super::Failure;
 use crate::sample::Strategy;
 use crate::scene::{load_scene, Material, Profile, Scene};
 use crate::study::reference::{obtain, RefError, ReferenceSource};
-use crate::study::run::{configure, light_only, run_series, slopes, summarize, Plan, RunResult, Summary};
-use crate::study::{csv, plot, sheet, IntegralSet};
+use crate::study::run::{
+    configure, light_only, run_series, slopes, summarize, Plan, RunResult, Summary, TIME_SLOPE_MIN_COUNTS, TIME_SLOPE_MIN_GROWTH,
+    TIME_SLOPE_MIN_SPAN,
+};
+use crate::study::{csv, plot, sheet, Integral, IntegralSet};
 use clap::Args;
-use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// A `--reference-spp` below this multiple of the largest count is warned about.
+pub const REFERENCE_MIN_FACTOR: u32 = 4;
 
 const MAPPING_HELP: &str = "\
 How the sample counts (--spp) map onto the integrals (--integrals):
   * `light` alone: n = light samples per shading point with the strategy, and one camera path per pixel
-    through the pixel centre (pixel, lens, time and glossy held at `center`): the error measured is that
-    of the light integral alone. Counts above 4096 must be multiples of 4096 (4096 per camera pass).
+    through the pixel centre (pixel, lens, time, glossy, diffuse bounces and wavelength held at `center`):
+    the error measured is that of the light integral alone. Counts above 4096 must be multiples of 4096
+    (4096 per camera pass), and are refused for `grid` (each pass would repeat the same grid).
   * anything else: n = camera samples per pixel (spp). Each studied camera integral (pixel, lens, time,
     glossy) uses the strategy; the others are held at `center` (pixel centre, lens centre, mid-shutter,
     the lobe's central direction). A studied `light` uses the strategy with the profile's light_samples
     per shading point (n of them with --light-samples-from-spp); an unstudied light is held at one sample
     at its centre (hard shadows).
-  * The pixel strategy also drives the wavelength and diffuse-bounce dimensions.
+  * The wavelength (dispersion) and diffuse-bounce dimensions follow the pixel integral: the strategy
+    when `pixel` is studied, `center` otherwise (never the profile's own strategies).
 The reference is the converged value of that same estimator: --reference-spp N renders it once with the
 jittered strategy and N samples under the same mapping (seed distinct from the study's seeds 1..K) and
 caches it in DIR, keyed by the scene file's hash, the full reference profile and N (default N: 16 x the
-largest count); --reference analytic computes it exactly for a Lambert plane under one quad light.
+largest count; a warning below 4 x, where the reference's own noise is a large part of what is measured).
+With --light-samples-from-spp the reference takes N spp x (largest count) light samples, so it has N /
+(largest count) times the largest run's light samples too. --reference analytic computes the reference
+exactly for a Lambert plane under one quad light (at pixel centres with --integrals light).
+
+Progress: a line per finished run on stderr (--quiet: none). Ctrl-C stops the study: study.csv is written
+with the runs that finished (the run in flight is dropped), and the exit code is 130.
 
 Outputs in DIR: study.csv (one row per render: strategy,spp,seed,seconds,rays,mse,relmse,efficiency,
 camera_spp,light_samples), study.png (log-log MSE vs samples and vs seconds, mean over seeds, fitted
-slopes in the legend), sheet.png with --sheet. relMSE = mean (x - ref)^2 / (ref^2 + 0.01) per channel;
+slopes in the legend; the slope against seconds only for 3+ counts whose times span 4x and grow at least
+as n^0.5, else n/a), sheet.png with --sheet. relMSE = mean (x - ref)^2 / (ref^2 + 0.01) per channel;
 efficiency = 1 / (MSE x seconds), seconds being the render's own wall time.";
 
 #[derive(Args, Debug, Clone)]
@@ -72,6 +88,9 @@ pub struct StudyArgs {
     /// With `light` among several integrals: n light samples per shading point as well as n spp.
     #[arg(long)]
     pub light_samples_from_spp: bool,
+    /// No progress lines on stderr (warnings and errors are still printed).
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 /// Parse a comma-separated list with `parse`; empty items are ignored, an empty list is an error.
@@ -98,7 +117,8 @@ fn parse_list<T: PartialEq>(flag: &str, text: &str, parse: impl Fn(&str) -> Resu
 fn parse_strategy(s: &str) -> Result<Strategy, String> {
     Strategy::parse(s).ok_or_else(|| {
         let all: Vec<_> = Strategy::ALL.iter().map(|s| s.name()).collect();
-        format!("unknown strategy `{s}` (one of {})", all.join(", "))
+        let case = if Strategy::parse(&s.to_ascii_lowercase()).is_some() { "; names are lowercase" } else { "" };
+        format!("unknown strategy `{s}` (one of {}){case}", all.join(", "))
     })
 }
 
@@ -120,6 +140,9 @@ struct Setup {
 fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     let scene = load_scene(&a.scene).map_err(Failure::input)?;
     let profile = super::load_profile(&a.profile, |_| Vec::new(), &a.set)?;
+    for w in &scene.warnings {
+        errln!("warning: {w}");
+    }
     let strategies = parse_list("--strategies", &a.strategies, parse_strategy)?;
     let mut counts = parse_list("--spp", &a.spp, parse_count)?;
     counts.sort_unstable();
@@ -129,6 +152,13 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     }
     if a.threads > 1024 {
         return Err(Failure::input("--threads must be at most 1024"));
+    }
+    if a.light_samples_from_spp && (!integrals.contains(Integral::Light) || light_only(&integrals)) {
+        return Err(Failure::input(format!(
+            "--light-samples-from-spp needs `light` among several studied integrals (--integrals {}): {}",
+            integrals.names(),
+            if light_only(&integrals) { "with `light` alone the count already is light samples" } else { "the light is not studied" }
+        )));
     }
     for &s in &strategies {
         for &n in &counts {
@@ -151,7 +181,8 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
             ReferenceSource::Samples(n)
         }
     };
-    let plan = Plan { integrals, strategies, counts, seeds: a.seeds, light_from_spp: a.light_samples_from_spp, threads: a.threads };
+    let plan =
+        Plan { integrals, strategies, counts, seeds: a.seeds, light_from_spp: a.light_samples_from_spp, threads: a.threads, cancel: None };
     Ok(Setup { scene, profile, plan, source })
 }
 
@@ -173,6 +204,25 @@ fn unused_integrals(scene: &Scene, integrals: &IntegralSet) -> Vec<&'static str>
         .collect()
 }
 
+/// The warning for a rendered reference of `n` samples when the largest count is `largest`: None if
+/// `n >= REFERENCE_MIN_FACTOR x largest`.
+///
+/// The measured MSE is the run's error plus the reference's own variance; for independent samples the
+/// latter is `largest / n` of the largest run's error (1/16 at the default), so a small `n` measures the
+/// reference as much as the runs.
+pub fn reference_warning(n: u32, largest: u32) -> Option<String> {
+    if n as u64 >= REFERENCE_MIN_FACTOR as u64 * largest as u64 {
+        return None;
+    }
+    Some(format!(
+        "warning: --reference-spp {n} is less than {REFERENCE_MIN_FACTOR} x the largest count {largest}: the reference's own noise \
+         (about {largest}/{n} of the largest run's MSE with independent samples) is measured with the runs' error; \
+         use at least {} (the default is {})",
+        REFERENCE_MIN_FACTOR as u64 * largest as u64,
+        16 * largest as u64
+    ))
+}
+
 fn describe_mapping(plan: &Plan) -> String {
     if light_only(&plan.integrals) {
         "n = light samples per shading point; one camera path through each pixel centre".into()
@@ -189,7 +239,23 @@ fn describe_mapping(plan: &Plan) -> String {
 }
 
 pub fn run(a: StudyArgs) -> Result<u8, Failure> {
-    let Setup { scene, profile, plan, source } = setup(&a)?;
+    let Setup { scene, profile, mut plan, source } = setup(&a)?;
+    if let ReferenceSource::Samples(n) = source {
+        if let Some(w) = reference_warning(n, *plan.counts.last().expect("non-empty")) {
+            errln!("{w}");
+        }
+    }
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let c = cancel.clone();
+        // A second Ctrl-C while stopping exits at once.
+        let _ = ctrlc::set_handler(move || {
+            if c.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+        });
+    }
+    plan.cancel = Some(cancel);
     let created = !a.out.exists();
     std::fs::create_dir_all(&a.out).map_err(|e| Failure::input(format!("--out {}: cannot create: {e}", a.out.display())))?;
     let unused = unused_integrals(&scene, &plan.integrals);
@@ -198,42 +264,54 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     }
     outln!("strata study: {}  {}x{}  profile {}", a.scene.display(), scene.width, scene.height, profile.name);
     outln!("  sampling: {}", describe_mapping(&plan));
-    errln!("reference: preparing...");
-    let reference = obtain(&source, &scene, &profile, &plan.integrals, &a.out, plan.threads).map_err(|e| {
-        // A study that never started leaves no empty output directory behind.
-        if created {
-            let _ = std::fs::remove_dir(&a.out);
+    if !a.quiet {
+        errln!("reference: preparing...");
+    }
+    let reference = match obtain(&source, &scene, &profile, &plan, &a.out) {
+        Ok(r) => r,
+        Err(e) => {
+            // A study that never started leaves no empty output directory behind.
+            if created {
+                let _ = std::fs::remove_dir(&a.out);
+            }
+            return match e {
+                RefError::Input(m) => Err(Failure::input(m)),
+                RefError::Runtime(m) => Err(Failure::runtime(m)),
+                RefError::Interrupted => {
+                    errln!("interrupted while rendering the reference: nothing written (no run had started)");
+                    Ok(130)
+                }
+            };
         }
-        match e {
-            RefError::Input(m) => Failure::input(m),
-            RefError::Runtime(m) => Failure::runtime(m),
-        }
-    })?;
+    };
     if reference.image.iter().any(|p| !p.is_finite()) {
         return Err(Failure::input("the reference image has non-finite pixels"));
     }
     outln!("  reference: {}", reference.description);
     let total = plan.strategies.len() * plan.counts.len() * plan.seeds as usize;
     let mut done = 0;
-    let tty = std::io::stderr().is_terminal();
     let mut report = |r: &RunResult| {
         done += 1;
-        if !tty {
-            return;
+        if !a.quiet {
+            errln!("  run {done}/{total}: {} n={} seed {}: {:.3} s, mse {:.3e}", r.strategy, r.n, r.seed, r.seconds, r.mse);
         }
-        let _ = write!(std::io::stderr(), "\r  run {done}/{total}: {} n={} seed {} ({:.3} s)        ", r.strategy, r.n, r.seed, r.seconds);
-        let _ = std::io::stderr().flush();
     };
     let series = run_series(&scene, &profile, &plan, &reference.image, a.sheet, &mut report).map_err(Failure::input)?;
-    if tty {
-        errln!();
-    }
     let summary = summarize(&series.runs);
     print_table(&summary, &plan);
 
     let unit = if light_only(&plan.integrals) { "light samples" } else { "spp" };
     let csv_path = a.out.join("study.csv");
     csv::write(&csv_path, &series.runs).map_err(Failure::runtime)?;
+    if series.interrupted {
+        errln!(
+            "interrupted: wrote {} with the {} of {total} runs that finished (the run in flight was dropped); \
+             study.png and sheet.png not written",
+            csv_path.display(),
+            series.runs.len()
+        );
+        return Ok(130);
+    }
     let plot_path = a.out.join("study.png");
     plot::write(&plot_path, &summary, &plan.strategies, unit).map_err(Failure::runtime)?;
     outln!("wrote {}", csv_path.display());
@@ -271,11 +349,19 @@ fn print_table(summary: &[Summary], plan: &Plan) {
             s.efficiency
         );
     }
-    outln!("\nfitted slope of log MSE against log samples / log seconds:");
+    outln!("\nfitted slope of log MSE against log samples / log seconds (wall time: noisy):");
+    let mut omitted = false;
     for &st in &plan.strategies {
         let (vs_n, vs_t) = slopes(summary, st);
+        omitted |= vs_t.is_none();
         let f = |x: Option<crate::study::metrics::LogLogFit>| x.map_or("n/a".to_string(), |f| format!("{:+.3}", f.slope));
         outln!("  {:<9} {} / {}", st.name(), f(vs_n), f(vs_t));
+    }
+    if omitted {
+        outln!(
+            "  (n/a against seconds: it needs {TIME_SLOPE_MIN_COUNTS} or more counts whose mean times span at least \
+             {TIME_SLOPE_MIN_SPAN}x and grow at least as n^{TIME_SLOPE_MIN_GROWTH}; otherwise timing noise and fixed costs set it)"
+        );
     }
     outln!();
 }

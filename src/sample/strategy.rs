@@ -41,12 +41,12 @@ impl Strategy {
         }
     }
 
-    /// Parse a name, ignoring ASCII case; `"centre"` is accepted for `Center`.
+    /// Parse a name: exact and lowercase, as in profile files; `"centre"` is accepted for `Center`.
     pub fn parse(s: &str) -> Option<Strategy> {
-        if s.eq_ignore_ascii_case("centre") {
+        if s == "centre" {
             return Some(Strategy::Center);
         }
-        Strategy::ALL.into_iter().find(|st| st.name().eq_ignore_ascii_case(s))
+        Strategy::ALL.into_iter().find(|st| st.name() == s)
     }
 }
 
@@ -557,7 +557,7 @@ mod tests {
     fn names_round_trip() {
         for s in Strategy::ALL {
             assert_eq!(Strategy::parse(s.name()), Some(s));
-            assert_eq!(Strategy::parse(&s.name().to_uppercase()), Some(s));
+            assert_eq!(Strategy::parse(&s.name().to_uppercase()), None, "names are lowercase");
             assert_eq!(s.to_string(), s.name());
         }
         assert_eq!(Strategy::parse("centre"), Some(Strategy::Center));

@@ -117,16 +117,21 @@ impl Profile {
         let mut p: Profile = toml::from_str(&text).map_err(|e| src.from_toml(&e).to_string())?;
         let pairs = overrides(&p);
         let mut set = Vec::new();
-        for (k, v) in &pairs {
-            p.set_field(k.trim(), v).map_err(|e| format!("command line: {e}"))?;
-            set.push(k.trim());
+        for (k, v) in general_strategy_first(pairs.iter().map(|(k, v)| (k.trim(), v.as_str()))) {
+            p.set_field(k, v).map_err(|e| format!("command line: {e}"))?;
+            set.push(k);
         }
         p.validate().map_err(|(field, msg)| {
-            // (`strategy` sets every strategy field; none of them has a check of its own.)
+            // (`strategy` sets every strategy field; none of them has a check of its own.) A check of a
+            // combination is the command line's when an override set any field of it, named first.
+            let in_file = || src.error(find_key(&text, field).unwrap_or(0..0), field, msg.clone());
             if set.contains(&field) {
                 format!("command line: {field}: {msg}")
+            } else if let Some(f) = combined_with(field).iter().find(|f| set.contains(f)) {
+                let e = in_file();
+                format!("command line: {f}: {field} ({}:{}): {msg}", e.file.display(), e.line)
             } else {
-                src.error(find_key(&text, field).unwrap_or(0..0), field, msg).to_string()
+                in_file().to_string()
             }
         })?;
         Ok(p)
@@ -135,11 +140,20 @@ impl Profile {
     /// The path errors name and the text of `--profile NAME|PATH` (see [`Profile::load`]).
     fn find(name_or_path: &str) -> Result<(PathBuf, String), InputError> {
         let as_path = PathBuf::from(name_or_path);
+        let flag_error =
+            |message: String| InputError { file: PathBuf::from("command line"), line: 0, column: 0, field: "--profile".into(), message };
+        // (A directory of a shipped profile's name in the working directory does not hide that profile.)
+        let local = PathBuf::from("profiles").join(format!("{name_or_path}.toml"));
+        let shipped = BUILTIN.iter().any(|(n, _)| *n == name_or_path) || local.is_file();
+        if as_path.is_dir() && (name_or_path.ends_with(".toml") || !shipped) {
+            return Err(flag_error(format!(
+                "`{name_or_path}` is a directory, not a profile file (give a .toml file or a shipped profile name)"
+            )));
+        }
         if name_or_path.ends_with(".toml") || as_path.is_file() {
             let text = read_text(&as_path)?;
             return Ok((as_path, text));
         }
-        let local = PathBuf::from("profiles").join(format!("{name_or_path}.toml"));
         if local.is_file() {
             let text = read_text(&local)?;
             return Ok((local, text));
@@ -147,17 +161,11 @@ impl Profile {
         if let Some((_, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
             return Ok((PathBuf::from(format!("<built-in profile {name_or_path}>")), text.to_string()));
         }
-        Err(InputError {
-            file: PathBuf::from("command line"),
-            line: 0,
-            column: 0,
-            field: "--profile".into(),
-            message: format!(
-                "no profile file `{name_or_path}` or `{}`, and no shipped profile of that name (shipped: {})",
-                local.display(),
-                BUILTIN.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
-            ),
-        })
+        Err(flag_error(format!(
+            "no profile file `{name_or_path}` or `{}`, and no shipped profile of that name (shipped: {})",
+            local.display(),
+            BUILTIN.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+        )))
     }
 
     pub fn builtin(name: &str) -> Profile {
@@ -181,6 +189,15 @@ impl Profile {
         if !(self.throughput_cutoff.is_finite() && (0.0..1.0).contains(&self.throughput_cutoff)) {
             return Err(("throughput_cutoff", format!("must be in [0, 1), got {}", self.throughput_cutoff)));
         }
+        if self.throughput_cutoff == 0.0 && self.branching == Branching::Split {
+            return Err((
+                "throughput_cutoff",
+                "with branching = \"split\", a cutoff of 0 traces every branch of the ray tree: it doubles at each glass \
+                 interface, up to 2^max_depth rays per camera sample (memory runs out); use a cutoff > 0 (default 1e-3: the \
+                 tree then stays within about 3 / cutoff rays per bounce and camera sample) or branching = \"roulette\""
+                    .into(),
+            ));
+        }
         Ok(())
     }
 
@@ -193,8 +210,8 @@ impl Profile {
     /// `max_depth=0` may come before the `diffuse_depth=0` that makes it valid. On error nothing changes.
     pub fn set_all<'a>(&mut self, pairs: impl IntoIterator<Item = (&'a str, &'a str)>) -> Result<(), String> {
         let mut p = self.clone();
-        for (k, v) in pairs {
-            p.set_field(k.trim(), v)?;
+        for (k, v) in general_strategy_first(pairs.into_iter().map(|(k, v)| (k.trim(), v))) {
+            p.set_field(k, v)?;
         }
         p.validate().map_err(|(f, m)| format!("{f}: {m}"))?;
         *self = p;
@@ -205,10 +222,12 @@ impl Profile {
         fn num<T: std::str::FromStr>(key: &str, v: &str) -> Result<T, String> {
             v.trim().parse().map_err(|_| format!("{key}: `{v}` is not a valid number"))
         }
+        // Names are exact and lowercase, as in profile files (`centre` is accepted for `center` there too).
         fn strat(key: &str, v: &str) -> Result<Strategy, String> {
-            Strategy::parse(v.trim()).ok_or_else(|| {
+            let t = v.trim();
+            Strategy::parse(t).ok_or_else(|| {
                 let all: Vec<_> = Strategy::ALL.iter().map(|s| s.name()).collect();
-                format!("{key}: unknown strategy `{v}` (one of {})", all.join(", "))
+                format!("{key}: unknown strategy `{v}` (one of {}){}", all.join(", "), lowercase_hint(t))
             })
         }
         match key {
@@ -241,21 +260,46 @@ impl Profile {
                 self.branching = match value.trim() {
                     "split" => Branching::Split,
                     "roulette" => Branching::Roulette,
-                    _ => return Err(format!("{key}: expected `split` or `roulette`, got `{value}`")),
+                    t => return Err(format!("{key}: expected split or roulette, got `{value}`{}", lowercase_hint(t))),
                 }
             }
             "filter" => {
-                self.filter = match value.trim() {
-                    "box" => Filter::Box,
-                    "tent" => Filter::Tent,
-                    "gaussian" => Filter::Gaussian,
-                    _ => return Err(format!("{key}: expected box, tent or gaussian, got `{value}`")),
-                }
+                let t = value.trim();
+                self.filter = Filter::ALL
+                    .into_iter()
+                    .find(|f| f.name() == t)
+                    .ok_or_else(|| format!("{key}: expected box, tent or gaussian, got `{value}`{}", lowercase_hint(t)))?
             }
             "name" => self.name = value.trim().to_string(),
             _ => return Err(format!("unknown profile field `{key}`")),
         }
         Ok(())
+    }
+}
+
+/// The overrides with every general `strategy` before the single ones (`pixel_strategy`, ...), each
+/// group in the given order: a single strategy refines the general one whichever order they come in.
+fn general_strategy_first<'a>(pairs: impl IntoIterator<Item = (&'a str, &'a str)>) -> Vec<(&'a str, &'a str)> {
+    let (mut general, rest): (Vec<_>, Vec<_>) = pairs.into_iter().partition(|(k, _)| *k == "strategy");
+    general.extend(rest);
+    general
+}
+
+/// The other fields of the checks of a combination that [`Profile::validate`] reports under `field`.
+fn combined_with(field: &str) -> &'static [&'static str] {
+    match field {
+        "diffuse_depth" => &["max_depth"],
+        "throughput_cutoff" => &["branching"],
+        _ => &[],
+    }
+}
+
+/// For a name that is only wrong in case: say that names are lowercase.
+fn lowercase_hint(v: &str) -> &'static str {
+    if v.bytes().any(|b| b.is_ascii_uppercase()) {
+        "; names are lowercase, as in profile files"
+    } else {
+        ""
     }
 }
 
@@ -311,5 +355,39 @@ mod tests {
         assert!(e.starts_with("diffuse_depth"), "{e}");
         assert_eq!(p.spp, before.spp);
         assert!(p.set_all([("spp", "x")]).unwrap_err().contains("spp"));
+    }
+
+    #[test]
+    fn split_with_zero_cutoff_is_invalid_roulette_is_not() {
+        let mut p = Profile::builtin("final");
+        assert_eq!(p.branching, Branching::Split);
+        let e = p.clone().set("throughput_cutoff", "0").unwrap_err();
+        assert!(e.starts_with("throughput_cutoff: with branching = \"split\""), "{e}");
+        p.set_all([("throughput_cutoff", "0"), ("branching", "roulette")]).unwrap();
+        assert!(p.set("branching", "split").is_err());
+        assert!(Profile::builtin("final").set("throughput_cutoff", "-0").is_err());
+        p.set("throughput_cutoff", "1e-9").unwrap();
+        p.set("branching", "split").unwrap();
+    }
+
+    #[test]
+    fn a_single_strategy_refines_the_general_one_in_either_order() {
+        for pairs in [[("pixel_strategy", "random"), ("strategy", "grid")], [("strategy", "grid"), ("pixel_strategy", "random")]] {
+            let mut p = Profile::builtin("preview");
+            p.set_all(pairs).unwrap();
+            assert_eq!((p.pixel_strategy, p.light_strategy, p.wavelength_strategy), (Strategy::Random, Strategy::Grid, Strategy::Grid));
+        }
+    }
+
+    #[test]
+    fn names_are_exact_and_lowercase() {
+        let mut p = Profile::builtin("preview");
+        for (k, v) in [("light_strategy", "GRID"), ("strategy", "Sobol"), ("filter", "TENT"), ("branching", "Split")] {
+            let e = p.set(k, v).unwrap_err();
+            assert!(e.starts_with(k) && e.contains(&format!("`{v}`")) && e.contains("names are lowercase"), "{e}");
+        }
+        assert!(!p.set("filter", "mitchell").unwrap_err().contains("lowercase"));
+        p.set_all([("light_strategy", "centre"), ("filter", "tent"), ("branching", "split")]).unwrap();
+        assert_eq!((p.light_strategy, p.filter, p.branching), (Strategy::Center, Filter::Tent, Branching::Split));
     }
 }

@@ -2,8 +2,8 @@
 //! cached), or the analytic image of a Lambert plane under a quad light.
 //!
 //! The reference is the converged value of the *same* estimator the series runs: the studied integrals
-//! sampled, the others held at their centre sample ([`configure`] with the jittered strategy and `N`
-//! samples, or the analytic image with the matching footprint and light).
+//! sampled, the others held at their centre sample ([`reference_profile`]: [`configure`] with the jittered
+//! strategy and `N` samples, or the analytic image with the matching footprint and light).
 //!
 //! Cache: `DIR/reference-<key>.exr` with a sidecar `reference-<key>.txt` holding the full key text (crate
 //! version, scene hash and size, seed, N, the complete reference profile). A cached file is reused only if
@@ -11,7 +11,7 @@
 //! the scene file, profile, mapping or N gives a different key (and so a fresh render).
 
 use super::analytic::{Footprint, QuadIrradiance};
-use super::run::{configure, light_only, render_once, REFERENCE_SEED};
+use super::run::{configure, light_only, render_cancellable, Plan, REFERENCE_SEED};
 use super::{Integral, IntegralSet};
 use crate::film::output::{read_image, write_atomic, write_image};
 use crate::sample::Strategy;
@@ -33,27 +33,38 @@ pub struct Reference {
     pub description: String,
 }
 
-/// Errors: `Input` for bad requests (exit 2), `Runtime` for failures while working (exit 1).
+/// Errors: `Input` for bad requests (exit 2), `Runtime` for failures while working (exit 1),
+/// `Interrupted` when the plan's cancel flag stopped the reference render (nothing is cached).
 #[derive(Debug)]
 pub enum RefError {
     Input(String),
     Runtime(String),
+    Interrupted,
 }
 
-/// Obtain the reference for a study of `integrals` on `scene` with the base `profile`.
-pub fn obtain(
-    source: &ReferenceSource,
-    scene: &Scene,
-    profile: &Profile,
-    integrals: &IntegralSet,
-    out_dir: &Path,
-    threads: usize,
-) -> Result<Reference, RefError> {
+/// Obtain the reference for a study `plan` on `scene` with the base `profile`.
+pub fn obtain(source: &ReferenceSource, scene: &Scene, profile: &Profile, plan: &Plan, out_dir: &Path) -> Result<Reference, RefError> {
     match source {
         ReferenceSource::File(path) => from_file(path, scene),
-        ReferenceSource::Analytic => analytic(scene, profile, integrals).map_err(RefError::Input),
-        ReferenceSource::Samples(n) => rendered(scene, profile, integrals, *n, out_dir, threads),
+        ReferenceSource::Analytic => analytic(scene, profile, &plan.integrals).map_err(RefError::Input),
+        ReferenceSource::Samples(n) => rendered(scene, profile, plan, *n, out_dir),
     }
+}
+
+/// The profile of the rendered reference: [`configure`] with the jittered strategy and `n` samples.
+///
+/// With `--light-samples-from-spp` (a run of count m takes m spp x m light samples) the reference takes
+/// `n` spp x m light samples, m the largest count: it has `n / m` times the largest run's camera samples
+/// *and* light samples per pixel. (With the profile's light samples, a reference of 16 m spp would have
+/// no more light samples per pixel than the largest run, and its own light noise would be measured.)
+pub fn reference_profile(base: &Profile, plan: &Plan, n: u32) -> Result<Profile, String> {
+    let mut p = configure(base, &plan.integrals, Strategy::Jittered, n, false)?;
+    if plan.light_from_spp && plan.integrals.contains(Integral::Light) && !light_only(&plan.integrals) {
+        let largest = plan.counts.iter().copied().max().unwrap_or(1);
+        p.light_samples = largest;
+        p.validate().map_err(|(f, m)| format!("{f}: {m}"))?;
+    }
+    Ok(p)
 }
 
 fn from_file(path: &Path, scene: &Scene) -> Result<Reference, RefError> {
@@ -111,19 +122,17 @@ pub fn cache_paths(out_dir: &Path, key_text: &str) -> (PathBuf, PathBuf) {
     (out_dir.join(format!("{stem}.exr")), out_dir.join(format!("{stem}.txt")))
 }
 
-fn rendered(
-    scene: &Scene,
-    profile: &Profile,
-    integrals: &IntegralSet,
-    n: u32,
-    out_dir: &Path,
-    threads: usize,
-) -> Result<Reference, RefError> {
-    let ref_profile =
-        configure(profile, integrals, Strategy::Jittered, n, false).map_err(|e| RefError::Input(format!("--reference-spp: {e}")))?;
+fn rendered(scene: &Scene, profile: &Profile, plan: &Plan, n: u32, out_dir: &Path) -> Result<Reference, RefError> {
+    let ref_profile = reference_profile(profile, plan, n).map_err(|e| RefError::Input(format!("--reference-spp: {e}")))?;
     let key = cache_key_text(scene, &ref_profile);
     let (exr, txt) = cache_paths(out_dir, &key);
-    let what = if light_only(integrals) { "light samples" } else { "samples per pixel" };
+    let what = if light_only(&plan.integrals) {
+        "light samples".to_string()
+    } else if ref_profile.light_samples > 1 && plan.integrals.contains(Integral::Light) {
+        format!("samples per pixel x {} light samples", ref_profile.light_samples)
+    } else {
+        "samples per pixel".to_string()
+    };
     if std::fs::read_to_string(&txt).ok().as_deref() == Some(key.as_str()) {
         if let Ok((w, h, px)) = read_image(&exr) {
             if (w, h) == (scene.width, scene.height) {
@@ -132,7 +141,8 @@ fn rendered(
             }
         }
     }
-    let (film, seconds, _) = render_once(scene, ref_profile, REFERENCE_SEED, threads);
+    let (film, seconds, _) =
+        render_cancellable(scene, ref_profile, REFERENCE_SEED, plan.threads, plan.cancel.as_deref()).ok_or(RefError::Interrupted)?;
     let rgb = film.to_rgb();
     // The image first, then the sidecar: an interrupted write leaves no sidecar, so no stale reuse.
     let _ = std::fs::remove_file(&txt);

@@ -10,6 +10,8 @@ use crate::scene::profile::MAX_LIGHT_SAMPLES;
 use crate::scene::{Profile, Scene};
 use crate::wavefront::Settings;
 use glam::{DVec3, Vec3};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 /// The seed of the high-sample reference render: never one of the study's seeds `1..=K`, so the
 /// reference's error is independent of every run's.
@@ -23,8 +25,8 @@ pub fn light_only(integrals: &IntegralSet) -> bool {
 /// The profile of one run: `n` samples of the studied integrals with `strategy`.
 ///
 /// - Only `light` studied: `light_samples = n` per shading point with `strategy`, and one camera path per
-///   pixel through the pixel centre (pixel, lens, time and glossy held at `center`), so the error
-///   measured is that of the light integral alone. Above 4096 (the profile's limit) `n` must be a
+///   pixel through the pixel centre (pixel, lens, time, glossy, diffuse bounces and wavelength all held
+///   at `center`), so the error measured is that of the light integral alone. Above 4096 (the profile's limit) `n` must be a
 ///   multiple of 4096 and is split into `n / 4096` camera passes of 4096 light samples (each pass draws
 ///   its own stratification).
 /// - Otherwise: `spp = n` camera samples per pixel; every studied camera integral (pixel, lens, time,
@@ -33,8 +35,10 @@ pub fn light_only(integrals: &IntegralSet) -> bool {
 ///   profile's `light_samples` per shading point, or `n` of them with `light_from_spp`; if it is not
 ///   studied it is held at one `center` sample (the light's centre: hard shadows).
 ///
-/// The pixel strategy also drives the wavelength and diffuse-bounce dimensions (the renderer samples
-/// them with it), so those follow the pixel integral.
+/// The wavelength (dispersion) and diffuse-bounce dimensions have no integral of their own in a study:
+/// they follow the pixel integral (the studied strategy when `pixel` is studied, `center` otherwise).
+/// They are always set here, never left at the base profile's value: a profile's `jittered` wavelength
+/// under a `random` study would make `random` converge faster than independent samples can.
 pub fn configure(base: &Profile, integrals: &IntegralSet, strategy: Strategy, n: u32, light_from_spp: bool) -> Result<Profile, String> {
     if n == 0 {
         return Err("sample counts must be at least 1".into());
@@ -44,6 +48,10 @@ pub fn configure(base: &Profile, integrals: &IntegralSet, strategy: Strategy, n:
     if light_only(integrals) {
         let (passes, per_pass) = if n <= MAX_LIGHT_SAMPLES {
             (1, n)
+        } else if strategy == Strategy::Grid {
+            return Err(format!(
+                "{n} light samples: a grid of the light integral has at most {MAX_LIGHT_SAMPLES} points (more would repeat the same grid pass after pass)"
+            ));
         } else if n.is_multiple_of(MAX_LIGHT_SAMPLES) {
             (n / MAX_LIGHT_SAMPLES, MAX_LIGHT_SAMPLES)
         } else {
@@ -58,12 +66,16 @@ pub fn configure(base: &Profile, integrals: &IntegralSet, strategy: Strategy, n:
         p.lens_strategy = Strategy::Center;
         p.time_strategy = Strategy::Center;
         p.glossy_strategy = Strategy::Center;
+        p.diffuse_strategy = Strategy::Center;
+        p.wavelength_strategy = Strategy::Center;
     } else {
         p.spp = n;
         p.pixel_strategy = pick(Integral::Pixel);
         p.lens_strategy = pick(Integral::Lens);
         p.time_strategy = pick(Integral::Time);
         p.glossy_strategy = pick(Integral::Glossy);
+        p.diffuse_strategy = pick(Integral::Pixel);
+        p.wavelength_strategy = pick(Integral::Pixel);
         if integrals.contains(Integral::Light) {
             p.light_strategy = strategy;
             if light_from_spp {
@@ -110,25 +122,54 @@ pub struct Plan {
     pub seeds: u32,
     pub light_from_spp: bool,
     pub threads: usize,
+    /// Set (by Ctrl-C) to stop: the render in flight is abandoned and the series ends with the runs
+    /// finished so far ([`Series::interrupted`]).
+    pub cancel: Option<Arc<AtomicBool>>,
+}
+
+impl Plan {
+    /// Whether the plan's cancel flag is set.
+    pub fn cancelled(&self) -> bool {
+        self.cancel.as_ref().is_some_and(|c| c.load(Ordering::SeqCst))
+    }
 }
 
 /// The results of a series, and the first seed's image of every (strategy, count) for the sheet.
 pub struct Series {
     pub runs: Vec<RunResult>,
     pub images: Vec<(Strategy, u32, Vec<Vec3>)>,
+    /// The series was cancelled: `runs` holds only the runs that finished (an unfinished render is
+    /// dropped, never measured).
+    pub interrupted: bool,
 }
 
 /// Render one image with `profile` and `seed`; returns the linear image, seconds and rays.
 pub fn render_once(scene: &Scene, profile: Profile, seed: u64, threads: usize) -> (Film, f64, u64) {
-    let mut job = RenderJob::new(scene, Settings { profile, seed });
-    job.threads = threads;
-    let (film, stats) = render_into(&job, Film::new(scene.width, scene.height));
-    // (Discarded samples would bias every error measured from this image.)
-    crate::film::warn_discarded(stats.nonfinite_samples);
-    (film, stats.seconds, stats.rays.total)
+    render_cancellable(scene, profile, seed, threads, None).expect("a render without a cancel flag completes")
 }
 
-/// Run the whole series against `reference`. `report` is called after each run (progress output).
+/// [`render_once`] that stops when `cancel` is set: None if the render did not complete.
+pub fn render_cancellable(
+    scene: &Scene,
+    profile: Profile,
+    seed: u64,
+    threads: usize,
+    cancel: Option<&AtomicBool>,
+) -> Option<(Film, f64, u64)> {
+    let mut job = RenderJob::new(scene, Settings { profile, seed });
+    job.threads = threads;
+    job.cancel = cancel;
+    let (film, stats) = render_into(&job, Film::new(scene.width, scene.height));
+    if !stats.completed {
+        return None;
+    }
+    // (Discarded samples would bias every error measured from this image.)
+    crate::film::warn_discarded(stats.nonfinite_samples);
+    Some((film, stats.seconds, stats.rays.total))
+}
+
+/// Run the whole series against `reference`. `report` is called after each run (progress output). If
+/// the plan's cancel flag is set the series stops and returns the finished runs, `interrupted` set.
 pub fn run_series(
     scene: &Scene,
     base: &Profile,
@@ -141,14 +182,18 @@ pub fn run_series(
     let mut images = Vec::new();
     // One unmeasured render first: the first render of a process pays for page faults and cold caches,
     // which would otherwise be charged to the first run's seconds.
+    let cancel = plan.cancel.as_deref();
     if let (Some(&s), Some(&n)) = (plan.strategies.first(), plan.counts.first()) {
-        render_once(scene, configure(base, &plan.integrals, s, n, plan.light_from_spp)?, 0, plan.threads);
+        render_cancellable(scene, configure(base, &plan.integrals, s, n, plan.light_from_spp)?, 0, plan.threads, cancel);
     }
     for &strategy in &plan.strategies {
         for &n in &plan.counts {
             let profile = configure(base, &plan.integrals, strategy, n, plan.light_from_spp)?;
             for seed in 1..=plan.seeds as u64 {
-                let (film, seconds, rays) = render_once(scene, profile.clone(), seed, plan.threads);
+                let done = if plan.cancelled() { None } else { render_cancellable(scene, profile.clone(), seed, plan.threads, cancel) };
+                let Some((film, seconds, rays)) = done else {
+                    return Ok(Series { runs, images, interrupted: true });
+                };
                 let img = film.to_rgb();
                 let e = mse(&img, reference);
                 let r = RunResult {
@@ -171,7 +216,7 @@ pub fn run_series(
             }
         }
     }
-    Ok(Series { runs, images })
+    Ok(Series { runs, images, interrupted: false })
 }
 
 /// The runs of one (strategy, count) averaged over seeds.
@@ -216,10 +261,34 @@ pub fn summarize(runs: &[RunResult]) -> Vec<Summary> {
         .collect()
 }
 
+/// Fewest sample counts for a slope against seconds.
+pub const TIME_SLOPE_MIN_COUNTS: usize = 3;
+/// Least ratio of the slowest to the fastest mean time for a slope against seconds.
+pub const TIME_SLOPE_MIN_SPAN: f64 = 4.0;
+/// Least log-log slope of seconds against samples for a slope against seconds.
+pub const TIME_SLOPE_MIN_GROWTH: f64 = 0.5;
+
 /// Fitted slopes of one strategy's mean MSE against samples and against seconds.
+///
+/// The slope against seconds is None unless [`time_slope_meaningful`]: wall time is noisy (thread
+/// start-up, a shared machine), and where it barely grows with the samples that noise and fixed costs,
+/// not the cost of samples, set the slope (a 48 x 32 image renders 1 and 256 samples in about 4 ms).
 pub fn slopes(summary: &[Summary], strategy: Strategy) -> (Option<LogLogFit>, Option<LogLogFit>) {
     let s: Vec<&Summary> = summary.iter().filter(|s| s.strategy == strategy).collect();
     let vs_n: Vec<(f64, f64)> = s.iter().map(|s| (s.n as f64, s.mse)).collect();
     let vs_t: Vec<(f64, f64)> = s.iter().map(|s| (s.seconds, s.mse)).collect();
-    (fit_loglog(&vs_n), fit_loglog(&vs_t))
+    let t_vs_n: Vec<(f64, f64)> = s.iter().map(|s| (s.n as f64, s.seconds)).collect();
+    (fit_loglog(&vs_n), if time_slope_meaningful(&t_vs_n) { fit_loglog(&vs_t) } else { None })
+}
+
+/// Whether the (samples, mean seconds) of one strategy's counts support a slope of MSE against seconds:
+/// at least [`TIME_SLOPE_MIN_COUNTS`] counts, the times spanning a factor [`TIME_SLOPE_MIN_SPAN`], and
+/// growing at least as `n^`[`TIME_SLOPE_MIN_GROWTH`] (fitted).
+pub fn time_slope_meaningful(points: &[(f64, f64)]) -> bool {
+    let t: Vec<f64> = points.iter().map(|p| p.1).filter(|t| t.is_finite() && *t > 0.0).collect();
+    let (lo, hi) = t.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &t| (lo.min(t), hi.max(t)));
+    t.len() >= TIME_SLOPE_MIN_COUNTS
+        && t.len() == points.len()
+        && hi >= TIME_SLOPE_MIN_SPAN * lo
+        && fit_loglog(points).is_some_and(|f| f.slope >= TIME_SLOPE_MIN_GROWTH)
 }

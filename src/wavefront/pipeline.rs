@@ -86,17 +86,3 @@ pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut
 pub fn max_passes(profile: &Profile) -> usize {
     4 * (profile.max_depth as usize + 1)
 }
-
-/// Whether a profile's settings are within what one scene needs (for the summary).
-pub fn describe(profile: &Profile) -> String {
-    format!(
-        "{} spp ({:?}), {} light samples ({:?}), max depth {}, diffuse depth {}, {:?}",
-        profile.spp,
-        profile.pixel_strategy,
-        profile.light_samples,
-        profile.light_strategy,
-        profile.max_depth,
-        profile.diffuse_depth,
-        profile.branching
-    )
-}
