@@ -470,10 +470,10 @@ fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: u
     // neighbour farther than both (the usual case); the generous slack covers the roundings of this
     // estimate.
     let near = 2.0 * eps * (o_inf + t * d_1) + 1e-5 * (o_inf + t * d_1) + 2.0 * reach;
-    let tol = eps * (o_inf / d.length() + t);
     let time = rays.with_time.then(|| f32x8::splat(rays.time[i]));
-    // The packet kernels on the ray in every lane, as the intersect and CSG stages computed them.
-    let ray = Ray8::new(Vec3x8::splat(o), Vec3x8::splat(d), f32x8::splat(rays.tmax[i]));
+    // The packet kernels on the ray in every lane, as the intersect and CSG stages computed them (made
+    // for the first neighbour that passes the pre-test: most rays have none).
+    let ray = || Ray8::new(Vec3x8::splat(o), Vec3x8::splat(d), f32x8::splat(rays.tmax[i]));
     let mut best: Option<(f32, u32, u32, bool)> = None;
     for &pid in scene.glass_neighbours.of(hits.prim[i]) {
         let prim = &scene.prims[pid as usize];
@@ -482,7 +482,7 @@ fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: u
                 if (p.normal.dot(hit) - p.offset).abs() > near + 1e-5 * p.offset.abs() {
                     continue;
                 }
-                Some((intersect_plane_x8(p, &ray).to_array()[0], NONE, false))
+                Some((intersect_plane_x8(p, &ray()).to_array()[0], NONE, false))
             }
             shape => {
                 let b = &scene.bounds[pid as usize];
@@ -491,7 +491,7 @@ fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: u
                 }
                 if let Shape::Csg { solid } = shape {
                     let mut out = [None; LANES];
-                    let r = in_prim_frame(&ray, prim.motion, time);
+                    let r = in_prim_frame(&ray(), prim.motion, time);
                     let r = Ray8 { tmax: crate::simd::mask_from_bits(1).select(r.tmax, f32x8::splat(-1.0)), ..r };
                     crate::csg::first_hit_x8(&scene.csg, *solid, &r, f32x8::ZERO, arena, &mut out);
                     // (A glass leaf of an opaque neighbour is not an opaque surface.)
@@ -499,7 +499,7 @@ fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: u
                         .filter(|h| scene.leaf_kind[h.leaf as usize] != crate::scene::MaterialKind::Dielectric)
                         .map(|h| (h.t, h.leaf, h.flip))
                 } else {
-                    Some((prim_t_at_x8(prim, &ray, time).to_array()[0], NONE, false))
+                    Some((prim_t_at_x8(prim, &ray(), time).to_array()[0], NONE, false))
                 }
             }
         };
@@ -507,7 +507,7 @@ fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: u
         if !(tn >= t && tn < rays.tmax[i]) || best.is_some_and(|(bt, bp, ..)| bt < tn || (bt == tn && bp < pid)) {
             continue;
         }
-        let within = tn - t <= tol || {
+        let within = tn - t <= eps * (o_inf / d.length() + t) || {
             // The neighbour's tangent plane at its hit, against the spawn offset at the glass hit.
             let r = crate::wavefront::RayItem { o, d, time: if rays.with_time { rays.time[i] } else { 0.0 }, ..Default::default() };
             let n = crate::wavefront::shade::surface_hit(scene, &r, tn, pid, leaf, flip).n_facing;
