@@ -569,3 +569,36 @@ fn second_interrupt_quits_at_once_and_says_nothing_was_written() {
     assert!(rest.contains("interrupted again: quit at once; nothing was written"), "{rest}");
     assert!(!png.exists() && !tmp("int2.film").exists(), "{rest}");
 }
+
+/// Samples that can only repeat each other are warned about, and the warning is true: `--spp 4` with
+/// every integral at `center` (a scene without glass or diffuse bounces) renders the image `--spp 1` does,
+/// byte for byte; 4 light samples at the light's centre render what 1 does. Jittered samples: no warning.
+#[test]
+fn identical_samples_are_warned_about() {
+    let scene = tmp("center.toml");
+    std::fs::write(
+        &scene,
+        "[image]\nwidth = 12\nheight = 8\n[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\nfov = 40\n\
+         [materials.m]\ntype = \"lambert\"\nalbedo = [0.6, 0.5, 0.4]\n\
+         [[shapes]]\ntype = \"plane\"\npoint = [0, -1, 0]\nnormal = [0, 1, 0]\nmaterial = \"m\"\n\
+         [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\n\
+         [[lights]]\ntype = \"quad\"\norigin = [-1, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]\nradiance = [5, 5, 5]\n",
+    )
+    .unwrap();
+    let render = |name: &str, args: &[&str]| {
+        let out_path = tmp(name);
+        let o = strata().args(["render", scene.to_str().unwrap(), "-q", "-o", out_path.to_str().unwrap()]).args(args).output().unwrap();
+        assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+        (String::from_utf8_lossy(&o.stderr).into_owned(), std::fs::read(out_path).unwrap())
+    };
+    let (w4, img4) = render("c4.exr", &["--spp", "4", "--strategy", "center"]);
+    let (w1, img1) = render("c1.exr", &["--spp", "1", "--strategy", "center"]);
+    assert!(w4.contains("warning: spp 4") && w4.contains("--spp 1 renders the same image"), "{w4}");
+    assert!(!w1.contains("warning"), "{w1}");
+    assert_eq!(img4, img1, "the warning's claim");
+    let (wl, imgl) = render("l4.exr", &["--spp", "1", "--strategy", "center", "--light-samples", "4"]);
+    assert!(wl.contains("warning: light_samples 4"), "{wl}");
+    assert_eq!(imgl, img1, "the warning's claim");
+    let (wj, _) = render("j4.exr", &["--spp", "4", "--strategy", "jittered", "--light-samples", "4"]);
+    assert!(!wj.contains("warning"), "{wj}");
+}

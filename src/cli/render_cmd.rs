@@ -155,6 +155,9 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     for w in &scene.warnings {
         errln!("warning: {w}");
     }
+    if let Some(w) = identical_samples_warning(&scene, &profile) {
+        errln!("warning: {w}");
+    }
     if a.threads > 1024 {
         return Err(Failure::input("--threads must be at most 1024"));
     }
@@ -366,6 +369,27 @@ pub fn used_strategies(scene: &Scene, p: &Profile) -> Vec<(&'static str, Strateg
     .filter(|&(_, _, used)| used)
     .map(|(k, s, _)| (k, s))
     .collect()
+}
+
+/// Samples that can only repeat each other: more than one light sample at the light's `center`, or more
+/// than one sample per pixel where every integral the scene samples is at `center` in a scene without a
+/// random choice per path (no dielectric, whose roulette branching draws, and no diffuse bounces). The
+/// image is that of one sample.
+pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
+    if p.light_samples > 1 && scene.features.area_lights && p.light_strategy == Strategy::Center {
+        return Some(format!(
+            "light_samples {}: light_strategy `center` puts every light sample at the light's centre: 1 light sample gives the same image",
+            p.light_samples
+        ));
+    }
+    let random_paths = scene.features.dielectric || p.diffuse_depth > 0;
+    if p.spp > 1 && !random_paths && used_strategies(scene, p).iter().all(|(_, s)| *s == Strategy::Center) {
+        let n = p.spp;
+        return Some(format!(
+            "spp {n}: every integral this scene uses is sampled at `center`, so the {n} samples per pixel are identical: --spp 1 renders the same image"
+        ));
+    }
+    None
 }
 
 /// The states of a render towards signals (see [`install_interrupt_handler`]).
