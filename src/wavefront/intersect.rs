@@ -457,7 +457,7 @@ pub fn glass_gives_way(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, aren
 /// within twice the spawn offset of `p`: the ray the glass would spawn at `p` (`offset_ray_origin`,
 /// moved off the glass by `OFFSET_ULPS` ULPs of the larger of `|p|` and `|o|`) could start beyond
 /// that surface, under the floor a glass sphere touches, and see what lies behind it.
-#[inline(never)]
+#[inline(always)]
 fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: usize, arena: &mut CsgArena) {
     let eps = crate::csg::COINCIDENT_EPS;
     let (o, d, t) = (Vec3::new(rays.ox[i], rays.oy[i], rays.oz[i]), Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]), hits.t[i]);
@@ -470,56 +470,72 @@ fn glass_hit_on_opaque(scene: &Scene, rays: &RayQueue, hits: &mut HitQueue, i: u
     // neighbour farther than both (the usual case); the generous slack covers the roundings of this
     // estimate.
     let near = 2.0 * eps * (o_inf + t * d_1) + 1e-5 * (o_inf + t * d_1) + 2.0 * reach;
-    let time = rays.with_time.then(|| f32x8::splat(rays.time[i]));
-    // The packet kernels on the ray in every lane, as the intersect and CSG stages computed them (made
-    // for the first neighbour that passes the pre-test: most rays have none).
-    let ray = || Ray8::new(Vec3x8::splat(o), Vec3x8::splat(d), f32x8::splat(rays.tmax[i]));
     let mut best: Option<(f32, u32, u32, bool)> = None;
     for &pid in scene.glass_neighbours.of(hits.prim[i]) {
-        let prim = &scene.prims[pid as usize];
-        let found = match &prim.shape {
-            Shape::Plane(p) => {
-                if (p.normal.dot(hit) - p.offset).abs() > near + 1e-5 * p.offset.abs() {
-                    continue;
-                }
-                Some((intersect_plane_x8(p, &ray()).to_array()[0], NONE, false))
-            }
-            shape => {
+        let far = match &scene.prims[pid as usize].shape {
+            Shape::Plane(p) => (p.normal.dot(hit) - p.offset).abs() > near + 1e-5 * p.offset.abs(),
+            _ => {
                 let b = &scene.bounds[pid as usize];
-                if hit.cmplt(b.min - Vec3::splat(near)).any() || hit.cmpgt(b.max + Vec3::splat(near)).any() {
-                    continue;
-                }
-                if let Shape::Csg { solid } = shape {
-                    let mut out = [None; LANES];
-                    let r = in_prim_frame(&ray(), prim.motion, time);
-                    let r = Ray8 { tmax: crate::simd::mask_from_bits(1).select(r.tmax, f32x8::splat(-1.0)), ..r };
-                    crate::csg::first_hit_x8(&scene.csg, *solid, &r, f32x8::ZERO, arena, &mut out);
-                    // (A glass leaf of an opaque neighbour is not an opaque surface.)
-                    out[0]
-                        .filter(|h| scene.leaf_kind[h.leaf as usize] != crate::scene::MaterialKind::Dielectric)
-                        .map(|h| (h.t, h.leaf, h.flip))
-                } else {
-                    Some((prim_t_at_x8(prim, &ray(), time).to_array()[0], NONE, false))
-                }
+                hit.cmplt(b.min - Vec3::splat(near)).any() || hit.cmpgt(b.max + Vec3::splat(near)).any()
             }
         };
-        let Some((tn, leaf, flip)) = found else { continue };
-        if !(tn >= t && tn < rays.tmax[i]) || best.is_some_and(|(bt, bp, ..)| bt < tn || (bt == tn && bp < pid)) {
+        if far {
             continue;
         }
-        let within = tn - t <= eps * (o_inf / d.length() + t) || {
-            // The neighbour's tangent plane at its hit, against the spawn offset at the glass hit.
-            let r = crate::wavefront::RayItem { o, d, time: if rays.with_time { rays.time[i] } else { 0.0 }, ..Default::default() };
-            let n = crate::wavefront::shade::surface_hit(scene, &r, tn, pid, leaf, flip).n_facing;
-            ((tn - t) * d.dot(n)).abs() <= reach
-        };
-        if within {
-            best = Some((tn, pid, leaf, flip));
+        if let Some(h) = opaque_neighbour_hit(scene, rays, i, t, pid, reach, arena) {
+            if best.is_none_or(|(bt, bp, ..)| h.0 < bt || (h.0 == bt && pid < bp)) {
+                best = Some((h.0, pid, h.1, h.2));
+            }
         }
     }
     if let Some((tn, pid, leaf, flip)) = best {
         (hits.t[i], hits.prim[i], hits.leaf[i], hits.flip[i]) = (tn, pid, leaf, flip);
     }
+}
+
+/// Ray `i`'s hit `(t_n, leaf, flip)` of opaque neighbour `pid` (the packet kernels on the ray splatted,
+/// as the intersect and CSG stages compute it), when it takes the ray from the glass hit at `t`: at
+/// `t_n >= t` and within the coincidence tolerance, or with the neighbour's tangent plane at its hit
+/// within `reach` of the glass hit. Out of line: most rays never get here (the pre-test).
+#[cold]
+#[inline(never)]
+fn opaque_neighbour_hit(
+    scene: &Scene,
+    rays: &RayQueue,
+    i: usize,
+    t: f32,
+    pid: u32,
+    reach: f32,
+    arena: &mut CsgArena,
+) -> Option<(f32, u32, bool)> {
+    let (o, d, tmax) = (Vec3::new(rays.ox[i], rays.oy[i], rays.oz[i]), Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]), rays.tmax[i]);
+    let time = rays.with_time.then(|| f32x8::splat(rays.time[i]));
+    let ray = Ray8::new(Vec3x8::splat(o), Vec3x8::splat(d), f32x8::splat(tmax));
+    let prim = &scene.prims[pid as usize];
+    let (tn, leaf, flip) = match &prim.shape {
+        Shape::Plane(p) => (intersect_plane_x8(p, &ray).to_array()[0], NONE, false),
+        Shape::Csg { solid } => {
+            let mut out = [None; LANES];
+            let r = in_prim_frame(&ray, prim.motion, time);
+            let r = Ray8 { tmax: crate::simd::mask_from_bits(1).select(r.tmax, f32x8::splat(-1.0)), ..r };
+            crate::csg::first_hit_x8(&scene.csg, *solid, &r, f32x8::ZERO, arena, &mut out);
+            // (A glass leaf of an opaque neighbour is not an opaque surface.)
+            let h = out[0].filter(|h| scene.leaf_kind[h.leaf as usize] != crate::scene::MaterialKind::Dielectric)?;
+            (h.t, h.leaf, h.flip)
+        }
+        _ => (prim_t_at_x8(prim, &ray, time).to_array()[0], NONE, false),
+    };
+    if !(tn >= t && tn < tmax) {
+        return None;
+    }
+    let o_inf = o.abs().max_element();
+    let within = tn - t <= crate::csg::COINCIDENT_EPS * (o_inf / d.length() + t) || {
+        // The neighbour's tangent plane at its hit, against the spawn offset at the glass hit.
+        let r = crate::wavefront::RayItem { o, d, time: if rays.with_time { rays.time[i] } else { 0.0 }, ..Default::default() };
+        let n = crate::wavefront::shade::surface_hit(scene, &r, tn, pid, leaf, flip).n_facing;
+        ((tn - t) * d.dot(n)).abs() <= reach
+    };
+    within.then_some((tn, leaf, flip))
 }
 
 /// An octant-sorted queue through the wide BVH (`scene.wide_bvh`): packets of 8 rays gathered in `order`
