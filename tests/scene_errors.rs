@@ -308,19 +308,17 @@ fn magnitudes_beyond_the_kernels_range_are_errors() {
 /// warning that names its file, line and field; a scene without one has no warning.
 #[test]
 fn an_empty_csg_solid_is_left_out_with_a_warning() {
-    let base = "[image]\nwidth = 4\nheight = 4\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov = 40\n\
-                [materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n";
-    let empty = format!(
-        "{base}[[shapes]]\ntype = \"sphere\"\ncenter = [3, 0, 0]\nradius = 1\nmaterial = \"m\"\n\
-         [[shapes]]\ntype = \"csg\"\nop = \"intersection\"\nmaterial = \"m\"\n\
-         children = [ {{ type = \"sphere\", center = [-2, 0, 0], radius = 1 }}, {{ type = \"sphere\", center = [2, 0, 0], radius = 1 }} ]\n"
-    );
-    let s = parse_scene(Path::new("e.toml"), &empty).unwrap();
+    let extra = "[[shapes]]\ntype = \"sphere\"\ncenter = [3, 0, 0]\nradius = 1\nmaterial = \"m\"\n\
+                 [[shapes]]\ntype = \"csg\"\nop = \"intersection\"\nmaterial = \"m\"\n\
+                 children = [ { type = \"sphere\", center = [-2, 0, 0], radius = 1 }, { type = \"sphere\", center = [2, 0, 0], radius = 1 } ]\n";
+    let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
     assert_eq!(s.prims.len(), 1, "the empty solid is left out");
     assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
     let w = &s.warnings[0];
-    assert!(w.starts_with("e.toml:16:") && w.contains("`shapes[1]`") && w.contains("empty"), "{w}");
-    let overlapping = empty.replace("center = [2, 0, 0]", "center = [-1, 0, 0]");
-    let s = parse_scene(Path::new("e.toml"), &overlapping).unwrap();
+    // (At the solid's `[[shapes]]` line, the one before its `type`.)
+    let at = format!("e.toml:{}:", line_of(extra, "type = \"csg\"") - 1);
+    assert!(w.starts_with(&at) && w.contains("`shapes[1]`") && w.contains("empty"), "{w} (expected at {at})");
+    let overlapping = extra.replace("center = [2, 0, 0]", "center = [-1, 0, 0]");
+    let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{overlapping}")).unwrap();
     assert_eq!((s.prims.len(), s.warnings.len()), (2, 0), "{:?}", s.warnings);
 }

@@ -503,10 +503,7 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
     macro_rules! wl { ($($t:tt)*) => {{ use std::fmt::Write as _; let _ = writeln!(o, $($t)*); }}; }
     let p = &job.settings.profile;
     wl!("strata: {}  {}x{}  profile {}  seed {}  {} threads", path.display(), s.width, s.height, p.name, s.seed, s.threads);
-    let branching = match p.branching {
-        crate::scene::Branching::Split => "split",
-        crate::scene::Branching::Roulette => "roulette",
-    };
+    let branching = p.branching.name();
     let strategies: Vec<String> = used_strategies(scene, p).iter().map(|(k, s)| format!("{k} {}", s.name())).collect();
     wl!(
         "  sampling: {} spp, {} light samples, max depth {}, diffuse depth {}, branching {branching}, filter {}; strategies: {}",

@@ -115,11 +115,7 @@ fn parse_list<T: PartialEq>(flag: &str, text: &str, parse: impl Fn(&str) -> Resu
 }
 
 fn parse_strategy(s: &str) -> Result<Strategy, String> {
-    Strategy::parse(s).ok_or_else(|| {
-        let all: Vec<_> = Strategy::ALL.iter().map(|s| s.name()).collect();
-        let case = if Strategy::parse(&s.to_ascii_lowercase()).is_some() { "; names are lowercase" } else { "" };
-        format!("unknown strategy `{s}` (one of {}){case}", all.join(", "))
-    })
+    Strategy::parse_or_explain(s)
 }
 
 fn parse_count(s: &str) -> Result<u32, String> {

@@ -48,6 +48,24 @@ impl Strategy {
         }
         Strategy::ALL.into_iter().find(|st| st.name() == s)
     }
+
+    /// [`Strategy::parse`], or the error a user sees: the accepted names, and that names are lowercase
+    /// when only the case is wrong (profile fields, `--set`, `--strategy` and `strata study` alike).
+    pub fn parse_or_explain(s: &str) -> Result<Strategy, String> {
+        Strategy::parse(s).ok_or_else(|| {
+            let all: Vec<_> = Strategy::ALL.iter().map(|s| s.name()).collect();
+            format!("unknown strategy `{s}` (one of {}){}", all.join(", "), lowercase_hint(s))
+        })
+    }
+}
+
+/// For a name that is wrong only in case (or also in case): say that names are lowercase.
+pub fn lowercase_hint(v: &str) -> &'static str {
+    if v.bytes().any(|b| b.is_ascii_uppercase()) {
+        "; names are lowercase, as in profile files"
+    } else {
+        ""
+    }
 }
 
 impl std::fmt::Display for Strategy {

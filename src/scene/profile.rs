@@ -2,6 +2,7 @@
 //! Command-line flags override single fields through [`Profile::set`].
 
 use super::error::{read_text, InputError, Source};
+use crate::sample::strategy::lowercase_hint;
 use crate::sample::{Filter, Strategy};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -14,6 +15,16 @@ pub enum Branching {
     Split,
     /// Russian roulette: trace one, chosen with probability R (weights cancel).
     Roulette,
+}
+
+impl Branching {
+    /// The name profile files use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Branching::Split => "split",
+            Branching::Roulette => "roulette",
+        }
+    }
 }
 
 /// Hard limits that protect the machine; exceeding one is an input error, not an out-of-memory crash.
@@ -224,11 +235,7 @@ impl Profile {
         }
         // Names are exact and lowercase, as in profile files (`centre` is accepted for `center` there too).
         fn strat(key: &str, v: &str) -> Result<Strategy, String> {
-            let t = v.trim();
-            Strategy::parse(t).ok_or_else(|| {
-                let all: Vec<_> = Strategy::ALL.iter().map(|s| s.name()).collect();
-                format!("{key}: unknown strategy `{v}` (one of {}){}", all.join(", "), lowercase_hint(t))
-            })
+            Strategy::parse_or_explain(v.trim()).map_err(|e| format!("{key}: {e}"))
         }
         match key {
             "spp" => self.spp = num(key, value)?,
@@ -291,15 +298,6 @@ fn combined_with(field: &str) -> &'static [&'static str] {
         "diffuse_depth" => &["max_depth"],
         "throughput_cutoff" => &["branching"],
         _ => &[],
-    }
-}
-
-/// For a name that is only wrong in case: say that names are lowercase.
-fn lowercase_hint(v: &str) -> &'static str {
-    if v.bytes().any(|b| b.is_ascii_uppercase()) {
-        "; names are lowercase, as in profile files"
-    } else {
-        ""
     }
 }
 
