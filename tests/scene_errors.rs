@@ -322,3 +322,31 @@ fn an_empty_csg_solid_is_left_out_with_a_warning() {
     let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{overlapping}")).unwrap();
     assert_eq!((s.prims.len(), s.warnings.len()), (2, 0), "{:?}", s.warnings);
 }
+
+/// A CSG solid whose bounds are not empty but whose volume is (a part drilled by a hole larger than
+/// itself, `A - A`) is kept with a warning at its line; a drilled part and a thin shell get none.
+#[test]
+fn a_csg_solid_emptied_by_its_hole_is_warned_about() {
+    let solid = |children: &str| format!("[[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmaterial = \"m\"\nchildren = [ {children} ]\n");
+    let cases = [
+        ("{ type = \"sphere\", center = [0, 0, 0], radius = 1 }, { type = \"sphere\", center = [0, 0, 0], radius = 1.5 }", true),
+        ("{ type = \"box\", min = [-1, -1, -1], max = [1, 1, 1] }, { type = \"box\", min = [-1, -1, -1], max = [1, 1, 1] }", true),
+        ("{ type = \"box\", min = [0, 0, 0], max = [1e-5, 2e-5, 1e-5] }, { type = \"cylinder\", center = [0, 0, 0], radius = 1e-4, height = 1 }", true),
+        ("{ type = \"sphere\", center = [0, 0, 0], radius = 1 }, { type = \"sphere\", center = [0, 0, 0], radius = 0.5 }", false),
+        ("{ type = \"sphere\", center = [0, 0, 0], radius = 1 }, { type = \"sphere\", center = [0, 0, 0], radius = 0.995 }", false),
+        ("{ type = \"box\", min = [-1, -1, -1], max = [1, 1, 1] }, { type = \"cylinder\", center = [0, 0, 0], radius = 0.5, height = 4 }", false),
+    ];
+    for (children, empty) in cases {
+        let extra = solid(children);
+        let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
+        assert_eq!(s.prims.len(), 1, "kept either way: {children}");
+        if empty {
+            assert_eq!(s.warnings.len(), 1, "{children}: {:?}", s.warnings);
+            let at = format!("e.toml:{}:", line_of(&extra, "type = \"csg\"") - 1);
+            let w = &s.warnings[0];
+            assert!(w.starts_with(&at) && w.contains("`shapes[0]`") && w.contains("looks empty"), "{w} (expected at {at})");
+        } else {
+            assert!(s.warnings.is_empty(), "{children}: {:?}", s.warnings);
+        }
+    }
+}

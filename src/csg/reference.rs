@@ -198,3 +198,37 @@ pub fn intervals_f64(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f
         }
     }
 }
+
+/// Whether any of `3 n^2` axis-parallel rays through the solid's bounds (an `n x n` grid of cell centres
+/// across each pair of axes) finds an inside interval longer than `1e-6` of the bounds' largest extent.
+/// `false` means the solid is very likely empty (a hole larger than its part, `A - A`), or thinner than
+/// the grid's spacing everywhere. Solids with unbounded or empty bounds are reported as not empty (the
+/// bounds already decide those). Most solids answer at their first ray.
+pub fn probe_finds_volume(csg: &Csg, solid: u32, n: u32) -> bool {
+    let (lo, hi) = csg.bounds(solid);
+    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+    if !(lo.is_finite() && hi.is_finite() && lo.cmple(hi).all()) {
+        return true;
+    }
+    let ext = hi - lo;
+    let min_len = 1e-6 * ext.max_element();
+    let mut out = Vec::new();
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        let mut d = DVec3::ZERO;
+        d[axis] = 1.0;
+        for i in 0..n {
+            for j in 0..n {
+                // (On the bounds' mid-plane: the intervals cover all t.)
+                let mut o = (lo + hi) * 0.5;
+                o[u] = lo[u] + ext[u] * (i as f64 + 0.5) / n as f64;
+                o[v] = lo[v] + ext[v] * (j as f64 + 0.5) / n as f64;
+                intervals_f64(csg, solid, o, d, &mut out);
+                if out.iter().any(|&(a, b)| b - a > min_len) {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}

@@ -23,6 +23,9 @@ pub const MAX_PRIORITY: i64 = 1_000_000;
 
 /// Deepest CSG nesting (and chain of named-solid references) accepted.
 pub const MAX_CSG_DEPTH: usize = 64;
+/// Rays per side of the grid on each axis with which a CSG solid is probed for volume (an empty one is
+/// warned about): `3 n^2` rays at most, one for most solids.
+const EMPTY_PROBE_GRID: u32 = 24;
 
 /// Largest coordinate or length a scene may hold, before and after its transforms: the sphere kernel
 /// takes squares of differences of coordinates, which overflow f32 a little beyond (a ground sphere of
@@ -682,6 +685,21 @@ impl Compiler<'_> {
                     .to_string(),
             );
             return Ok(());
+        }
+        if !crate::csg::reference::probe_finds_volume(&self.csg, solid, EMPTY_PROBE_GRID) {
+            // Kept (the probe can miss a solid thinner than its spacing), but most likely a mistake.
+            let rays = 3 * EMPTY_PROBE_GRID * EMPTY_PROBE_GRID;
+            self.warnings.push(
+                self.err(
+                    def.span(),
+                    field,
+                    format!(
+                        "this CSG solid looks empty: none of {rays} rays across its bounds met it (is a hole as large as its \
+                         part?); it is kept"
+                    ),
+                )
+                .to_string(),
+            );
         }
         let shape = Shape::Csg { solid };
         self.within_range(&shape, def, field)?;
