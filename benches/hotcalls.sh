@@ -10,11 +10,11 @@
 # Large callees (the traversals' leaf callbacks, the generate stage's per-packet emit) are out of line
 # by design.
 #
-# Usage: benches/hotcalls.sh [BINARY]     (default: target/release/strata, built if missing)
+# Usage: benches/hotcalls.sh [BINARY]     (default: $CARGO_TARGET_DIR or target, /release/strata, built if missing)
 # Needs objdump (binutils). Not run by CI or the tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bin=${1:-target/release/strata}
+bin=${1:-${CARGO_TARGET_DIR:-target}/release/strata}
 if [[ ! -x "$bin" ]]; then
     cargo build --release --quiet
 fi

@@ -32,7 +32,8 @@ fi
 
 root=$(cd "$(dirname "$0")/.." && pwd)
 if [ -z "${STRATA:-}" ]; then
-    if [ -x "$root/target/release/strata" ]; then STRATA=$root/target/release/strata; else STRATA=strata; fi
+    t=${CARGO_TARGET_DIR:-$root/target}
+    if [ -x "$t/release/strata" ]; then STRATA=$t/release/strata; else STRATA=strata; fi
 fi
 JOBS=${JOBS:-$PARTS}
 cores=$(nproc 2>/dev/null || echo 1)

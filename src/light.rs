@@ -97,6 +97,56 @@ fn area_sample(p: Vec3, y: Vec3, n_light: Vec3, area: f32, radiance: Vec3) -> Op
     Some(LightSample { target: offset_ray_origin(y, n_light), wi, weight: radiance * (cos_l * area / d2) })
 }
 
+/// Solid-angle density, seen from `p`, of one sample of an area light at its point `y` (`y` unused for
+/// a sphere, sampled uniformly over the cone it subtends): `d^2 / (cos_l A)` for quads and disks.
+/// 0 where [`sample_light`] draws nothing (behind a one-sided light, inside a sphere) and for point
+/// lights (a delta: no direction finds them). The weight of multiple importance sampling between a
+/// glossy lobe and next-event estimation needs it on both sides.
+pub fn sample_pdf(light: &Light, p: Vec3, y: Vec3) -> f32 {
+    let flat = |n: Vec3, area: f32| {
+        let v = y - p;
+        let d2 = v.length_squared();
+        let cos_l = -v.dot(n) / d2.sqrt();
+        if cos_l > 0.0 && area > 0.0 {
+            d2 / (cos_l * area)
+        } else {
+            0.0
+        }
+    };
+    match *light {
+        Light::Point { .. } => 0.0,
+        Light::Quad { quad, .. } => flat(quad.normal(), quad.area()),
+        Light::Disk { disk, .. } => flat(disk.normal, std::f32::consts::PI * disk.radius * disk.radius),
+        Light::Sphere { center, radius, .. } => {
+            // As `sample_light` forms `1 - cos_max`.
+            let d2 = (center - p).length_squared();
+            let r2 = radius * radius;
+            if d2 <= r2 * 1.000_001 {
+                return 0.0;
+            }
+            let sin2_max = r2 / d2;
+            let one_minus_cos = sin2_max / (1.0 + (1.0 - sin2_max).max(0.0).sqrt());
+            if one_minus_cos > 0.0 {
+                1.0 / (std::f32::consts::TAU * one_minus_cos)
+            } else {
+                0.0
+            }
+        }
+    }
+}
+
+/// Power-heuristic weight (Veach 1997) of a sample drawn with density `p` among `n` such samples, against
+/// one sample of the other strategy with density `q` at the same direction: `(n p)^2 / ((n p)^2 + q^2)`,
+/// formed from the ratio (no overflow for a sharp lobe); 1 where `q` is 0.
+#[inline]
+pub fn power_heuristic(n: f32, p: f32, q: f32) -> f32 {
+    if !(q > 0.0) {
+        return 1.0;
+    }
+    let r = q / (n * p);
+    1.0 / r.mul_add(r, 1.0)
+}
+
 /// How many samples a light gets per shading point (delta lights need one).
 #[inline]
 pub fn samples_for(light: &Light, area_samples: u32) -> u32 {

@@ -553,7 +553,7 @@ fn interrupt_writes_what_was_done_and_says_so() {
 }
 
 /// Ctrl-C twice: the second, while the unit in flight (~0.5 s) finishes, quits at once and says that
-/// nothing was written; nothing is. (The second signal follows the first's notice by milliseconds.)
+/// nothing was written; nothing is. (The second signal follows the first's notice by 150 ms.)
 #[cfg(unix)]
 #[test]
 fn second_interrupt_quits_at_once_and_says_nothing_was_written() {
@@ -562,12 +562,31 @@ fn second_interrupt_quits_at_once_and_says_nothing_was_written() {
     read_until(&mut lines, "work units");
     sigint(&child);
     read_until(&mut lines, "interrupted: finishing the work units in flight");
+    // (Past the debounce, under which a second signal is the first one delivered twice.)
+    std::thread::sleep(std::time::Duration::from_millis(150));
     sigint(&child);
     let rest: String = lines.map(|l| l.unwrap() + "\n").collect();
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(130), "{rest}");
     assert!(rest.contains("interrupted again: quit at once; nothing was written"), "{rest}");
     assert!(!png.exists() && !tmp("int2.film").exists(), "{rest}");
+}
+
+/// One interrupt delivered twice at once (GNU `timeout -s INT` signals the process, then its group) is
+/// one Ctrl-C: the render stops and writes what was done.
+#[cfg(unix)]
+#[test]
+fn an_interrupt_delivered_twice_at_once_is_one() {
+    let (png, film) = (tmp("int3.png"), tmp("int3.film"));
+    let (mut child, mut lines) = slow_render("int3", &["-o", png.to_str().unwrap()]);
+    read_until(&mut lines, "work units");
+    sigint(&child);
+    sigint(&child);
+    let rest: String = lines.map(|l| l.unwrap() + "\n").collect();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{rest}");
+    assert!(!rest.contains("interrupted again") && rest.contains("interrupted: wrote the"), "{rest}");
+    assert!(png.exists() && film.exists(), "{rest}");
 }
 
 /// Samples that can only repeat each other are warned about, and the warning is true: `--spp 4` with
@@ -601,4 +620,18 @@ fn identical_samples_are_warned_about() {
     assert_eq!(imgl, img1, "the warning's claim");
     let (wj, _) = render("j4.exr", &["--spp", "4", "--strategy", "jittered", "--light-samples", "4"]);
     assert!(!wj.contains("warning"), "{wj}");
+    // One grid light sample is the light's centre for every camera sample: the image of `center` light
+    // samples, whatever the spp (jittered pixels here).
+    let px = ["--set", "pixel_strategy=jittered"];
+    let (wg, img_g) = render("g16.exr", &[&["--spp", "16", "--set", "light_strategy=grid", "--light-samples", "1"][..], &px].concat());
+    let (_, img_c) = render("gc16.exr", &[&["--spp", "16", "--set", "light_strategy=center", "--light-samples", "1"][..], &px].concat());
+    assert!(wg.contains("light_strategy `grid` with 1 light sample"), "{wg}");
+    assert_eq!(img_g, img_c, "the warning's claim");
+    // Grids of counts without near-square factors are strips: warned (7 = 1 x 7, 22 = 2 x 11); 9, 12 not.
+    for (n, strips) in [("7", true), ("22", true), ("9", false), ("12", false)] {
+        let (w, _) = render("gs.exr", &["--spp", n, "--strategy", "grid"]);
+        assert_eq!(w.contains(&format!("pixel grid of {n} samples is")), strips, "spp {n}: {w}");
+        let (w, _) = render("gl.exr", &["--spp", "1", "--strategy", "grid", "--light-samples", n]);
+        assert_eq!(w.contains(&format!("light grid of {n} samples is")), strips, "light samples {n}: {w}");
+    }
 }

@@ -108,6 +108,7 @@ pub fn ray(o: Vec3, d: Vec3) -> RayItem {
         diffuse: 0,
         flags: 0,
         media: MediumStack::default(),
+        pdf: 0.0,
     }
 }
 

@@ -34,7 +34,7 @@ rm -f "$OUT"/*.json "$OUT"/*.jsonl "$OUT"/*.log
 timed() { local f=$1; shift; python3 "$HERE/cputime.py" "$f" -- "$@"; }
 
 cargo build --release --quiet
-STRATA=target/release/strata
+STRATA=${CARGO_TARGET_DIR:-target}/release/strata
 
 {
   echo "git commit: $(git rev-parse --short HEAD)$(git diff --quiet HEAD -- src Cargo.toml .cargo 2>/dev/null || echo ' (+ uncommitted changes)')"

@@ -158,6 +158,9 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     if let Some(w) = identical_samples_warning(&scene, &profile) {
         errln!("warning: {w}");
     }
+    for w in grid_warnings(&scene, &profile) {
+        errln!("warning: {w}");
+    }
     if a.threads > 1024 {
         return Err(Failure::input("--threads must be at most 1024"));
     }
@@ -392,16 +395,53 @@ pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
     None
 }
 
+/// Grids that do not sample what their integral asks: one light sample on a `grid` (the light's centre
+/// for every camera sample: a hard shadow at any spp), and 2D grids whose count has no near-square
+/// factorisation (`grid_shape` gives strips more than 4 times longer than wide, e.g. 1 x 7 for a prime:
+/// the integral is sampled along one axis).
+pub fn grid_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
+    let mut out = Vec::new();
+    if p.light_strategy == Strategy::Grid && scene.features.area_lights && p.light_samples == 1 && p.spp > 1 {
+        out.push(
+            "light_strategy `grid` with 1 light sample puts it at the light's centre for every camera sample: hard shadows at any \
+             spp (jittered and sobol light samples stratify across a pixel's camera samples; a grid needs light_samples > 1)"
+                .to_string(),
+        );
+    }
+    for (name, s) in used_strategies(scene, p) {
+        let n = if name == "light" { p.light_samples } else { p.spp };
+        if s != Strategy::Grid || name == "time" || name == "wavelength" || n < 5 {
+            continue;
+        }
+        let [a, b] = crate::sample::strategy::grid_shape(n);
+        if b > 4 * a {
+            let count = if name == "light" { "light_samples" } else { "spp" };
+            out.push(format!(
+                "{name} grid of {n} samples is {a} x {b} strips ({count} {n} has no near-square factors): the {name} integral is \
+                 sampled along one axis only; a count such as {} or {} gives a square grid",
+                n.isqrt().pow(2),
+                (n.isqrt() + 1).pow(2)
+            ));
+        }
+    }
+    out
+}
+
 /// The states of a render towards signals (see [`install_interrupt_handler`]).
 const RUNNING: u8 = 0;
 const STOPPING: u8 = 1;
 const QUITTING: u8 = 2;
 const WRITING: u8 = 3;
 
+/// A second interrupt sooner than this after the first counts as the same one (see the handler).
+pub(crate) const DEBOUNCE: std::time::Duration = std::time::Duration::from_millis(100);
+
 /// SIGINT / SIGTERM: the first stops handing out work units (`cancel`), says so, and lets the units in
 /// flight finish, after which the image and the film are written; a second while those finish quits at
-/// once, writing nothing, and says so (and which film, if any, still holds a resumable state). Once
-/// rendering has stopped (`state` WRITING) signals wait for the outputs: writing them is quick.
+/// once, writing nothing, and says so (and which film, if any, still holds a resumable state). A second
+/// within [`DEBOUNCE`] of the first is the first delivered twice and ignored. Once rendering has
+/// stopped (`state` WRITING) signals wait for the outputs: writing them is quick.
+
 #[allow(clippy::too_many_arguments)]
 fn install_interrupt_handler(
     cancel: &Arc<AtomicBool>,
@@ -420,14 +460,19 @@ fn install_interrupt_handler(
         Some(b) => b.suspend(|| errln!("{m}")),
         None => errln!("{m}"),
     };
+    let first = std::sync::OnceLock::new();
     let _ = ctrlc::set_handler(move || match state.compare_exchange(RUNNING, STOPPING, Ordering::SeqCst, Ordering::SeqCst) {
         Ok(_) => {
+            let _ = first.set(std::time::Instant::now());
             cancel.store(true, Ordering::SeqCst);
             say(&format!(
                 "interrupted: finishing the work units in flight, then writing {out} and the film {film_out} \
                  (Ctrl-C again to quit at once without writing)"
             ));
         }
+        // A signal within DEBOUNCE of the first is the same interrupt: GNU `timeout` (and schedulers that
+        // signal the process and then its group) deliver one request twice, microseconds apart.
+        Err(STOPPING) if first.get().is_some_and(|t: &std::time::Instant| t.elapsed() < DEBOUNCE) => {}
         Err(STOPPING) if state.compare_exchange(STOPPING, QUITTING, Ordering::SeqCst, Ordering::SeqCst).is_ok() => {
             let kept = match (&film_path, &resume) {
                 (Some(f), _) if checkpointed.load(Ordering::SeqCst) => format!("; {f} holds the last checkpoint: --resume {f}"),
@@ -505,10 +550,15 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
     wl!("strata: {}  {}x{}  profile {}  seed {}  {} threads", path.display(), s.width, s.height, p.name, s.seed, s.threads);
     let branching = p.branching.name();
     let strategies: Vec<String> = used_strategies(scene, p).iter().map(|(k, s)| format!("{k} {}", s.name())).collect();
+    // (Point lights take one sample whatever the count: without area lights it means nothing.)
+    let light_samples = match (scene.features.area_lights, p.light_samples) {
+        (false, _) => "no area lights".to_string(),
+        (true, 1) => "1 light sample".to_string(),
+        (true, n) => format!("{n} light samples"),
+    };
     wl!(
-        "  sampling: {} spp, {} light samples, max depth {}, diffuse depth {}, branching {branching}, filter {}; strategies: {}",
+        "  sampling: {} spp, {light_samples}, max depth {}, diffuse depth {}, branching {branching}, filter {}; strategies: {}",
         p.spp,
-        p.light_samples,
         p.max_depth,
         p.diffuse_depth,
         p.filter.name(),
@@ -534,7 +584,7 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
     wl!("  time: {:.3} s wall, {:.2} M rays/s", s.seconds, s.rays_per_second / 1e6);
     let t = &s.stage_seconds;
     wl!(
-        "  stages (cpu s): generate {:.3}, intersect {:.3}, csg_merge {:.3}, shade {:.3}, shadow {:.3}, accumulate {:.3}",
+        "  stages (thread s): generate {:.3}, intersect {:.3}, csg_merge {:.3}, shade {:.3}, shadow {:.3}, accumulate {:.3}",
         t.generate,
         t.intersect,
         t.csg_merge,
@@ -546,7 +596,7 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
     let rate = |n: u64, secs: f64| if secs > 0.0 { format!("{:.1}", n as f64 / secs / 1e6) } else { "-".into() };
     let traced = s.rays.camera + s.rays.secondary;
     wl!(
-        "  stage rates (M per cpu s): generate {} camera rays, intersect {} rays, csg_merge {} candidates, shade {} hits, shadow {} shadow rays",
+        "  stage rates (M per thread s): generate {} camera rays, intersect {} rays, csg_merge {} candidates, shade {} hits, shadow {} shadow rays",
         rate(s.rays.camera, t.generate),
         rate(traced, t.intersect),
         rate(s.csg_candidates, t.csg_merge),

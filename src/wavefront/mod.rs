@@ -67,7 +67,9 @@ impl Counters {
     }
 }
 
-/// Seconds spent in each stage, summed over workers (CPU time, not wall time).
+/// Seconds spent in each stage, summed over workers: each worker's wall clock inside the stage (its CPU
+/// time when it has a core of its own; a worker waiting for a core, under load or with more threads than
+/// cores, counts the wait too).
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
 pub struct StageTimes {
     pub generate: f64,
@@ -106,7 +108,8 @@ pub struct Wavefront {
 
 impl Wavefront {
     pub fn new(features: &Features) -> Wavefront {
-        let q = || RayQueue::new(features.motion, features.dispersion);
+        // Glossy lobe rays carry their density where they can find a sampled (area) light: MIS.
+        let q = || RayQueue::new(features.motion, features.dispersion).with_pdf(features.glossy && features.area_lights);
         Wavefront {
             rays: [q(), q()],
             hits: HitQueue::default(),

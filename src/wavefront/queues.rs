@@ -11,6 +11,9 @@ use glam::Vec3;
 pub const FLAG_SPECULAR: u8 = 1;
 /// Ray flag: the ray left a diffuse surface by a bounce (emission of sampled lights does not count).
 pub const FLAG_DIFFUSE: u8 = 2;
+/// Ray flag: the ray is a glossy lobe sample (with [`FLAG_SPECULAR`]); the emission of a sampled light
+/// it finds is weighted against next-event estimation by multiple importance sampling, from its `pdf`.
+pub const FLAG_GLOSSY: u8 = 4;
 
 /// The media a ray is inside, innermost last: up to 4 material ids + 1 (0 = empty slot) in a `u64`.
 /// Glass inside water inside glass is three entries; a fifth nested medium is dropped (documented limit).
@@ -104,6 +107,9 @@ pub struct RayItem {
     pub diffuse: u16,
     pub flags: u8,
     pub media: MediumStack,
+    /// Solid-angle density its direction was sampled with ([`FLAG_GLOSSY`] rays; kept only by queues
+    /// that carry it).
+    pub pdf: f32,
 }
 
 /// Up to 8 new rays (all with `tmax = inf`) as lane arrays, for [`RayQueue::push_rows`].
@@ -120,6 +126,7 @@ pub struct RayRows {
     pub diffuse: [u16; LANES],
     pub flags: [u8; LANES],
     pub media: [MediumStack; LANES],
+    pub pdf: [f32; LANES],
 }
 
 impl RayRows {
@@ -139,6 +146,7 @@ impl RayRows {
             diffuse: self.diffuse[l],
             flags: self.flags[l],
             media: self.media[l],
+            pdf: self.pdf[l],
         }
     }
 }
@@ -166,10 +174,14 @@ pub struct RayQueue {
     pub diffuse: Vec<u16>,
     pub flags: Vec<u8>,
     pub media: Vec<MediumStack>,
+    /// Sampling density of glossy lobe rays; filled only for scenes with glossy materials and area
+    /// lights (multiple importance sampling).
+    pub pdf: Vec<f32>,
     len: usize,
-    /// Whether `time` / `lambda` are carried.
+    /// Whether `time` / `lambda` / `pdf` are carried.
     pub with_time: bool,
     pub with_lambda: bool,
+    pub with_pdf: bool,
     /// How many image pixels the queue's rays serve (set by the pipeline per work unit; 0: unknown).
     /// The intersect stage sorts incoherent queues by finer direction cells when they hold many rays
     /// per pixel.
@@ -179,6 +191,10 @@ pub struct RayQueue {
 impl RayQueue {
     pub fn new(with_time: bool, with_lambda: bool) -> Self {
         RayQueue { with_time, with_lambda, ..Default::default() }
+    }
+    /// The same queue carrying (or not) the lobe rays' sampling density.
+    pub fn with_pdf(self, with_pdf: bool) -> Self {
+        RayQueue { with_pdf, ..self }
     }
     #[inline]
     pub fn len(&self) -> usize {
@@ -196,7 +212,7 @@ impl RayQueue {
 
     pub fn clear(&mut self) {
         macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
-        clr!(ox, oy, oz, dx, dy, dz, tmax, time, lambda, tr, tg, tb, path, branch, depth, diffuse, flags, media);
+        clr!(ox, oy, oz, dx, dy, dz, tmax, time, lambda, tr, tg, tb, path, branch, depth, diffuse, flags, media, pdf);
         self.len = 0;
     }
 
@@ -228,6 +244,9 @@ impl RayQueue {
         self.diffuse.push(r.diffuse);
         self.flags.push(r.flags);
         self.media.push(r.media);
+        if self.with_pdf {
+            self.pdf.push(r.pdf);
+        }
         self.len += 1;
     }
 
@@ -261,6 +280,9 @@ impl RayQueue {
         put(&mut self.diffuse, &rows.diffuse, n);
         put(&mut self.flags, &rows.flags, n);
         put(&mut self.media, &rows.media, n);
+        if self.with_pdf {
+            put(&mut self.pdf, &rows.pdf, n);
+        }
         self.len += n;
     }
 
@@ -273,6 +295,9 @@ impl RayQueue {
         }
         if self.with_lambda {
             self.lambda.truncate(n);
+        }
+        if self.with_pdf {
+            self.pdf.truncate(n);
         }
     }
 
@@ -305,6 +330,7 @@ impl RayQueue {
             diffuse: self.diffuse[i],
             flags: self.flags[i],
             media: self.media[i],
+            pdf: if self.with_pdf { self.pdf[i] } else { 0.0 },
         }
     }
 }
@@ -409,12 +435,20 @@ pub struct NeeQueue {
     /// A static sphere the point lies on, seen from outside (its shadow rays leave it outward and
     /// cannot meet it again: it is convex), else [`NONE`].
     pub own: Vec<u32>,
+    /// In scenes with glossy materials ([`NeeQueue::push_lobes`], else empty): the direction back along
+    /// the incoming ray (unit) and the GGX `alpha` of a glossy point (its `w` is throughput x tint: the
+    /// shadow stage evaluates the lobe per light sample), 0 for a Lambert point; `alpha < 0` when no
+    /// lobe ray leaves the point (depth limit), so its light samples need no MIS weight.
+    pub wox: Vec<f32>,
+    pub woy: Vec<f32>,
+    pub woz: Vec<f32>,
+    pub alpha: Vec<f32>,
 }
 
 impl NeeQueue {
     pub fn clear(&mut self) {
         macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
-        clr!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time, own);
+        clr!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time, own, wox, woy, woz, alpha);
     }
     pub fn len(&self) -> usize {
         self.px.len()
@@ -473,6 +507,15 @@ impl NeeQueue {
         put(&mut self.sample, r.sample, m);
         put(&mut self.time, r.time, m);
         put(&mut self.own, r.own, m);
+    }
+
+    /// The lobe columns of the `m` requests just pushed (see [`NeeQueue::wox`]).
+    #[inline]
+    pub fn push_lobes(&mut self, m: usize, wo: &[[f32; LANES]; 3], alpha: &[f32; LANES]) {
+        put(&mut self.wox, &wo[0], m);
+        put(&mut self.woy, &wo[1], m);
+        put(&mut self.woz, &wo[2], m);
+        put(&mut self.alpha, alpha, m);
     }
 }
 

@@ -5,17 +5,20 @@
 
 use super::dims;
 use super::medium;
-use super::queues::{HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, RayRows, FLAG_DIFFUSE, FLAG_SPECULAR, NONE};
+use super::queues::{
+    HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, RayRows, FLAG_DIFFUSE, FLAG_GLOSSY, FLAG_SPECULAR, NONE,
+};
 use crate::geometry::{
     normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_sphere_point,
     refine_sphere_point_x8,
 };
+use crate::light::{power_heuristic, sample_pdf, samples_for};
 use crate::optics::{
-    beer_lambert, fresnel_dielectric, fresnel_refract_x8, fresnel_schlick, reflect, reflect_x8, refract, sample_ggx_reflect_weight_x8,
-    sample_ggx_reflect_x8, sample_hemisphere_cos_x8,
+    beer_lambert, fresnel_dielectric, fresnel_refract_x8, fresnel_schlick, reflect, reflect_x8, refract, sample_ggx_reflect_pdf,
+    sample_ggx_reflect_weight_x8, sample_ggx_reflect_x8, sample_hemisphere_cos_x8,
 };
 use crate::sample::{hash_combine, random_f32, stream_key, Sampler2d};
-use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture};
+use crate::scene::{checker_eval_x8, Branching, Dielectric, Light, Material, MaterialKind, Prim, Profile, Scene, Shape, Texture};
 use crate::simd::{consecutive8, f32x8, gather8, lane_bits, mask_from_bits, u32x8, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
@@ -336,7 +339,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
         }
         if b == MaterialKind::Glossy as usize {
             for chunk in order[counts[b]..counts[b + 1]].chunks(LANES) {
-                ctx.glossy_x8(rays, hits, chunk, paths, next);
+                ctx.glossy_x8(rays, hits, chunk, paths, nee, next);
             }
             continue;
         }
@@ -357,10 +360,16 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                 absorb(scene, &mut r, hits.t[i]);
                 match &scene.materials[geo.material[l] as usize] {
                     Material::Emissive { radiance } => {
-                        let is_light = scene.prims[hits.prim[i] as usize].is_light;
-                        // Sampled lights were already counted by next-event estimation at a diffuse vertex.
-                        if geo.front & (1 << l) != 0 && !(is_light && r.flags & FLAG_DIFFUSE != 0) {
-                            paths.add(r.path, r.throughput * *radiance);
+                        let prim = &scene.prims[hits.prim[i] as usize];
+                        // Sampled lights were already counted by next-event estimation at a diffuse vertex;
+                        // at a glossy one, in part: the lobe ray's share is its MIS weight.
+                        if geo.front & (1 << l) != 0 && !(prim.is_light && r.flags & FLAG_DIFFUSE != 0) {
+                            if prim.is_light && r.flags & FLAG_GLOSSY != 0 && rays.with_pdf {
+                                let w = lobe_light_weight(scene, profile, prim, &r, hits.t[i]);
+                                paths.add(r.path, r.throughput * *radiance * w);
+                            } else {
+                                paths.add(r.path, r.throughput * *radiance);
+                            }
                         }
                     }
                     // Shaded 8 at a time by `Ctx::lambert_x8`, `Ctx::specular_x8` and `Ctx::glossy_x8`.
@@ -370,6 +379,24 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                 }
             }
         }
+    }
+}
+
+/// The MIS weight (power heuristic) of glossy lobe ray `r` that found light `prim` at `t`: its own density
+/// (`r.pdf`, one sample) against the light's `light_samples` samples from the point it left (`r.o`).
+fn lobe_light_weight(scene: &Scene, profile: &Profile, prim: &Prim, r: &RayItem, t: f32) -> f32 {
+    let light = scene.lights.iter().find(|l| match (**l, prim.shape) {
+        (Light::Quad { quad, .. }, Shape::Quad(q)) => quad.origin == q.origin && quad.u == q.u && quad.v == q.v,
+        (Light::Disk { disk, .. }, Shape::Disk(k)) => disk.center == k.center && disk.normal == k.normal && disk.radius == k.radius,
+        (Light::Sphere { center, radius, .. }, Shape::Sphere { center: c, radius: k }) => center == c && radius == k,
+        _ => false,
+    });
+    match light {
+        Some(light) => {
+            let ns = samples_for(light, profile.light_samples) as f32;
+            power_heuristic(1.0, r.pdf, ns * sample_pdf(light, r.o, r.o + r.d * t))
+        }
+        None => 1.0,
     }
 }
 
@@ -574,6 +601,9 @@ impl<'a> Ctx<'a> {
                     own: &own,
                 },
             );
+            if scene.features.glossy {
+                nee.push_lobes(m, &[[0.0; LANES]; 3], &[0.0; LANES]);
+            }
         }
         if profile.diffuse_depth == 0 {
             return;
@@ -794,6 +824,9 @@ impl<'a> Ctx<'a> {
             diffuse: gather8(&rays.diffuse, run, i0, at),
             flags: [FLAG_SPECULAR; LANES],
             media,
+            // (The parent's: kept with its flags by a passed lane, or a refracted one under transmissive
+            // shadows.)
+            pdf: if rays.with_pdf { gather8(&rays.pdf, run, i0, at) } else { [0.0; LANES] },
         };
         // Split lanes' transmitted children.
         let mut second = None;
@@ -878,7 +911,7 @@ impl<'a> Ctx<'a> {
     /// Same rays, in the same order, as shading the hits one by one.
     // Out of line (one call per 8 hits): keeps it a separate entry in profiles.
     #[inline(never)]
-    fn glossy_x8(&self, rays: &RayQueue, hits: &HitQueue, idx: &[u32], paths: &PathTable, next: &mut RayQueue) {
+    fn glossy_x8(&self, rays: &RayQueue, hits: &HitQueue, idx: &[u32], paths: &PathTable, nee: &mut NeeQueue, next: &mut RayQueue) {
         let (scene, profile) = (self.scene, self.profile);
         let m = idx.len();
         // (The same gathers as `specular_x8` and `lambert_x8`, written out in each: folded into one
@@ -922,6 +955,43 @@ impl<'a> Ctx<'a> {
             alpha[l] = *a;
             live |= (((depth[l] as u32) < profile.max_depth) as u32) << l;
         }
+        // -normalize(d), as glam rounds it.
+        let rcp = f32x8::ONE / d.dot_unfused(d).sqrt();
+        let wo = Vec3x8::new(-(d.x * rcp), -(d.y * rcp), -(d.z * rcp));
+        if !scene.lights.is_empty() {
+            // Next-event estimation, as at Lambert points (same point keys): the request carries the
+            // throughput x tint and the lobe (`wo`, alpha); the shadow stage evaluates the GGX lobe per
+            // light sample, weighted against this point's lobe ray by MIS where one leaves it.
+            let mut memo = KeyMemo::default();
+            let mut keys = [0u64; LANES];
+            for l in 0..LANES {
+                keys[l] = memo.get((pixel[l], branch[l], depth[l]), || point_key(pixel[l], branch[l], depth[l]));
+            }
+            let off = offset_ray_origin_scaled_x8(geo.p, geo.n_facing, geo.error_scale);
+            let (ox, oy, oz) = (off.x.to_array(), off.y.to_array(), off.z.to_array());
+            let w = (Vec3x8::from_rows(&thr) * Vec3x8::from_rows(&tint)).rows();
+            let own = [NONE; LANES];
+            nee.push_rows(
+                m,
+                NeeRows {
+                    p: &geo.p.rows(),
+                    o: [&ox, &oy, &oz],
+                    n: &geo.n_facing.rows(),
+                    w: &w,
+                    path: &path,
+                    key: &keys,
+                    sample: &sample,
+                    time: &times,
+                    own: &own,
+                },
+            );
+            let mut lobe = [0.0f32; LANES];
+            for l in 0..LANES {
+                let a = alpha[l].max(f32::MIN_POSITIVE);
+                lobe[l] = if live & (1 << l) != 0 { a } else { -a };
+            }
+            nee.push_lobes(m, &wo.rows(), &lobe);
+        }
         if live == 0 {
             return;
         }
@@ -933,12 +1003,18 @@ impl<'a> Ctx<'a> {
             keys[l] = memo.get((pixel[l], branch[l], depth[l]), stream);
         }
         let u = self.glossy.sample_x8(&keys, &sample, true);
-        // -normalize(d), as glam rounds it.
-        let rcp = f32x8::ONE / d.dot_unfused(d).sqrt();
-        let wo = Vec3x8::new(-(d.x * rcp), -(d.y * rcp), -(d.z * rcp));
-        let (nf, alpha) = (geo.n_facing, f32x8::from(alpha));
-        let (wi, ok) = sample_ggx_reflect_x8(wo, nf, alpha, u);
-        let weight = sample_ggx_reflect_weight_x8(wo, nf, wi, alpha);
+        let (nf, alpha_x8) = (geo.n_facing, f32x8::from(alpha));
+        let (wi, ok) = sample_ggx_reflect_x8(wo, nf, alpha_x8, u);
+        let weight = sample_ggx_reflect_weight_x8(wo, nf, wi, alpha_x8);
+        // The lobe rays' density, for the MIS weight of the sampled light they may find.
+        let mut pdf = [0.0f32; LANES];
+        if next.with_pdf {
+            let (wo_r, nf_r, wi_r) = (wo.rows(), nf.rows(), wi.rows());
+            let at3 = |r: &[[f32; LANES]; 3], l: usize| Vec3::new(r[0][l], r[1][l], r[2][l]);
+            for l in 0..LANES {
+                pdf[l] = sample_ggx_reflect_pdf(at3(&wo_r, l), at3(&nf_r, l), at3(&wi_r, l), alpha[l]);
+            }
+        }
         let mut rows = RayRows {
             o: offset_ray_origin_scaled_x8(geo.p, nf, geo.error_scale).rows(),
             d: wi.rows(),
@@ -949,8 +1025,9 @@ impl<'a> Ctx<'a> {
             branch,
             depth: depth.map(|k| k + 1),
             diffuse: gather8(&rays.diffuse, run, i0, at),
-            flags: [FLAG_SPECULAR; LANES],
+            flags: [FLAG_SPECULAR | FLAG_GLOSSY; LANES],
             media,
+            pdf,
         };
         // `spawn`'s roulette on each child.
         let mut kept = 0u32;
@@ -1331,7 +1408,7 @@ mod tests {
                     let (mut lanes, mut scalar) =
                         (RayQueue::new(rays.with_time, rays.with_lambda), RayQueue::new(rays.with_time, rays.with_lambda));
                     in_chunks(&hits_of(&scene, rays, hits, &[MaterialKind::Glossy]), |chunk| {
-                        ctx.glossy_x8(rays, hits, chunk, paths, &mut lanes);
+                        ctx.glossy_x8(rays, hits, chunk, paths, &mut NeeQueue::default(), &mut lanes);
                         for &i in chunk {
                             scalar_glossy(&ctx, rays, hits, i as usize, paths, &mut scalar);
                         }

@@ -21,7 +21,8 @@ use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
 use crate::geometry::{
     occludes_plane, occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, occludes_spheres_lanes, SpherePacket, SpherePacketOf,
 };
-use crate::light::{light_points_x8, sample_light_x8, samples_for};
+use crate::light::{light_points_x8, power_heuristic, sample_light_x8, sample_pdf, samples_for};
+use crate::optics::{eval_ggx_reflect, sample_ggx_reflect_pdf};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
 use crate::simd::{
@@ -265,6 +266,8 @@ pub fn shadow_with(
     // zero (`Credit`), and the sums go to the paths in request order at the end: a path's radiance
     // then does not depend on which requests share a chunk or a batch (that depends on the tile).
     let buffers = (0..scene.lights.len()).any(|li| buffer(li).is_some());
+    let lobes = !nee.alpha.is_empty();
+    debug_assert!(!lobes || nee.alpha.len() == nee.len(), "lobe columns for every request or none");
     let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some), buffers);
     // Per light (when any has a buffer), the packet of an even chunk waiting for its pair.
     let mut held: Vec<Option<BufferJob>> = if buffers { vec![None; scene.lights.len()] } else { Vec::new() };
@@ -280,6 +283,15 @@ pub fn shadow_with(
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(chunk8(&nee.ox, base, m), chunk8(&nee.oy, base, m), chunk8(&nee.oz, base, m));
         let time = chunk8(&nee.time, base, m);
+        // Glossy requests' lobes (scenes with glossy materials): their light samples are weighted by
+        // `glossy_samples`.
+        let (wo, alpha, glossy) = if lobes {
+            let a = chunk8(&nee.alpha, base, m);
+            let wo = Vec3x8::new(chunk8(&nee.wox, base, m), chunk8(&nee.woy, base, m), chunk8(&nee.woz, base, m));
+            (wo, a, live & !a.simd_eq(f32x8::ZERO).to_bitmask())
+        } else {
+            (Vec3x8::splat(Vec3::ZERO), f32x8::ZERO, 0)
+        };
         // (Plain loops rather than `array::from_fn` in this loop: see `simd::chunk8`.)
         let mut req = [0u32; LANES];
         for (l, r) in req.iter_mut().enumerate() {
@@ -355,9 +367,10 @@ pub fn shadow_with(
                     let (cl, cr) = (-Vec3x8::splat(nl).dot_unfused(v), n.dot_unfused(v));
                     let c = (w * Vec3x8::splat(la)).scale(cl * cr / d2 / d2);
                     let zero = f32x8::ZERO;
-                    (target, c, d2.simd_gt(zero) & cl.simd_gt(zero) & cr.simd_gt(zero) & c.x.max(c.y).max(c.z).simd_gt(zero))
+                    (target, c, d2.simd_gt(zero) & cl.simd_gt(zero) & cr.simd_gt(zero) & c.x.max(c.y).max(c.z).simd_gt(zero), y)
                 };
-                let (target, c, lit) = match grid_points[li].get(j as usize) {
+                // (`y`: a point along the sample's direction from `p`, for glossy requests' lobes.)
+                let (target, c, lit, y) = match grid_points[li].get(j as usize) {
                     Some(&(y, target)) => area_point(y, target),
                     None => {
                         let u = match (point, grid.get(j as usize)) {
@@ -377,17 +390,23 @@ pub fn shadow_with(
                                 let cr = n.dot_unfused(v);
                                 let c = (w * Vec3x8::splat(intensity)).scale(cr / (d2 * d2.sqrt()));
                                 let zero = f32x8::ZERO;
-                                (Vec3x8::splat(position), c, d2.simd_gt(zero) & cr.simd_gt(zero) & c.x.max(c.y).max(c.z).simd_gt(zero))
+                                let lit = d2.simd_gt(zero) & cr.simd_gt(zero) & c.x.max(c.y).max(c.z).simd_gt(zero);
+                                (Vec3x8::splat(position), c, lit, Vec3x8::splat(position))
                             }
                             (None, _) => {
                                 // Sphere lights.
                                 let ls = sample_light_x8(light, p, u);
                                 let cos = n.dot_unfused(ls.wi);
                                 let c = (w * ls.weight).scale(cos / ns_lanes);
-                                (ls.target, c, ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO))
+                                let lit = ls.valid & cos.simd_gt(f32x8::ZERO) & c.x.max(c.y).max(c.z).simd_gt(f32x8::ZERO);
+                                (ls.target, c, lit, p + ls.wi)
                             }
                         }
                     }
+                };
+                let (c, lit) = match glossy & lit.to_bitmask() {
+                    0 => (c, lit),
+                    g => glossy_samples(light, ns, &Lobes { p, n, wo, alpha, lanes: g }, y, c, lit),
                 };
                 let lanes = lit.to_bitmask() & live;
                 if lanes & clear != 0 {
@@ -463,6 +482,51 @@ pub fn shadow_with(
     BATCHES.set(batches);
     credit.to_paths(nee, paths);
     (traced, cleared)
+}
+
+/// The glossy requests of a chunk (see [`NeeQueue::wox`]): shading points, normals, the directions back
+/// along their incoming rays, `alpha` (negative where no lobe ray leaves the point), and the lanes.
+struct Lobes {
+    p: Vec3x8,
+    n: Vec3x8,
+    wo: Vec3x8,
+    alpha: f32x8,
+    lanes: u32,
+}
+
+/// One light sample's contributions `c` (as a Lambert point's, from `w` = throughput x tint) for the
+/// glossy lanes: `c` x `f(wo, wi)` / `cos` with `f` the GGX lobe ([`eval_ggx_reflect`], which holds the
+/// cosine), x the power-heuristic weight against the point's one lobe ray for area lights (the light's
+/// `ns` samples against it; none for point lights, which no lobe ray finds, or where no lobe ray
+/// leaves). `y` is a point along the sample's direction (the light point). Lanes whose lobe gives
+/// nothing are no longer lit (no shadow ray).
+#[inline(never)]
+fn glossy_samples(light: &Light, ns: u32, g: &Lobes, y: Vec3x8, c: Vec3x8, lit: f32x8) -> (Vec3x8, f32x8) {
+    let (pr, nr, wor, yr, a) = (g.p.rows(), g.n.rows(), g.wo.rows(), y.rows(), g.alpha.to_array());
+    let (mut cr, mut litr) = (c.rows(), lit.to_array());
+    let at = |r: &[[f32; LANES]; 3], l: usize| Vec3::new(r[0][l], r[1][l], r[2][l]);
+    let mut todo = g.lanes;
+    while todo != 0 {
+        let l = todo.trailing_zeros() as usize;
+        todo &= todo - 1;
+        let (p, n, wo, alpha) = (at(&pr, l), at(&nr, l), at(&wor, l), a[l].abs());
+        let wi = (at(&yr, l) - p).normalize_or_zero();
+        let cos = n.dot(wi);
+        let mut k = if cos > 0.0 { eval_ggx_reflect(wo, n, wi, alpha) / cos } else { 0.0 };
+        if a[l] > 0.0 && !light.is_point() {
+            k *= power_heuristic(ns as f32, sample_pdf(light, p, at(&yr, l)), sample_ggx_reflect_pdf(wo, n, wi, alpha));
+        }
+        for row in cr.iter_mut() {
+            row[l] *= k;
+        }
+        if !(k > 0.0 && k.is_finite()) {
+            litr[l] = 0.0;
+            for row in cr.iter_mut() {
+                row[l] = 0.0;
+            }
+        }
+    }
+    (Vec3x8::from_rows(&cr), f32x8::from(litr))
 }
 
 /// Per request of the NEE queue, the sum of its unoccluded shadow rays' contributions (channels apart:

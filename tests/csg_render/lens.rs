@@ -69,6 +69,7 @@ fn follow(scene: &Scene, starts: &[(Vec3, Vec3)]) -> Vec<Followed> {
             diffuse: 0,
             flags: 0,
             media: MediumStack::default(),
+            pdf: 0.0,
         });
     }
     let mut out: Vec<Followed> = starts.iter().map(|_| Followed::default()).collect();
