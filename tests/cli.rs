@@ -249,6 +249,10 @@ fn profile_overrides_are_checked_with_the_file() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let out = strata().args(["render", "scenes/shapes/sphere.toml", "-o", &png, "--set", "spp=2", "--set", " spp=3"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--set spp=2 and --set  spp=3 both set spp"), "{err}");
     let out = strata().args(["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", &png, "--set", "name=mine"]).output().unwrap();
     assert_eq!(out.status.code(), Some(0));
     assert!(String::from_utf8_lossy(&out.stdout).contains("profile mine"), "{}", String::from_utf8_lossy(&out.stdout));

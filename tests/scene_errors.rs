@@ -110,6 +110,11 @@ fn camera_errors() {
     assert_eq!(parse_scene(Path::new("c.toml"), &bad).unwrap_err().field, "camera.up");
     let bad = BASE.replace("fov = 40", "fov = 180");
     assert_eq!(parse_scene(Path::new("c.toml"), &bad).unwrap_err().field, "camera.fov");
+    // Looking straight down without an `up`: the view is named, not the `up` the file does not have.
+    let bad = BASE.replace("look_at = [0, 0, 0]", "look_at = [0, -3, 5]");
+    let e = parse_scene(Path::new("c.toml"), &bad).unwrap_err();
+    assert_eq!((e.field.as_str(), e.line), ("camera.look_at", bad.lines().position(|l| l.starts_with("look_at")).unwrap() + 1));
+    assert!(e.message.contains("give camera.up"), "{}", e.message);
     let bad = BASE.replace("fov = 40", "fov = nan");
     assert_eq!(parse_scene(Path::new("c.toml"), &bad).unwrap_err().field, "camera.fov");
     // Points that differ, far beyond the kernels' range: said as such, not as equal points.
@@ -348,5 +353,30 @@ fn a_csg_solid_emptied_by_its_hole_is_warned_about() {
         } else {
             assert!(s.warnings.is_empty(), "{children}: {:?}", s.warnings);
         }
+    }
+}
+
+/// Nesting beyond the TOML reader's own limit (about 80 levels of `[[shapes.children...]]` headers) is
+/// reported at the deepest header with what it means, not as `image` at line 1; an array of tables where
+/// a table belongs says so, not in serde's words.
+#[test]
+fn reader_limits_and_arrays_of_tables_are_explained() {
+    let mut extra = String::new();
+    for d in 0..90 {
+        let h = format!("shapes{}", ".children".repeat(d));
+        extra += &format!("[[{h}]]\ntype = \"csg\"\nop = \"union\"\n{}", if d == 0 { "material = \"m\"\n" } else { "" });
+        extra += &format!("[[{h}.children]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.2\n");
+    }
+    let (line, _, msg) = fail(&extra);
+    assert!(msg.contains("recursion limit") && msg.contains("64 levels"), "{msg}");
+    let deepest = format!("[[shapes{}]]", ".children".repeat(90));
+    assert_eq!(line, line_of(&extra, &deepest), "{msg}");
+    for (extra, want) in [
+        ("[[materials.glass]]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n", "materials.glass"),
+        ("[[materials.glass]]\ntype = \"lambert\"\n[[materials.glass]]\ntype = \"lambert\"\n", "materials.glass"),
+    ] {
+        let (line, field, msg) = fail(extra);
+        assert!(msg.contains("a single table belongs here") && !msg.contains("struct"), "{msg}");
+        assert_eq!((line, field.as_str()), (line_of(extra, "[[materials.glass]]"), want), "{msg}");
     }
 }

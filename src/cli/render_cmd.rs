@@ -81,10 +81,15 @@ pub fn resolve_profile(a: &RenderArgs) -> Result<Profile, Failure> {
         ("light_samples", "--light-samples", a.light_samples.is_some()),
         ("max_depth", "--max-depth", a.max_depth.is_some()),
     ];
-    for s in &a.set {
-        let key = s.split_once('=').map_or(s.as_str(), |(k, _)| k).trim();
+    let key_of = |s: &str| s.split_once('=').map_or(s, |(k, _)| k).trim().to_string();
+    for (i, s) in a.set.iter().enumerate() {
+        let key = key_of(s);
         if let Some((_, flag, _)) = flagged.iter().find(|(k, _, given)| *given && *k == key) {
             return Err(Failure::input(format!("{flag} and --set {s} both set {key}: give one")));
+        }
+        // The same key twice: one value would be dropped without a word, as above.
+        if let Some(first) = a.set[..i].iter().find(|t| key_of(t) == key) {
+            return Err(Failure::input(format!("--set {first} and --set {s} both set {key}: give one")));
         }
     }
     super::load_profile(
@@ -441,7 +446,6 @@ pub(crate) const DEBOUNCE: std::time::Duration = std::time::Duration::from_milli
 /// once, writing nothing, and says so (and which film, if any, still holds a resumable state). A second
 /// within [`DEBOUNCE`] of the first is the first delivered twice and ignored. Once rendering has
 /// stopped (`state` WRITING) signals wait for the outputs: writing them is quick.
-
 #[allow(clippy::too_many_arguments)]
 fn install_interrupt_handler(
     cancel: &Arc<AtomicBool>,

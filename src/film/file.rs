@@ -272,9 +272,24 @@ pub fn decode(bytes: &[u8]) -> Result<FilmFile, String> {
 
 /// Read and validate a film file; errors start with the path.
 pub fn read_film(path: &Path) -> Result<FilmFile, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    decode(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+    let at = |e: String| format!("{}: {e}", path.display());
+    let mut f = std::fs::File::open(path).map_err(|e| at(e.to_string()))?;
+    // Not a pipe or a device (`/dev/zero` would be read until memory runs out), nor beyond the largest
+    // film a render can write.
+    if !f.metadata().map_err(|e| at(e.to_string()))?.is_file() {
+        return Err(at("not a regular file (a film is read from a file)".into()));
+    }
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut std::io::Read::take(&mut f, MAX_FILM_BYTES + 1), &mut bytes).map_err(|e| at(e.to_string()))?;
+    if bytes.len() as u64 > MAX_FILM_BYTES {
+        return Err(at(format!("larger than any film strata writes ({MAX_FILM_BYTES} bytes at most): not a film")));
+    }
+    decode(&bytes).map_err(at)
 }
+
+/// The largest film file: the largest image's pixels, plus 64 MiB for the header, the profile record and
+/// the work units' completion bits (at most 8.4 MB: one bit per unit of the largest render).
+pub const MAX_FILM_BYTES: u64 = crate::scene::MAX_PIXELS * PIXEL_BYTES as u64 + (64 << 20);
 
 /// Write a film file atomically (temporary file, fsync, rename).
 pub fn write_film(path: &Path, header: &FilmHeader, film: &Film) -> Result<(), String> {
@@ -321,6 +336,14 @@ mod tests {
         let completed = (0..n).map(|i| i % 3 != 1).collect();
         let h = FilmHeader { width: 5, height: 3, spp: 4, samples: 1..4, tile: 2, scene_hash: 0xdead_beef, seed: 9, profile, completed };
         (h, film)
+    }
+
+    /// A device or a pipe is refused before it is read (`/dev/zero` was read until memory ran out).
+    #[cfg(unix)]
+    #[test]
+    fn a_device_is_not_read_as_a_film() {
+        let Err(e) = read_film(Path::new("/dev/zero")) else { panic!("/dev/zero read as a film") };
+        assert!(e.starts_with("/dev/zero: not a regular file"), "{e}");
     }
 
     #[test]

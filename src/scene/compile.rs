@@ -31,6 +31,8 @@ const EMPTY_PROBE_GRID: u32 = 24;
 /// takes squares of differences of coordinates, which overflow f32 a little beyond (a ground sphere of
 /// radius 1e16 loses a third of its hits). Fidelity is measured to 1e5 ("Numerical robustness").
 pub const MAX_MAGNITUDE: f32 = 1e15;
+/// Largest rotation angle in degrees (1000 turns).
+const MAX_DEGREES: f32 = 360_000.0;
 const BEYOND: &str = "beyond that the kernels' f32 squares overflow";
 
 /// Read, parse, validate and compile a scene file.
@@ -333,7 +335,16 @@ impl Compiler<'_> {
             return Err(self.err(up_span, "camera.up", "must not be the zero vector"));
         }
         if forward.normalize().cross(up.normalize()).length() < 1e-6 {
-            return Err(self.err(up_span, "camera.up", "must not be parallel to the viewing direction"));
+            if c.up.is_none() {
+                // No `up` in the file: the view itself is what to change (or give an `up`).
+                return Err(self.err(
+                    c.look_at.span(),
+                    "camera.look_at",
+                    "the camera looks straight up or down (look_at - position is parallel to the default up [0, 1, 0]): \
+                     give camera.up, or move position or look_at",
+                ));
+            }
+            return Err(self.err(up_span, "camera.up", "must not be parallel to the viewing direction (look_at - position)"));
         }
         let fov = *c.fov.get_ref();
         if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
@@ -583,7 +594,15 @@ impl Compiler<'_> {
         };
         let rot = match &td.rotate {
             Some(r) => {
-                let d = self.vec3(r, &format!("{field}.transform.rotate"))?;
+                let f = format!("{field}.transform.rotate");
+                let d = self.finite3(r, &f)?;
+                if d.abs().max_element() > MAX_DEGREES {
+                    return Err(self.err(
+                        r.span(),
+                        f,
+                        format!("angles (degrees) must be within +-{MAX_DEGREES} (1000 turns; beyond, an f32 angle resolves no better than 0.03 degrees)"),
+                    ));
+                }
                 Quat::from_euler(EulerRot::ZYX, d.z.to_radians(), d.y.to_radians(), d.x.to_radians())
             }
             None => Quat::IDENTITY,
@@ -785,10 +804,15 @@ impl Compiler<'_> {
         let u = self.vec3(ud, &f("u"))?;
         let vd = self.req(v, span.clone(), &f("v"))?;
         let v = self.vec3(vd, &f("v"))?;
+        for (x, d, n) in [(u, ud, "u"), (v, vd, "v")] {
+            if x == Vec3::ZERO {
+                return Err(self.err(d.span(), f(n), "must be non-zero (an edge of the parallelogram)"));
+            }
+        }
         if u.cross(v).length_squared() <= 1e-30 * (u.length_squared() * v.length_squared()).max(f32::MIN_POSITIVE)
             || u.cross(v) == Vec3::ZERO
         {
-            return Err(self.err(vd.span(), f("v"), "u and v must be non-zero and not parallel"));
+            return Err(self.err(vd.span(), f("v"), "u and v must not be parallel (or so short that their cross product vanishes)"));
         }
         Ok((o, u, v))
     }

@@ -61,6 +61,29 @@ impl Source<'_> {
     pub fn from_toml(&self, e: &toml::de::Error) -> InputError {
         let span = e.span().unwrap_or(0..0);
         let message = e.message().trim().to_string();
+        if message.contains("recursion limit") {
+            // The reader's own nesting limit (about 80 levels of `[[shapes.children...]]` headers) comes
+            // without a position: the deepest header is the place to look.
+            let (at, _) = self.text.lines().enumerate().fold((0, 0), |best, (i, l)| {
+                let depth = if l.trim_start().starts_with('[') { l.matches('.').count() } else { 0 };
+                if depth > best.1 {
+                    (i, depth)
+                } else {
+                    best
+                }
+            });
+            let start = self.text.lines().take(at).map(|l| l.len() + 1).sum::<usize>();
+            let msg = "nested deeper than the TOML reader allows (its recursion limit); CSG trees may be at most 64 levels deep";
+            return self.error(start..start, self.key_at(start), msg.to_string());
+        }
+        let line = self.text[span.start.min(self.text.len())..].lines().next().unwrap_or("").trim_start();
+        if line.starts_with("[[") && (message.starts_with("invalid type: map") || message.starts_with("invalid length")) {
+            // `[[materials.x]]` (an array of tables) where one table belongs: serde read the array as the
+            // table's fields in order, and its words ("expected a string", "expected struct MaterialDef
+            // with 15 elements") name the wrong thing.
+            let msg = "`[[...]]` makes an array of tables; a single table belongs here: write `[...]`".to_string();
+            return self.error(span.clone(), self.key_at(span.start), msg);
+        }
         let named = message.strip_prefix("unknown field ").or_else(|| message.strip_prefix("missing field "));
         let field = named.and_then(extract_backticked).unwrap_or_else(|| self.key_at(span.start));
         self.error(span, field, message)

@@ -161,6 +161,9 @@ impl Profile {
                 "`{name_or_path}` is a directory, not a profile file (give a .toml file or a shipped profile name)"
             )));
         }
+        if as_path.exists() && !as_path.is_file() && !shipped {
+            return Err(flag_error(format!("`{name_or_path}` is not a regular file (give a .toml file or a shipped profile name)")));
+        }
         if name_or_path.ends_with(".toml") || as_path.is_file() {
             let text = read_text(&as_path)?;
             return Ok((as_path, text));

@@ -1377,7 +1377,7 @@ mod tests {
                     o: hit.spawn(hit.n_facing),
                     d: wi,
                     throughput: r.throughput * *tint * wgt,
-                    flags: FLAG_SPECULAR,
+                    flags: FLAG_SPECULAR | FLAG_GLOSSY,
                     ..next_of(&r)
                 };
                 ctx.spawn(next, child, pixel, sample, 0);
