@@ -639,3 +639,27 @@ fn identical_samples_are_warned_about() {
         assert_eq!(w.contains(&format!("light grid of {n} samples is")), strips, "light samples {n}: {w}");
     }
 }
+
+/// A zero-length shutter in a scene with motion is warned about (every time sample is one instant; the
+/// image at that instant is checked in tests/distribution); an open shutter is not.
+#[test]
+fn a_zero_length_shutter_with_motion_is_warned_about() {
+    let scene = tmp("shutter.toml");
+    for (shutter, warned) in [("[0.5, 0.5]", true), ("[0.0, 1.0]", false)] {
+        std::fs::write(
+            &scene,
+            format!(
+                "[image]\nwidth = 8\nheight = 6\n[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\nfov = 40\nshutter = {shutter}\n\
+                 [materials.m]\ntype = \"lambert\"\nalbedo = [0.6, 0.5, 0.4]\n\
+                 [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\nmotion = [1, 0, 0]\n\
+                 [[lights]]\ntype = \"point\"\nposition = [0, 4, 4]\nintensity = [9, 9, 9]\n"
+            ),
+        )
+        .unwrap();
+        let out = tmp("shutter.png");
+        let o = strata().args(["render", scene.to_str().unwrap(), "-q", "--spp", "4", "-o", out.to_str().unwrap()]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(0), "{err}");
+        assert_eq!(err.contains("has zero length: every time sample is the instant 0.5"), warned, "{shutter}: {err}");
+    }
+}

@@ -380,3 +380,30 @@ fn reader_limits_and_arrays_of_tables_are_explained() {
         assert_eq!((line, field.as_str()), (line_of(extra, "[[materials.glass]]"), want), "{msg}");
     }
 }
+
+/// One leaf far from the rest widens a CSG solid's coincidence tolerance (1e-5 of its farthest
+/// coordinate) for all of its leaves: a union of a notched block at the origin and a small sphere at 1e6
+/// lost most of the block's notch in a user trial. Warned at the solid's line when a leaf is thinner than
+/// 10 tolerances; the same solid with the sphere near is not.
+#[test]
+fn a_csg_solid_whose_scale_swallows_its_detail_is_warned_about() {
+    let solid = |far: &str| {
+        format!(
+            "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nmaterial = \"m\"\nchildren = [\n  \
+             {{ type = \"csg\", op = \"difference\", children = [ {{ type = \"box\", min = [-1, 0, -1], max = [1, 1, 1] }}, \
+             {{ type = \"box\", min = [-0.5, 0.9, -2], max = [0.5, 2, 2] }} ] }},\n  \
+             {{ type = \"sphere\", center = [{far}, 0.5, -50], radius = 0.1 }},\n]\n"
+        )
+    };
+    for (far, warned) in [("1e6", true), ("1e5", true), ("0", false), ("1e3", false)] {
+        let extra = solid(far);
+        let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
+        assert_eq!(s.prims.len(), 1);
+        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("coincidence tolerance")).collect();
+        assert_eq!(w.len(), warned as usize, "sphere at {far}: {:?}", s.warnings);
+        if warned {
+            let at = format!("e.toml:{}:", line_of(&extra, "type = \"csg\"") - 1);
+            assert!(w[0].starts_with(&at) && w[0].contains("`shapes[0]`"), "{}", w[0]);
+        }
+    }
+}

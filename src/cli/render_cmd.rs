@@ -163,7 +163,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     if let Some(w) = identical_samples_warning(&scene, &profile) {
         errln!("warning: {w}");
     }
-    for w in grid_warnings(&scene, &profile) {
+    for w in sampling_warnings(&scene, &profile) {
         errln!("warning: {w}");
     }
     if a.threads > 1024 {
@@ -400,12 +400,16 @@ pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
     None
 }
 
-/// Grids that do not sample what their integral asks: one light sample on a `grid` (the light's centre
-/// for every camera sample: a hard shadow at any spp), and 2D grids whose count has no near-square
+/// Samples that do not sample what their integral asks: one light sample on a `grid` (the light's centre
+/// for every camera sample: a hard shadow at any spp), 2D grids whose count has no near-square
 /// factorisation (`grid_shape` gives strips more than 4 times longer than wide, e.g. 1 x 7 for a prime:
-/// the integral is sampled along one axis).
-pub fn grid_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
+/// the integral is sampled along one axis), and a shutter of zero length in a scene with motion.
+pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     let mut out = Vec::new();
+    let [t0, t1] = scene.camera.shutter;
+    if scene.features.motion && t0 == t1 && p.spp > 1 {
+        out.push(format!("shutter [{t0}, {t1}] has zero length: every time sample is the instant {t0} (no motion blur)"));
+    }
     if p.light_strategy == Strategy::Grid && scene.features.area_lights && p.light_samples == 1 && p.spp > 1 {
         out.push(
             "light_strategy `grid` with 1 light sample puts it at the light's centre for every camera sample: hard shadows at any \

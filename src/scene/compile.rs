@@ -720,6 +720,31 @@ impl Compiler<'_> {
                 .to_string(),
             );
         }
+        // The coincidence tolerance is relative to the solid's scale L (its farthest coordinate): a leaf
+        // far from the rest (a part at 1e5 in a union with one at the origin) widens it for every leaf.
+        let scale = self.csg.scale(solid);
+        let tol = crate::csg::merge::COINCIDENT_EPS * scale;
+        let thinnest = self
+            .csg
+            .solid_leaves(solid)
+            .filter_map(|k| self.csg.leaf(k).bounds())
+            .map(|(lo, hi)| (hi - lo).min_element())
+            .fold(f32::INFINITY, f32::min);
+        if thinnest < 10.0 * tol {
+            self.warnings.push(
+                self.err(
+                    def.span(),
+                    field,
+                    format!(
+                        "this CSG solid reaches {scale:e} from the origin, so surfaces closer than its coincidence tolerance \
+                         ({tol:e}, 1e-5 of that) merge, and one of its leaves is only {thinnest:e} thick: its detail may be lost \
+                         (far-apart parts in one solid: make them separate solids; a solid far from the origin: move the \
+                         scene nearer it)"
+                    ),
+                )
+                .to_string(),
+            );
+        }
         let shape = Shape::Csg { solid };
         self.within_range(&shape, def, field)?;
         self.prims.push(Prim { shape, material: material.unwrap_or(0), motion, is_light: false });
