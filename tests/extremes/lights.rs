@@ -24,7 +24,8 @@ fn zero_size_lights_are_input_errors() {
     let cases = [
         ("type = \"sphere\"\ncenter = [0, 3, 0]\nradius = 0\nradiance = [1, 1, 1]", "lights[0].radius", "radius"),
         ("type = \"disk\"\ncenter = [0, 3, 0]\nnormal = [0, -1, 0]\nradius = 0.0\nradiance = [1, 1, 1]", "lights[0].radius", "radius"),
-        ("type = \"quad\"\norigin = [0, 3, 0]\nu = [0, 0, 0]\nv = [0, 0, 1]\nradiance = [1, 1, 1]", "lights[0].v", "v ="),
+        // (The zero edge itself is named.)
+        ("type = \"quad\"\norigin = [0, 3, 0]\nu = [0, 0, 0]\nv = [0, 0, 1]\nradiance = [1, 1, 1]", "lights[0].u", "u ="),
         ("type = \"quad\"\norigin = [0, 3, 0]\nu = [1, 0, 0]\nv = [2, 0, 0]\nradiance = [1, 1, 1]", "lights[0].v", "v ="),
         ("type = \"disk\"\ncenter = [0, 3, 0]\nnormal = [0, 0, 0]\nradius = 1\nradiance = [1, 1, 1]", "lights[0].normal", "normal"),
     ];
