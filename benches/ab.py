@@ -2,7 +2,7 @@
 """Interleaved A/B timing of two (or more) Strata binaries: the comparison to trust on a noisy VM.
 
 Runs each binary in turn, N rounds, on the same scene and profile (one thread unless --threads), and
-prints every run's stage CPU seconds (from `--stats-json`, full precision) and, per binary, the
+prints every run's stage thread seconds (`--stats-json`'s `stage_seconds`: wall time inside each stage) and, per binary, the
 median and range of each stage and of the wall time; then, per binary after the first, the median of
 its round-by-round ratios to the first and in how many rounds it was faster (paired by round: robust
 to the VM's phases). Interleaving puts both binaries under the same host load; one batch of runs of A
@@ -29,7 +29,7 @@ STAGES = ["generate", "intersect", "csg_merge", "shade", "shadow", "accumulate"]
 
 
 def run(binary, out, threads, args):
-    """Stage CPU seconds and wall seconds of one render, at full precision (from `--stats-json`)."""
+    """Stage (thread) seconds and wall seconds of one render, at full precision (from `--stats-json`)."""
     stats = os.path.splitext(out)[0] + ".json"
     cmd = [binary, "render", *args, "--threads", str(threads), "-q", "-o", out, "--stats-json", stats]
     p = subprocess.run(cmd, capture_output=True, text=True)

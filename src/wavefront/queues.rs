@@ -435,20 +435,26 @@ pub struct NeeQueue {
     /// A static sphere the point lies on, seen from outside (its shadow rays leave it outward and
     /// cannot meet it again: it is convex), else [`NONE`].
     pub own: Vec<u32>,
-    /// In scenes with glossy materials ([`NeeQueue::push_lobes`], else empty): the direction back along
-    /// the incoming ray (unit) and the GGX `alpha` of a glossy point (its `w` is throughput x tint: the
-    /// shadow stage evaluates the lobe per light sample), 0 for a Lambert point; `alpha < 0` when no
-    /// lobe ray leaves the point (depth limit), so its light samples need no MIS weight.
+    /// In the queue of glossy points ([`NeeQueue::glossy`], filled by [`NeeQueue::push_lobes`]; empty
+    /// elsewhere): the direction back along the incoming ray (unit) and the GGX `alpha` (its `w` is
+    /// throughput x tint: the shadow stage evaluates the lobe per light sample), never 0; `alpha < 0`
+    /// when no lobe ray leaves the point (depth limit), so its light samples need no MIS weight.
     pub wox: Vec<f32>,
     pub woy: Vec<f32>,
     pub woz: Vec<f32>,
     pub alpha: Vec<f32>,
+    /// The requests of glossy points, apart (made on the first): Lambert requests carry no lobe
+    /// columns and take the shadow stage's Lambert path unchanged.
+    pub glossy: Option<Box<NeeQueue>>,
 }
 
 impl NeeQueue {
     pub fn clear(&mut self) {
         macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
         clr!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time, own, wox, woy, woz, alpha);
+        if let Some(g) = &mut self.glossy {
+            g.clear();
+        }
     }
     pub fn len(&self) -> usize {
         self.px.len()
@@ -494,7 +500,7 @@ pub struct NeeRows<'a> {
 
 impl NeeQueue {
     /// Append the first `m` lanes of `r` (as `m` calls of [`NeeQueue::push`] would, one copy per field).
-    #[inline]
+    #[inline(always)]
     pub fn push_rows(&mut self, m: usize, r: NeeRows) {
         for c in 0..3 {
             put([&mut self.px, &mut self.py, &mut self.pz][c], &r.p[c], m);

@@ -601,9 +601,6 @@ impl<'a> Ctx<'a> {
                     own: &own,
                 },
             );
-            if scene.features.glossy {
-                nee.push_lobes(m, &[[0.0; LANES]; 3], &[0.0; LANES]);
-            }
         }
         if profile.diffuse_depth == 0 {
             return;
@@ -971,6 +968,7 @@ impl<'a> Ctx<'a> {
             let (ox, oy, oz) = (off.x.to_array(), off.y.to_array(), off.z.to_array());
             let w = (Vec3x8::from_rows(&thr) * Vec3x8::from_rows(&tint)).rows();
             let own = [NONE; LANES];
+            let nee = nee.glossy.get_or_insert_with(Default::default);
             nee.push_rows(
                 m,
                 NeeRows {

@@ -191,8 +191,28 @@ pub fn shadow(scene: &Scene, profile: &Profile, seed: u64, nee: &NeeQueue, paths
 /// [`shadow`]; `scattered` (a traversal stack): the shading points are scattered (hits of incoherent
 /// bounces), so that packets of their shadow rays share few nodes: scenes whose shadow rays walk
 /// through nothing then trace them one at a time ([`occlusion_single`]; in trees of at least
-/// `WIDE_MIN_NODES` nodes without CSG). Same result either way.
+/// `WIDE_MIN_NODES` nodes without CSG). Same result either way. Glossy points' requests (in
+/// `nee.glossy`, scenes with glossy materials) are taken after the Lambert ones, with their lobes.
 pub fn shadow_with(
+    scene: &Scene,
+    profile: &Profile,
+    seed: u64,
+    nee: &NeeQueue,
+    paths: &mut PathTable,
+    arena: &mut CsgArena,
+    mut scattered: Option<&mut WideStack>,
+) -> (u64, u64) {
+    let (mut traced, mut cleared) = shadow_queue::<false>(scene, profile, seed, nee, paths, arena, scattered.as_deref_mut());
+    if let Some(g) = nee.glossy.as_deref().filter(|g| !g.is_empty()) {
+        let (t, c) = shadow_queue::<true>(scene, profile, seed, g, paths, arena, scattered);
+        (traced, cleared) = (traced + t, cleared + c);
+    }
+    (traced, cleared)
+}
+
+/// The requests of one queue (see [`shadow_with`]): Lambert ones, or (`LOBES`) glossy ones, with lobe
+/// columns (a separate instance: the Lambert one compiles without the glossy code).
+fn shadow_queue<const LOBES: bool>(
     scene: &Scene,
     profile: &Profile,
     seed: u64,
@@ -266,8 +286,8 @@ pub fn shadow_with(
     // zero (`Credit`), and the sums go to the paths in request order at the end: a path's radiance
     // then does not depend on which requests share a chunk or a batch (that depends on the tile).
     let buffers = (0..scene.lights.len()).any(|li| buffer(li).is_some());
-    let lobes = !nee.alpha.is_empty();
-    debug_assert!(!lobes || nee.alpha.len() == nee.len(), "lobe columns for every request or none");
+    debug_assert_eq!(nee.alpha.len(), if LOBES { nee.len() } else { 0 }, "lobe columns for every request or none");
+    debug_assert!(nee.alpha.iter().all(|&a| a != 0.0), "a queue with lobes holds glossy requests only");
     let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some), buffers);
     // Per light (when any has a buffer), the packet of an even chunk waiting for its pair.
     let mut held: Vec<Option<BufferJob>> = if buffers { vec![None; scene.lights.len()] } else { Vec::new() };
@@ -283,15 +303,9 @@ pub fn shadow_with(
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(chunk8(&nee.ox, base, m), chunk8(&nee.oy, base, m), chunk8(&nee.oz, base, m));
         let time = chunk8(&nee.time, base, m);
-        // Glossy requests' lobes (scenes with glossy materials): their light samples are weighted by
-        // `glossy_samples`.
-        let (wo, alpha, glossy) = if lobes {
-            let a = chunk8(&nee.alpha, base, m);
-            let wo = Vec3x8::new(chunk8(&nee.wox, base, m), chunk8(&nee.woy, base, m), chunk8(&nee.woz, base, m));
-            (wo, a, live & !a.simd_eq(f32x8::ZERO).to_bitmask())
-        } else {
-            (Vec3x8::splat(Vec3::ZERO), f32x8::ZERO, 0)
-        };
+        // A queue of glossy requests: their light samples are weighted by `glossy_samples`, which reads
+        // their lobes.
+        let glossy = if LOBES { live } else { 0 };
         // (Plain loops rather than `array::from_fn` in this loop: see `simd::chunk8`.)
         let mut req = [0u32; LANES];
         for (l, r) in req.iter_mut().enumerate() {
@@ -406,7 +420,7 @@ pub fn shadow_with(
                 };
                 let (c, lit) = match glossy & lit.to_bitmask() {
                     0 => (c, lit),
-                    g => glossy_samples(light, ns, &Lobes { p, n, wo, alpha, lanes: g }, y, c, lit),
+                    g => glossy_samples(light, ns, nee, base, g, y, c, lit),
                 };
                 let lanes = lit.to_bitmask() & live;
                 if lanes & clear != 0 {
@@ -484,37 +498,32 @@ pub fn shadow_with(
     (traced, cleared)
 }
 
-/// The glossy requests of a chunk (see [`NeeQueue::wox`]): shading points, normals, the directions back
-/// along their incoming rays, `alpha` (negative where no lobe ray leaves the point), and the lanes.
-struct Lobes {
-    p: Vec3x8,
-    n: Vec3x8,
-    wo: Vec3x8,
-    alpha: f32x8,
-    lanes: u32,
-}
-
 /// One light sample's contributions `c` (as a Lambert point's, from `w` = throughput x tint) for the
-/// glossy lanes: `c` x `f(wo, wi)` / `cos` with `f` the GGX lobe ([`eval_ggx_reflect`], which holds the
-/// cosine), x the power-heuristic weight against the point's one lobe ray for area lights (the light's
-/// `ns` samples against it; none for point lights, which no lobe ray finds, or where no lobe ray
-/// leaves). `y` is a point along the sample's direction (the light point). Lanes whose lobe gives
-/// nothing are no longer lit (no shadow ray).
+/// glossy lanes `lanes` of the chunk at request `base`: `c` x `f(wo, wi)` / `cos` with `f` the GGX lobe
+/// ([`eval_ggx_reflect`], which holds the cosine), x the power-heuristic weight against the point's one
+/// lobe ray for area lights (the light's `ns` samples against it; none for point lights, which no lobe
+/// ray finds, or where no lobe ray leaves: `alpha < 0`, see [`NeeQueue::wox`]). `y` is a point along
+/// the sample's direction (the light point). Lanes whose lobe gives nothing are no longer lit (no shadow
+/// ray).
+#[allow(clippy::too_many_arguments)]
 #[inline(never)]
-fn glossy_samples(light: &Light, ns: u32, g: &Lobes, y: Vec3x8, c: Vec3x8, lit: f32x8) -> (Vec3x8, f32x8) {
-    let (pr, nr, wor, yr, a) = (g.p.rows(), g.n.rows(), g.wo.rows(), y.rows(), g.alpha.to_array());
+fn glossy_samples(light: &Light, ns: u32, nee: &NeeQueue, base: usize, lanes: u32, y: Vec3x8, c: Vec3x8, lit: f32x8) -> (Vec3x8, f32x8) {
+    let yr = y.rows();
     let (mut cr, mut litr) = (c.rows(), lit.to_array());
-    let at = |r: &[[f32; LANES]; 3], l: usize| Vec3::new(r[0][l], r[1][l], r[2][l]);
-    let mut todo = g.lanes;
+    let mut todo = lanes;
     while todo != 0 {
         let l = todo.trailing_zeros() as usize;
         todo &= todo - 1;
-        let (p, n, wo, alpha) = (at(&pr, l), at(&nr, l), at(&wor, l), a[l].abs());
-        let wi = (at(&yr, l) - p).normalize_or_zero();
+        let i = base + l;
+        let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
+        let (n, wo) = (Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]), Vec3::new(nee.wox[i], nee.woy[i], nee.woz[i]));
+        let (a, alpha) = (nee.alpha[i], nee.alpha[i].abs());
+        let y = Vec3::new(yr[0][l], yr[1][l], yr[2][l]);
+        let wi = (y - p).normalize_or_zero();
         let cos = n.dot(wi);
         let mut k = if cos > 0.0 { eval_ggx_reflect(wo, n, wi, alpha) / cos } else { 0.0 };
-        if a[l] > 0.0 && !light.is_point() {
-            k *= power_heuristic(ns as f32, sample_pdf(light, p, at(&yr, l)), sample_ggx_reflect_pdf(wo, n, wi, alpha));
+        if a > 0.0 && !light.is_point() {
+            k *= power_heuristic(ns as f32, sample_pdf(light, p, y), sample_ggx_reflect_pdf(wo, n, wi, alpha));
         }
         for row in cr.iter_mut() {
             row[l] *= k;
