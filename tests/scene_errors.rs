@@ -407,3 +407,22 @@ fn a_csg_solid_whose_scale_swallows_its_detail_is_warned_about() {
         }
     }
 }
+
+/// A checker finer than an f32 coordinate can resolve over the scene's extent (the pattern is its
+/// colour `a` alone there: a fuzzed scale of 1e-30 rendered a plain floor) is warned about at its scale;
+/// the shipped scale of a checker floor is not.
+#[test]
+fn a_checker_finer_than_the_coordinates_resolve_is_warned_about() {
+    for (scale, warned) in [("1e-30", true), ("1e-7", true), ("0.5", false), ("1e-5", false)] {
+        let checker = format!("checker = {{ a = [0.8, 0.8, 0.8], b = [0.1, 0.1, 0.1], scale = {scale} }}");
+        let text = BASE.replace("albedo = [0.5, 0.5, 0.5]", &checker);
+        assert!(text.contains("checker = "), "BASE's material moved");
+        let s = parse_scene(Path::new("c.toml"), &text).unwrap();
+        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("checker of scale")).collect();
+        assert_eq!(w.len(), warned as usize, "scale {scale}: {:?}", s.warnings);
+        if warned {
+            let line = text.lines().position(|l| l.starts_with("checker = ")).unwrap() + 1;
+            assert!(w[0].starts_with(&format!("c.toml:{line}:")) && w[0].contains("materials.m.checker.scale"), "{}", w[0]);
+        }
+    }
+}

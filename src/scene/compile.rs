@@ -56,6 +56,7 @@ pub fn parse_scene(path: &Path, text: &str) -> R<Scene> {
         used_solids: BTreeSet::new(),
         lenient_material: false,
         warnings: Vec::new(),
+        checkers: Default::default(),
     };
     c.compile(hash_text(text))
 }
@@ -79,6 +80,8 @@ struct Compiler<'a> {
     lenient_material: bool,
     /// What the scene says that is valid but likely not meant (`Scene::warnings`).
     warnings: Vec<String>,
+    /// Checker textures' scales and where they were given, checked against the scene's extent at the end.
+    checkers: std::cell::RefCell<Vec<(Range<usize>, String, f32)>>,
 }
 
 impl Compiler<'_> {
@@ -206,6 +209,23 @@ impl Compiler<'_> {
             self.light(def, &format!("lights[{i}]"))?;
         }
 
+        // A checker's cells must be resolvable where it is seen: beyond 2^23 cells from the origin an f32
+        // coordinate over the scale is an even integer everywhere, and the pattern is its colour `a`.
+        let extent = self
+            .prims
+            .iter()
+            .filter_map(|p| prim_bounds(&p.shape, &self.csg))
+            .map(|b| b.min.abs().max(b.max.abs()).max_element())
+            .fold(camera.position.abs().max_element(), f32::max);
+        for (at, field, scale) in self.checkers.take() {
+            if extent / scale > (1u32 << 23) as f32 {
+                let w = format!(
+                    "a checker of scale {scale:e} in a scene reaching {extent:e} from the origin: beyond 2^23 cells from the \
+                     origin an f32 coordinate resolves no cell, and the pattern shows its colour `a` alone there"
+                );
+                self.warnings.push(self.err(at, field, w).to_string());
+            }
+        }
         let shutter = camera.shutter;
         let mut bounds = Vec::with_capacity(self.prims.len());
         let (mut bounded, mut unbounded) = (Vec::new(), Vec::new());
@@ -436,6 +456,8 @@ impl Compiler<'_> {
                             Some(s) => self.positive(s, &f("checker.scale"))?,
                             None => 1.0,
                         };
+                        let at = cd.scale.as_ref().map_or(c.span(), |s| s.span());
+                        self.checkers.borrow_mut().push((at, f("checker.scale"), scale));
                         Texture::Checker {
                             a: self.color(&cd.a, &f("checker.a"), Some(1.0))?,
                             b: self.color(&cd.b, &f("checker.b"), Some(1.0))?,
