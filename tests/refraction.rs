@@ -109,6 +109,7 @@ pub fn ray(o: Vec3, d: Vec3) -> RayItem {
         flags: 0,
         media: MediumStack::default(),
         pdf: 0.0,
+        travel: 0.0,
     }
 }
 

@@ -110,6 +110,9 @@ pub struct RayItem {
     /// Solid-angle density its direction was sampled with ([`FLAG_GLOSSY`] rays; kept only by queues
     /// that carry it).
     pub pdf: f32,
+    /// Distance from the glossy point its direction was sampled at to its origin (0, or what it has
+    /// crossed unbent since: a light it finds is that much farther than from `o`; with `pdf`).
+    pub travel: f32,
 }
 
 /// Up to 8 new rays (all with `tmax = inf`) as lane arrays, for [`RayQueue::push_rows`].
@@ -127,6 +130,7 @@ pub struct RayRows {
     pub flags: [u8; LANES],
     pub media: [MediumStack; LANES],
     pub pdf: [f32; LANES],
+    pub travel: [f32; LANES],
 }
 
 impl RayRows {
@@ -147,6 +151,7 @@ impl RayRows {
             flags: self.flags[l],
             media: self.media[l],
             pdf: self.pdf[l],
+            travel: self.travel[l],
         }
     }
 }
@@ -177,6 +182,7 @@ pub struct RayQueue {
     /// Sampling density of glossy lobe rays; filled only for scenes with glossy materials and area
     /// lights (multiple importance sampling).
     pub pdf: Vec<f32>,
+    pub travel: Vec<f32>,
     len: usize,
     /// Whether `time` / `lambda` / `pdf` are carried.
     pub with_time: bool,
@@ -212,7 +218,7 @@ impl RayQueue {
 
     pub fn clear(&mut self) {
         macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
-        clr!(ox, oy, oz, dx, dy, dz, tmax, time, lambda, tr, tg, tb, path, branch, depth, diffuse, flags, media, pdf);
+        clr!(ox, oy, oz, dx, dy, dz, tmax, time, lambda, tr, tg, tb, path, branch, depth, diffuse, flags, media, pdf, travel);
         self.len = 0;
     }
 
@@ -246,6 +252,7 @@ impl RayQueue {
         self.media.push(r.media);
         if self.with_pdf {
             self.pdf.push(r.pdf);
+            self.travel.push(r.travel);
         }
         self.len += 1;
     }
@@ -282,6 +289,7 @@ impl RayQueue {
         put(&mut self.media, &rows.media, n);
         if self.with_pdf {
             put(&mut self.pdf, &rows.pdf, n);
+            put(&mut self.travel, &rows.travel, n);
         }
         self.len += n;
     }
@@ -298,6 +306,7 @@ impl RayQueue {
         }
         if self.with_pdf {
             self.pdf.truncate(n);
+            self.travel.truncate(n);
         }
     }
 
@@ -331,6 +340,7 @@ impl RayQueue {
             flags: self.flags[i],
             media: self.media[i],
             pdf: if self.with_pdf { self.pdf[i] } else { 0.0 },
+            travel: if self.with_pdf { self.travel[i] } else { 0.0 },
         }
     }
 }

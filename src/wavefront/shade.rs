@@ -383,7 +383,8 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
 }
 
 /// The MIS weight (power heuristic) of glossy lobe ray `r` that found light `prim` at `t`: its own density
-/// (`r.pdf`, one sample) against the light's `light_samples` samples from the point it left (`r.o`).
+/// (`r.pdf`, one sample) against the light's `light_samples` samples, seen from the glossy point the ray
+/// left (`r.travel` back from `r.o`: it may have crossed surfaces unbent since).
 fn lobe_light_weight(scene: &Scene, profile: &Profile, prim: &Prim, r: &RayItem, t: f32) -> f32 {
     let light = scene.lights.iter().find(|l| match (**l, prim.shape) {
         (Light::Quad { quad, .. }, Shape::Quad(q)) => quad.origin == q.origin && quad.u == q.u && quad.v == q.v,
@@ -393,8 +394,10 @@ fn lobe_light_weight(scene: &Scene, profile: &Profile, prim: &Prim, r: &RayItem,
     });
     match light {
         Some(light) => {
+            // Seen from the glossy point: `travel` back along the (unbent) direction from the origin.
             let ns = samples_for(light, profile.light_samples) as f32;
-            power_heuristic(1.0, r.pdf, ns * sample_pdf(light, r.o, r.o + r.d * t))
+            let p = r.o - r.d.normalize() * r.travel;
+            power_heuristic(1.0, r.pdf, ns * sample_pdf(light, p, r.o + r.d * t))
         }
         None => 1.0,
     }
@@ -824,7 +827,17 @@ impl<'a> Ctx<'a> {
             // (The parent's: kept with its flags by a passed lane, or a refracted one under transmissive
             // shadows.)
             pdf: if rays.with_pdf { gather8(&rays.pdf, run, i0, at) } else { [0.0; LANES] },
+            travel: [0.0; LANES],
         };
+        if rays.with_pdf {
+            // The distance from the lobe's glossy point (lanes that keep a lobe ray's flags: passed, or
+            // refracted under transmissive shadows): what was travelled before, and this segment.
+            let (travel, o) = (gather8(&rays.travel, run, i0, at), org);
+            for l in 0..LANES {
+                let seg = Vec3::new(rows.o[0][l] - o[0][l], rows.o[1][l] - o[1][l], rows.o[2][l] - o[2][l]);
+                rows.travel[l] = travel[l] + seg.length();
+            }
+        }
         // Split lanes' transmitted children.
         let mut second = None;
         if split != 0 {
@@ -1026,6 +1039,7 @@ impl<'a> Ctx<'a> {
             flags: [FLAG_SPECULAR | FLAG_GLOSSY; LANES],
             media,
             pdf,
+            travel: [0.0; LANES],
         };
         // `spawn`'s roulette on each child.
         let mut kept = 0u32;
@@ -1171,8 +1185,16 @@ impl<'a> Ctx<'a> {
         next: &mut RayQueue,
     ) {
         let reflected = |thr: Vec3| RayItem { o: refl.0, d: refl.1, throughput: thr, flags: FLAG_SPECULAR, ..next_of(r) };
-        let transmitted =
-            |thr: Vec3, (o, d, media, flags): (Vec3, Vec3, MediumStack, u8)| RayItem { o, d, throughput: thr, flags, media, ..next_of(r) };
+        // (`travel`: for a thin sheet's straight transmission, which keeps a lobe ray's flags.)
+        let transmitted = |thr: Vec3, (o, d, media, flags): (Vec3, Vec3, MediumStack, u8)| RayItem {
+            o,
+            d,
+            throughput: thr,
+            flags,
+            media,
+            travel: r.travel + (o - r.o).length(),
+            ..next_of(r)
+        };
         match self.profile.branching {
             Branching::Split => {
                 if f > 0.0 {
@@ -1197,7 +1219,7 @@ impl<'a> Ctx<'a> {
 /// it would have done without the surface; shadow rays see through such crossings too).
 #[inline(always)]
 fn passed(r: &RayItem, o: Vec3, media: MediumStack) -> RayItem {
-    RayItem { o, media, tmax: f32::INFINITY, ..*r }
+    RayItem { o, media, tmax: f32::INFINITY, travel: r.travel + (o - r.o).length(), ..*r }
 }
 
 #[cfg(test)]

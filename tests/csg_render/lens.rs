@@ -70,6 +70,7 @@ fn follow(scene: &Scene, starts: &[(Vec3, Vec3)]) -> Vec<Followed> {
             flags: 0,
             media: MediumStack::default(),
             pdf: 0.0,
+            travel: 0.0,
         });
     }
     let mut out: Vec<Followed> = starts.iter().map(|_| Followed::default()).collect();
