@@ -89,6 +89,12 @@ impl Compiler<'_> {
         self.src.error(span, field, msg)
     }
 
+    /// A warning (`Scene::warnings`), located as an error would be.
+    fn warn(&mut self, span: Range<usize>, field: impl Into<String>, msg: impl Into<String>) {
+        let w = self.err(span, field, msg).to_string();
+        self.warnings.push(w);
+    }
+
     /// Three finite numbers (colours, intensities).
     fn finite3(&self, v: &V3, field: &str) -> R<Vec3> {
         let a = v.get_ref().0;
@@ -223,7 +229,7 @@ impl Compiler<'_> {
                     "a checker of scale {scale:e} in a scene reaching {extent:e} from the origin: beyond 2^23 cells from the \
                      origin an f32 coordinate resolves no cell, and the pattern shows its colour `a` alone there"
                 );
-                self.warnings.push(self.err(at, field, w).to_string());
+                self.warn(at, field, w);
             }
         }
         let shutter = camera.shutter;
@@ -721,25 +727,19 @@ impl Compiler<'_> {
         let (lo, hi) = self.csg.bounds(solid);
         if !lo.cmple(hi).all() {
             // An empty solid (e.g. a disjoint intersection) contributes nothing.
-            self.warnings.push(
-                self.err(def.span(), field, "this CSG solid is empty (an intersection of solids that do not overlap?): it is left out")
-                    .to_string(),
-            );
+            self.warn(def.span(), field, "this CSG solid is empty (an intersection of solids that do not overlap?): it is left out");
             return Ok(());
         }
         if !crate::csg::reference::probe_finds_volume(&self.csg, solid, EMPTY_PROBE_GRID) {
             // Kept (the probe can miss a solid thinner than its spacing), but most likely a mistake.
             let rays = 3 * EMPTY_PROBE_GRID * EMPTY_PROBE_GRID;
-            self.warnings.push(
-                self.err(
-                    def.span(),
-                    field,
-                    format!(
-                        "this CSG solid looks empty: none of {rays} rays across its bounds met it (is a hole as large as its \
+            self.warn(
+                def.span(),
+                field,
+                format!(
+                    "this CSG solid looks empty: none of {rays} rays across its bounds met it (is a hole as large as its \
                          part?); it is kept"
-                    ),
-                )
-                .to_string(),
+                ),
             );
         }
         // The coincidence tolerance is relative to the solid's scale L (its farthest coordinate): a leaf
@@ -753,18 +753,15 @@ impl Compiler<'_> {
             .map(|(lo, hi)| (hi - lo).min_element())
             .fold(f32::INFINITY, f32::min);
         if thinnest < 10.0 * tol {
-            self.warnings.push(
-                self.err(
-                    def.span(),
-                    field,
-                    format!(
-                        "this CSG solid reaches {scale:e} from the origin, so surfaces closer than its coincidence tolerance \
+            self.warn(
+                def.span(),
+                field,
+                format!(
+                    "this CSG solid reaches {scale:e} from the origin, so surfaces closer than its coincidence tolerance \
                          ({tol:e}, 1e-5 of that) merge, and one of its leaves is only {thinnest:e} thick: its detail may be lost \
                          (far-apart parts in one solid: make them separate solids; a solid far from the origin: move the \
                          scene nearer it)"
-                    ),
-                )
-                .to_string(),
+                ),
             );
         }
         let shape = Shape::Csg { solid };
