@@ -147,6 +147,43 @@ pub fn power_heuristic(n: f32, p: f32, q: f32) -> f32 {
     1.0 / r.mul_add(r, 1.0)
 }
 
+/// [`sample_pdf`] in 8 lanes (one light, eight points `p` and light points `y`), the same operations
+/// (bit-identical lane by lane).
+#[inline(always)]
+pub fn sample_pdf_x8(light: &Light, p: Vec3x8, y: Vec3x8) -> f32x8 {
+    let zero = f32x8::ZERO;
+    let flat = |n: Vec3, area: f32| {
+        if !(area > 0.0) {
+            return zero;
+        }
+        let v = y - p;
+        let d2 = v.dot_unfused(v);
+        let cos_l = -v.dot_unfused(Vec3x8::splat(n)) / d2.sqrt();
+        cos_l.simd_gt(zero).select(d2 / (cos_l * f32x8::splat(area)), zero)
+    };
+    match *light {
+        Light::Point { .. } => zero,
+        Light::Quad { quad, .. } => flat(quad.normal(), quad.area()),
+        Light::Disk { disk, .. } => flat(disk.normal, std::f32::consts::PI * disk.radius * disk.radius),
+        Light::Sphere { center, radius, .. } => {
+            let v = Vec3x8::splat(center) - p;
+            let d2 = v.dot_unfused(v);
+            let r2 = f32x8::splat(radius * radius);
+            let sin2_max = r2 / d2;
+            let one_minus_cos = sin2_max / (f32x8::ONE + (f32x8::ONE - sin2_max).max(zero).sqrt());
+            let pdf = f32x8::ONE / (f32x8::splat(std::f32::consts::TAU) * one_minus_cos);
+            (d2.simd_gt(r2 * f32x8::splat(1.000_001)) & one_minus_cos.simd_gt(zero)).select(pdf, zero)
+        }
+    }
+}
+
+/// [`power_heuristic`] in 8 lanes (bit-identical lane by lane).
+#[inline(always)]
+pub fn power_heuristic_x8(n: f32, p: f32x8, q: f32x8) -> f32x8 {
+    let r = q / (f32x8::splat(n) * p);
+    q.simd_gt(f32x8::ZERO).select(f32x8::ONE / r.mul_add(r, f32x8::ONE), f32x8::ONE)
+}
+
 /// How many samples a light gets per shading point (delta lights need one).
 #[inline]
 pub fn samples_for(light: &Light, area_samples: u32) -> u32 {
@@ -264,6 +301,68 @@ mod tests {
     use crate::geometry::{Disk, Quad};
     use rand_core::{Rng, SeedableRng};
     use rand_xoshiro::Xoshiro256PlusPlus;
+
+    /// [`sample_pdf_x8`] and [`power_heuristic_x8`] against their scalar twins, bit for bit: points
+    /// around, behind, on the plane of, inside and far from each light, light points on and off the
+    /// light; the power heuristic with zero, tiny and huge densities on either side.
+    #[test]
+    fn pdf_and_power_heuristic_x8_match_scalar() {
+        let lights = [
+            Light::Point { position: Vec3::new(1.0, 4.0, -2.0), intensity: Vec3::new(5.0, 4.0, 3.0) },
+            Light::Quad {
+                quad: Quad::new(Vec3::new(-1.0, 3.0, -1.0), Vec3::new(2.0, 0.4, 0.0), Vec3::new(0.0, 0.3, 1.5)),
+                radiance: Vec3::new(2.0, 3.0, 4.0),
+            },
+            Light::Disk { disk: Disk::new(Vec3::new(0.5, 2.0, 0.0), Vec3::new(0.0, -1.0, 0.2), 0.7), radiance: Vec3::splat(3.0) },
+            Light::Sphere { center: Vec3::new(0.0, 5.0, 1.0), radius: 0.5, radiance: Vec3::splat(7.0) },
+        ];
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(12);
+        let mut f = |s: f32| (rng.next_u32() >> 8) as f32 / 16_777_216.0 * s;
+        let (mut positive, mut zero) = (0, 0);
+        for light in &lights {
+            for round in 0..300 {
+                let scale = [1.0, 1e-3, 1e3][round % 3];
+                let (mut p, mut y) = ([[0.0f32; LANES]; 3], [[0.0f32; LANES]; 3]);
+                for l in 0..LANES {
+                    for (pc, yc) in p.iter_mut().zip(&mut y) {
+                        pc[l] = (f(2.0) - 1.0) * 6.0 * scale;
+                        yc[l] = (f(2.0) - 1.0) * 6.0;
+                    }
+                }
+                // Some light points on the light, and one receiver at the light point (d = 0).
+                if let Some((yl, _)) = light_points_x8(light, [f32x8::splat(f(1.0)), f32x8::splat(f(1.0))]) {
+                    let r = yl.rows();
+                    for c in 0..3 {
+                        y[c][1] = r[c][1];
+                        (y[c][2], p[c][2]) = (r[c][2], r[c][2]);
+                    }
+                }
+                let (pv, yv) = (Vec3x8::from_rows(&p), Vec3x8::from_rows(&y));
+                let got = sample_pdf_x8(light, pv, yv).to_array();
+                for l in 0..LANES {
+                    let want = sample_pdf(light, pv.lane(l), yv.lane(l));
+                    assert_eq!(got[l].to_bits(), want.to_bits(), "{light:?} lane {l}: p {} y {}", pv.lane(l), yv.lane(l));
+                    if want > 0.0 {
+                        positive += 1;
+                    } else {
+                        zero += 1;
+                    }
+                }
+            }
+        }
+        assert!(positive > 3000 && zero > 3000, "{positive} positive, {zero} zero densities");
+        let values = [0.0, 1e-30, 1e-6, 0.3, 1.0, 7.5, 1e6, 1e30, f32::INFINITY];
+        for n in [1.0, 4.0, 64.0] {
+            for (i, &pv) in values.iter().enumerate() {
+                let q: [f32; LANES] = std::array::from_fn(|l| values[(i + l) % values.len()]);
+                let got = power_heuristic_x8(n, f32x8::splat(pv), f32x8::from(q)).to_array();
+                for l in 0..LANES {
+                    let want = power_heuristic(n, pv, q[l]);
+                    assert_eq!(got[l].to_bits(), want.to_bits(), "n {n} p {pv} q {}", q[l]);
+                }
+            }
+        }
+    }
 
     /// Every lane of [`sample_light_x8`] against [`sample_light`] for receivers around, behind, on the
     /// plane of and far from each light: the same lanes valid, and the same bits (point, quad, sphere) or

@@ -45,8 +45,8 @@ pub use dispersion::{sample_wavelength, sample_wavelength_pdf, Ior, LAMBDA_C, LA
 pub use fresnel::{cos_t_sq, critical_angle, fresnel_dielectric, fresnel_dielectric_f64, fresnel_schlick};
 pub use lambert::{onb, onb_x8, sample_hemisphere_cos, sample_hemisphere_cos_pdf, sample_hemisphere_cos_x8, to_local, to_world};
 pub use microfacet::{
-    eval_ggx_reflect, ggx_d, ggx_g1, ggx_g2, sample_ggx_reflect, sample_ggx_reflect_pdf, sample_ggx_reflect_weight,
-    sample_ggx_reflect_weight_x8, sample_ggx_reflect_x8, GGX_ALPHA_MIN,
+    eval_ggx_reflect, eval_ggx_reflect_x8, ggx_d, ggx_g1, ggx_g2, sample_ggx_reflect, sample_ggx_reflect_pdf, sample_ggx_reflect_pdf_x8,
+    sample_ggx_reflect_weight, sample_ggx_reflect_weight_x8, sample_ggx_reflect_x8, GGX_ALPHA_MIN,
 };
 pub use refract::{fresnel_dielectric_x8, fresnel_refract_x8, reflect, reflect_x8, refract};
 pub use spectrum::{cie_xyz_fit, wavelength_to_rgb, xyz_to_linear_srgb};

@@ -14,7 +14,7 @@ use crate::geometry::{
 };
 use crate::light::{power_heuristic, sample_pdf, samples_for};
 use crate::optics::{
-    beer_lambert, fresnel_dielectric, fresnel_refract_x8, fresnel_schlick, reflect, reflect_x8, refract, sample_ggx_reflect_pdf,
+    beer_lambert, fresnel_dielectric, fresnel_refract_x8, fresnel_schlick, reflect, reflect_x8, refract, sample_ggx_reflect_pdf_x8,
     sample_ggx_reflect_weight_x8, sample_ggx_reflect_x8, sample_hemisphere_cos_x8,
 };
 use crate::sample::{hash_combine, random_f32, stream_key, Sampler2d};
@@ -1018,14 +1018,7 @@ impl<'a> Ctx<'a> {
         let (wi, ok) = sample_ggx_reflect_x8(wo, nf, alpha_x8, u);
         let weight = sample_ggx_reflect_weight_x8(wo, nf, wi, alpha_x8);
         // The lobe rays' density, for the MIS weight of the sampled light they may find.
-        let mut pdf = [0.0f32; LANES];
-        if next.with_pdf {
-            let (wo_r, nf_r, wi_r) = (wo.rows(), nf.rows(), wi.rows());
-            let at3 = |r: &[[f32; LANES]; 3], l: usize| Vec3::new(r[0][l], r[1][l], r[2][l]);
-            for l in 0..LANES {
-                pdf[l] = sample_ggx_reflect_pdf(at3(&wo_r, l), at3(&nf_r, l), at3(&wi_r, l), alpha[l]);
-            }
-        }
+        let pdf = if next.with_pdf { sample_ggx_reflect_pdf_x8(wo, nf, wi, alpha_x8).to_array() } else { [0.0f32; LANES] };
         let mut rows = RayRows {
             o: offset_ray_origin_scaled_x8(geo.p, nf, geo.error_scale).rows(),
             d: wi.rows(),

@@ -21,8 +21,8 @@ use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
 use crate::geometry::{
     occludes_plane, occludes_sphere, occludes_sphere_consts, occludes_sphere_x8, occludes_spheres_lanes, SpherePacket, SpherePacketOf,
 };
-use crate::light::{light_points_x8, power_heuristic, sample_light_x8, sample_pdf, samples_for};
-use crate::optics::{eval_ggx_reflect, sample_ggx_reflect_pdf};
+use crate::light::{light_points_x8, power_heuristic_x8, sample_light_x8, sample_pdf_x8, samples_for};
+use crate::optics::{eval_ggx_reflect_x8, sample_ggx_reflect_pdf_x8};
 use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
 use crate::simd::{
@@ -420,7 +420,7 @@ fn shadow_queue<const LOBES: bool>(
                 };
                 let (c, lit) = match glossy & lit.to_bitmask() {
                     0 => (c, lit),
-                    g => glossy_samples(light, ns, nee, base, g, y, c, lit),
+                    _ => glossy_samples(light, ns, nee, base, m, p, n, y, c, lit),
                 };
                 let lanes = lit.to_bitmask() & live;
                 if lanes & clear != 0 {
@@ -499,43 +499,41 @@ fn shadow_queue<const LOBES: bool>(
 }
 
 /// One light sample's contributions `c` (as a Lambert point's, from `w` = throughput x tint) for the
-/// glossy lanes `lanes` of the chunk at request `base`: `c` x `f(wo, wi)` / `cos` with `f` the GGX lobe
-/// ([`eval_ggx_reflect`], which holds the cosine), x the power-heuristic weight against the point's one
-/// lobe ray for area lights (the light's `ns` samples against it; none for point lights, which no lobe
-/// ray finds, or where no lobe ray leaves: `alpha < 0`, see [`NeeQueue::wox`]). `y` is a point along
-/// the sample's direction (the light point). Lanes whose lobe gives nothing are no longer lit (no shadow
-/// ray).
+/// glossy requests of the chunk at request `base` (`m` of them; `p`, `n` their points and normals):
+/// `c` x `f(wo, wi)` / `cos` with `f` the GGX lobe ([`eval_ggx_reflect_x8`], which holds the cosine),
+/// x the power-heuristic weight against the point's one lobe ray for area lights (the light's `ns`
+/// samples against it; none for point lights, which no lobe ray finds, or where no lobe ray leaves:
+/// `alpha < 0`, see [`NeeQueue::wox`]). `y` is a point along the sample's direction (the light point).
+/// Lanes whose lobe gives nothing are no longer lit (no shadow ray). All 8 lanes at once, each lane's
+/// bits those of the scalar functions (`eval_ggx_reflect`, `sample_pdf`, `power_heuristic`,
+/// `sample_ggx_reflect_pdf`), as their x8 twins' tests check.
 #[allow(clippy::too_many_arguments)]
-#[inline(never)]
-fn glossy_samples(light: &Light, ns: u32, nee: &NeeQueue, base: usize, lanes: u32, y: Vec3x8, c: Vec3x8, lit: f32x8) -> (Vec3x8, f32x8) {
-    let yr = y.rows();
-    let (mut cr, mut litr) = (c.rows(), lit.to_array());
-    let mut todo = lanes;
-    while todo != 0 {
-        let l = todo.trailing_zeros() as usize;
-        todo &= todo - 1;
-        let i = base + l;
-        let p = Vec3::new(nee.px[i], nee.py[i], nee.pz[i]);
-        let (n, wo) = (Vec3::new(nee.nx[i], nee.ny[i], nee.nz[i]), Vec3::new(nee.wox[i], nee.woy[i], nee.woz[i]));
-        let (a, alpha) = (nee.alpha[i], nee.alpha[i].abs());
-        let y = Vec3::new(yr[0][l], yr[1][l], yr[2][l]);
-        let wi = (y - p).normalize_or_zero();
-        let cos = n.dot(wi);
-        let mut k = if cos > 0.0 { eval_ggx_reflect(wo, n, wi, alpha) / cos } else { 0.0 };
-        if a > 0.0 && !light.is_point() {
-            k *= power_heuristic(ns as f32, sample_pdf(light, p, y), sample_ggx_reflect_pdf(wo, n, wi, alpha));
-        }
-        for row in cr.iter_mut() {
-            row[l] *= k;
-        }
-        if !(k > 0.0 && k.is_finite()) {
-            litr[l] = 0.0;
-            for row in cr.iter_mut() {
-                row[l] = 0.0;
-            }
-        }
+#[inline(always)]
+fn glossy_samples(
+    light: &Light,
+    ns: u32,
+    nee: &NeeQueue,
+    base: usize,
+    m: usize,
+    p: Vec3x8,
+    n: Vec3x8,
+    y: Vec3x8,
+    c: Vec3x8,
+    lit: f32x8,
+) -> (Vec3x8, f32x8) {
+    let zero = f32x8::ZERO;
+    let wo = Vec3x8::new(chunk8(&nee.wox, base, m), chunk8(&nee.woy, base, m), chunk8(&nee.woz, base, m));
+    let a = chunk8(&nee.alpha, base, m);
+    let alpha = a.abs();
+    let wi = (y - p).normalize_or(Vec3x8::splat(Vec3::ZERO));
+    let cos = n.dot_unfused(wi);
+    let mut k = cos.simd_gt(zero).select(eval_ggx_reflect_x8(wo, n, wi, alpha) / cos, zero);
+    if !light.is_point() {
+        let mis = power_heuristic_x8(ns as f32, sample_pdf_x8(light, p, y), sample_ggx_reflect_pdf_x8(wo, n, wi, alpha));
+        k = a.simd_gt(zero).select(k * mis, k);
     }
-    (Vec3x8::from_rows(&cr), f32x8::from(litr))
+    let ok = k.simd_gt(zero) & k.is_finite();
+    (Vec3x8::masked(c.scale(k), ok), lit & ok)
 }
 
 /// Per request of the NEE queue, the sum of its unoccluded shadow rays' contributions (channels apart:
