@@ -232,6 +232,11 @@ fn cli_resume_of_an_interrupted_render_is_bit_identical() {
         completed,
     };
     strata::film::file::write_film(&p("part.film"), &header, &film).unwrap();
+    // Its samples are neither missing nor complete, and the status says which.
+    let st = ok(strata().args(["merge", "--status", s(&p("part.film"))]).output().unwrap());
+    let out = String::from_utf8_lossy(&st.stdout);
+    assert!(out.contains("missing: none") && out.contains("only in partial films: 0..6"), "{out}");
+    assert!(out.contains("complete samples: 0 of 6"), "{out}");
 
     // Refusals first: each names what differs, exits 2 and writes nothing.
     let other = d.join("other.toml");

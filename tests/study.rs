@@ -578,6 +578,36 @@ fn cli_progress_lines_and_reference_warning() {
     assert!(!quiet.contains("run 1/") && !quiet.contains("warning"), "{quiet}");
 }
 
+/// A `grid` light studied with the pixel at a fixed light-sample count is the same light points at every
+/// camera sample: the study says so (and passes on `render`'s warning), and the grid's slope is marked as
+/// a bias floor. It is one: the measured grid error does not fall with n while jittered's does. With
+/// `--light-samples-from-spp` the grid follows n and nothing is warned.
+#[test]
+fn cli_study_warns_of_a_fixed_light_grid() {
+    let dir = tmp_dir("gridfloor");
+    let d = dir.to_str().unwrap();
+    let base =
+        ["study", "scenes/soft_shadows.toml", "--integrals", "pixel,light", "--strategies", "grid,jittered", "--seeds", "1", "--quiet"];
+    let run = |extra: &[&str]| {
+        let out = strata().args(base).args(["--out", d]).args(extra).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        (String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (out, err) = run(&["--spp", "1,4,16"]);
+    assert!(err.contains("warning: the `grid` runs take the same 1 light point of each light"), "{err}");
+    assert!(err.contains("warning: grid n = 4: light_strategy `grid` with 1 light sample"), "{err}");
+    let slope = |name: &str| -> (f64, String) {
+        let line = out.lines().find(|l| l.trim_start().starts_with(name) && l.contains(" / ")).unwrap_or_else(|| panic!("{out}"));
+        (line.split_whitespace().nth(1).unwrap().parse().unwrap(), line.to_string())
+    };
+    let ((grid, grid_line), (jit, _)) = (slope("grid"), slope("jittered"));
+    assert!(grid_line.contains("bias floor"), "{out}");
+    assert!(grid > -0.3 && jit < -1.0, "grid slope {grid}, jittered {jit}: {out}");
+    let (out, err) = run(&["--spp", "1,4", "--light-samples-from-spp"]);
+    assert!(!err.contains("warning") && !out.contains("bias floor"), "{err}{out}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Ctrl-C (SIGINT) stops the study: exit 130, and study.csv holds exactly the runs reported finished.
 #[test]
 fn cli_interrupt_writes_the_finished_runs() {

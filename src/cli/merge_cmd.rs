@@ -178,7 +178,8 @@ fn missing_ranges(spp: u32, present: &[Range<u32>]) -> Vec<Range<u32>> {
     missing
 }
 
-/// `strata merge --status`: one line per film, then the ranges present, partial and missing.
+/// `strata merge --status`: one line per film, then the ranges present, partial and missing (in no film),
+/// and those held by partial films alone.
 fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
     // Printed at once at the end, ignoring a closed pipe (`strata merge --status ... | head`).
     let mut out = String::new();
@@ -236,6 +237,11 @@ fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
         }
         let missing = missing_ranges(spp, &all);
         say!("missing: {}", list(&missing));
+        // Samples some partial film holds but no complete one: not missing, not done either.
+        let only_partial = missing_ranges(spp, &[&complete[..], &missing[..]].concat());
+        if !only_partial.is_empty() {
+            say!("only in partial films: {} (resume them to complete)", list(&only_partial));
+        }
         // Samples covered by complete films, each counted once where films overlap.
         let done = spp - missing_ranges(spp, &complete).iter().map(|r| r.len() as u32).sum::<u32>();
         let overlaps = overlap_lines(&ok);

@@ -156,11 +156,19 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
             if light_only(&integrals) { "with `light` alone the count already is light samples" } else { "the light is not studied" }
         )));
     }
+    // The runs' sampling warnings, as `render` gives them, each once with the first run it concerns.
+    let mut warned: Vec<String> = Vec::new();
     for &s in &strategies {
         for &n in &counts {
             let p = configure(&profile, &integrals, s, n, a.light_samples_from_spp).map_err(|e| Failure::input(format!("--spp: {e}")))?;
             crate::render::check_render_size(scene.width, scene.height, &(0..p.spp))
                 .map_err(|e| Failure::input(format!("--spp {n}: {e}")))?;
+            for w in super::render_cmd::sampling_warnings(&scene, &p) {
+                if !warned.contains(&w) {
+                    errln!("warning: {} n = {n}: {w}", s.name());
+                    warned.push(w);
+                }
+            }
         }
     }
     let largest = *counts.last().expect("non-empty");
@@ -179,7 +187,25 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     };
     let plan =
         Plan { integrals, strategies, counts, seeds: a.seeds, light_from_spp: a.light_samples_from_spp, threads: a.threads, cancel: None };
+    if let Some(l) = fixed_light_grid(&scene, &profile, &plan) {
+        errln!(
+            "warning: the `grid` runs take the same {l} light point{} of each light at every camera sample (light_samples {l}), so \
+             their light integral does not converge as n grows: their error levels off at the bias of {l} point light{} against the \
+             reference (a slope near 0, marked below). --light-samples-from-spp makes n the light samples (a grid of n points), \
+             and --integrals light studies the light grid alone",
+            if l == 1 { "" } else { "s" },
+            if l == 1 { "" } else { "s" }
+        );
+    }
     Ok(Setup { scene, profile, plan, source })
+}
+
+/// The light samples per shading point when the study's `grid` runs hold the light integral at a fixed
+/// grid (the light studied with other integrals, its count not following n, area lights present):
+/// those runs converge to the grid's points as lights, not to the reference.
+fn fixed_light_grid(scene: &Scene, profile: &Profile, plan: &Plan) -> Option<u32> {
+    let fixed = plan.integrals.contains(Integral::Light) && !light_only(&plan.integrals) && !plan.light_from_spp;
+    (fixed && scene.features.area_lights && plan.strategies.contains(&Strategy::Grid)).then_some(profile.light_samples)
 }
 
 /// Integrals the scene does not exercise (their strategy changes nothing).
@@ -298,7 +324,7 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     };
     let series = run_series(&scene, &profile, &plan, &reference.image, a.sheet, &mut report).map_err(Failure::input)?;
     let summary = summarize(&series.runs);
-    print_table(&summary, &plan);
+    print_table(&summary, &plan, fixed_light_grid(&scene, &profile, &plan).is_some());
 
     let unit = if light_only(&plan.integrals) { "light samples" } else { "spp" };
     let csv_path = a.out.join("study.csv");
@@ -325,7 +351,8 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     Ok(0)
 }
 
-fn print_table(summary: &[Summary], plan: &Plan) {
+/// `grid_floor`: the grid runs' light integral is a fixed grid (see [`fixed_light_grid`]).
+fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool) {
     outln!(
         "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12}   (mean over {} seeds)",
         "strategy",
@@ -355,7 +382,12 @@ fn print_table(summary: &[Summary], plan: &Plan) {
         let (vs_n, vs_t) = slopes(summary, st);
         omitted |= vs_t.is_none();
         let f = |x: Option<crate::study::metrics::LogLogFit>| x.map_or("n/a".to_string(), |f| format!("{:+.3}", f.slope));
-        outln!("  {:<9} {} / {}", st.name(), f(vs_n), f(vs_t));
+        let floor = if grid_floor && st == Strategy::Grid {
+            "   (the light grid's bias floor, not a convergence rate: see the warning)"
+        } else {
+            ""
+        };
+        outln!("  {:<9} {} / {}{floor}", st.name(), f(vs_n), f(vs_t));
     }
     if omitted {
         outln!(
