@@ -106,6 +106,20 @@ impl Leaf {
         Vec3::from(n).normalize_or(Vec3::Z)
     }
 
+    /// A world point `p` on (or within rounding of) this leaf's surface, moved onto it in object space
+    /// ([`project_object`]) and back, with the magnitude whose ULPs bound the result's error: the
+    /// placement's translation and the leaf's extent in world space, not the ray origin's `|o|` that
+    /// `p = o + t d` carries (see `geometry::refine`). `None` where the projection is undefined (a
+    /// torus point on its axis) or not finite.
+    #[inline]
+    pub fn refine(&self, p: Vec3) -> Option<(Vec3, f32)> {
+        let q = project_object(self.shape, self.world_to_object.transform_point3(p))?;
+        let w = Vec3::from(self.object_to_world.matrix3 * Vec3A::from(q));
+        let t = Vec3::from(self.object_to_world.translation);
+        let out = w + t;
+        out.is_finite().then(|| (out, t.abs().max_element().max(w.abs().max_element())))
+    }
+
     /// Point classification (closed set) of a world point.
     pub fn inside(&self, p: Vec3) -> bool {
         inside_object(self.shape, self.world_to_object.transform_point3(p))
@@ -196,6 +210,61 @@ pub fn object_normal(shape: Shape, q: Vec3) -> Vec3 {
             Vec3::new(q.x * s, q.y * s, q.z)
         }
         Shape::HalfSpace => Vec3::Z,
+    }
+}
+
+/// The object-space point `q` moved onto the canonical surface along its normal, on the part
+/// [`object_normal`] picks (a box's face, a cylinder's or cone's cap or side): so a hit point's normal and
+/// its projection agree. `None` where no projection is defined (a sphere's centre, a torus point on its
+/// axis, a zero-length offset from the tube's circle).
+pub fn project_object(shape: Shape, q: Vec3) -> Option<Vec3> {
+    let cap = |q: Vec3| Vec3::new(q.x, q.y, if q.z < 0.0 { -1.0 } else { 1.0 });
+    match shape {
+        Shape::Sphere => Some(q.normalize_or_zero()).filter(|v| *v != Vec3::ZERO),
+        Shape::Box => {
+            let a = q.abs();
+            let mut out = q;
+            let i = if a.x >= a.y && a.x >= a.z {
+                0
+            } else if a.y >= a.z {
+                1
+            } else {
+                2
+            };
+            out[i] = if q[i] < 0.0 { -1.0 } else { 1.0 };
+            Some(out)
+        }
+        Shape::Cylinder => {
+            let rho = (q.x * q.x + q.y * q.y).sqrt();
+            if (1.0 - q.z.abs()).abs() < (rho - 1.0).abs() || rho == 0.0 {
+                Some(cap(q))
+            } else {
+                Some(Vec3::new(q.x / rho, q.y / rho, q.z))
+            }
+        }
+        Shape::Cone { r0, r1 } => {
+            let (m, k) = cone_line(r0, r1);
+            let rho = (q.x * q.x + q.y * q.y).sqrt();
+            let len = m.mul_add(m, 1.0).sqrt();
+            let s = (rho - m.mul_add(q.z, k)) / len;
+            if (1.0 - q.z.abs()).abs() < s.abs() || rho == 0.0 {
+                Some(cap(q))
+            } else {
+                // Along the side's normal (1, -m) / len in the (rho, z) half-plane.
+                let (rho2, z2) = (rho - s / len, q.z + s * m / len);
+                Some(Vec3::new(q.x * (rho2 / rho), q.y * (rho2 / rho), z2))
+            }
+        }
+        Shape::Torus { major, minor } => {
+            let rho = (q.x * q.x + q.y * q.y).sqrt();
+            if rho == 0.0 {
+                return None;
+            }
+            let c = Vec3::new(q.x * (major / rho), q.y * (major / rho), 0.0);
+            let v = (q - c).normalize_or_zero();
+            (v != Vec3::ZERO).then(|| c + v * minor)
+        }
+        Shape::HalfSpace => Some(Vec3::new(q.x, q.y, 0.0)),
     }
 }
 

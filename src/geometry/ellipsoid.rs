@@ -15,6 +15,8 @@ pub struct Ellipsoid {
     pub normal_matrix: Mat3,
     /// The centre in world space (`object_to_world.translation`).
     pub center: Vec3,
+    /// `object_to_world`'s linear part (object points back to world, by [`super::refine_ellipsoid_point`]).
+    pub to_world: Mat3,
 }
 
 impl Ellipsoid {
@@ -24,6 +26,7 @@ impl Ellipsoid {
             world_to_object: object_to_world.inverse(),
             normal_matrix: Mat3::from(object_to_world.matrix3).inverse().transpose(),
             center: object_to_world.translation.into(),
+            to_world: Mat3::from(object_to_world.matrix3),
         }
     }
 

@@ -30,6 +30,7 @@ mod obox;
 mod offset;
 mod plane;
 mod quad;
+mod refine;
 mod sphere;
 
 pub use disk::{intersect_disk_f64, intersect_disk_x8, Disk};
@@ -38,6 +39,7 @@ pub use obox::{intersect_obox_f64, intersect_obox_x8, normal_obox, obox_interval
 pub use offset::{offset_ray_origin, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, OFFSET_ULPS};
 pub use plane::{intersect_plane_f64, intersect_plane_x8, occludes_plane, Plane};
 pub use quad::{intersect_quad_f64, intersect_quad_x8, Quad};
+pub use refine::{refine_ellipsoid_point, refine_flat_point, refine_flat_point_x8, refine_obox_point};
 pub use sphere::{
     intersect_sphere_f64, intersect_sphere_moving_x8, intersect_sphere_x8, normal_sphere, occludes_sphere, occludes_sphere_consts,
     occludes_sphere_x8, occludes_spheres_lanes, refine_sphere_point, refine_sphere_point_x8, sphere_interval_x8, spheres_lanes_x8,

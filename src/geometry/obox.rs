@@ -16,6 +16,8 @@ pub struct OBox {
     pub normal_matrix: Mat3,
     /// The box centre in world space (`object_to_world.translation`).
     pub center: Vec3,
+    /// `object_to_world`'s linear part (object points back to world, by [`super::refine_obox_point`]).
+    pub to_world: Mat3,
     pub half: Vec3,
 }
 
@@ -28,6 +30,7 @@ impl OBox {
             normal_matrix: Mat3::from(object_to_world.matrix3).inverse().transpose(),
             center: object_to_world.translation.into(),
             half,
+            to_world: Mat3::from(object_to_world.matrix3),
         }
     }
 

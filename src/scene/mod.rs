@@ -194,19 +194,30 @@ pub struct PrimGeo {
     pub r: f32,
     pub motion: Vec3,
     pub material: u32,
+    /// Flat prims: the plane `v . x = w` (at time 0), and the magnitude whose ULPs bound a point projected
+    /// onto it (its defining point's largest coordinate; see [`crate::geometry::refine_flat_point`]).
+    pub w: f32,
+    pub w_scale: f32,
 }
 
 impl PrimGeo {
     pub fn of(p: &Prim) -> PrimGeo {
-        let (v, r) = match &p.shape {
-            Shape::Sphere { center, radius } => (*center, *radius),
-            Shape::Plane(pl) => (pl.normal, -1.0),
-            Shape::Quad(q) => (q.normal(), -1.0),
-            Shape::Disk(d) => (d.normal, -1.0),
-            _ => (Vec3::ZERO, f32::NAN),
+        let (v, r, (w, w_scale)) = match &p.shape {
+            Shape::Sphere { center, radius } => (*center, *radius, (0.0, 0.0)),
+            Shape::Plane(pl) => (pl.normal, -1.0, (pl.offset, pl.offset.abs())),
+            Shape::Quad(q) => (q.normal(), -1.0, flat_plane(q.normal(), q.origin)),
+            Shape::Disk(d) => (d.normal, -1.0, flat_plane(d.normal, d.center)),
+            _ => (Vec3::ZERO, f32::NAN, (0.0, 0.0)),
         };
-        PrimGeo { v, r, motion: p.motion, material: p.material }
+        PrimGeo { v, r, motion: p.motion, material: p.material, w, w_scale }
     }
+}
+
+/// The plane offset `n . point` and the magnitude of a projected point's error for a flat prim
+/// through `point` with unit normal `n`.
+fn flat_plane(n: Vec3, point: Vec3) -> (f32, f32) {
+    let w = n.dot(point);
+    (w, point.abs().max_element().max(w.abs()))
 }
 
 /// Light sources sampled by the shadow stage.

@@ -9,7 +9,8 @@ use super::queues::{
     HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, RayRows, FLAG_DIFFUSE, FLAG_GLOSSY, FLAG_SPECULAR, NONE,
 };
 use crate::geometry::{
-    normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_sphere_point,
+    normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_ellipsoid_point,
+    refine_flat_point, refine_flat_point_x8, refine_obox_point, refine_sphere_point,
     refine_sphere_point_x8,
 };
 use crate::light::{power_heuristic, sample_pdf, samples_for};
@@ -58,7 +59,16 @@ pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, 
     let shift = prim.motion * r.time;
     let mut p = r.o + r.d * t;
     let mut material = prim.material;
+    // `o + t d` is accurate to ULPs of `|o|`: every shape's point is re-projected onto its surface (in
+    // the prim's frame at the ray's time), after which its error is ULPs of the surface's own placement
+    // (see `geometry::refine`); where a projection is undefined the point keeps `|o|`.
     let mut error_scale = r.o.abs().max_element();
+    let refined = |q: Option<(Vec3, f32)>, p: &mut Vec3, error_scale: &mut f32| {
+        if let Some((q, s)) = q {
+            *p = q + shift;
+            *error_scale = s.max(shift.abs().max_element());
+        }
+    };
     let n = match &prim.shape {
         Shape::Sphere { center, radius } => {
             let c = *center + shift;
@@ -66,15 +76,24 @@ pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, 
             error_scale = 0.0;
             normal_sphere(c, p)
         }
-        Shape::Ellipsoid(e) => normal_ellipsoid(e, p - shift),
-        Shape::Plane(pl) => pl.normal,
-        Shape::Quad(q) => q.normal(),
-        Shape::Disk(d) => d.normal,
-        Shape::Box(b) => normal_obox(b, p - shift),
+        Shape::Ellipsoid(e) => {
+            refined(refine_ellipsoid_point(e, p - shift), &mut p, &mut error_scale);
+            normal_ellipsoid(e, p - shift)
+        }
+        Shape::Plane(_) | Shape::Quad(_) | Shape::Disk(_) => {
+            let g = &scene.prim_geo[prim_id as usize];
+            refined(Some((refine_flat_point(p - shift, g.v, g.w), g.w_scale)), &mut p, &mut error_scale);
+            g.v
+        }
+        Shape::Box(b) => {
+            refined(refine_obox_point(b, p - shift), &mut p, &mut error_scale);
+            normal_obox(b, p - shift)
+        }
         Shape::Csg { .. } => {
             debug_assert!(leaf != NONE);
             let l = scene.csg.leaf(leaf);
             material = l.material;
+            refined(l.refine(p - shift), &mut p, &mut error_scale);
             let n = l.normal(p - shift);
             if flip {
                 -n
@@ -98,6 +117,14 @@ fn sphere_hits_x8(naive: Vec3x8, d: Vec3x8, sc: &[[f32; LANES]; 3], sr: &[f32; L
     let ok = rcp.is_finite() & rcp.simd_gt(f32x8::ZERO);
     let n = Vec3x8::select(ok, rel.scale(rcp), Vec3x8::splat(Vec3::ZERO));
     (ps, n, d.dot_unfused(n).simd_lt(f32x8::ZERO))
+}
+
+/// [`surface_hit`]'s point and error magnitude of 8 flat hits (planes `n . x = w` at time 0, moved by
+/// `shift`; `scale` the planes' error magnitudes), the same operations lane by lane.
+#[inline(always)]
+fn flat_hits_x8(naive: Vec3x8, n: Vec3x8, shift: Vec3x8, w: f32x8, scale: f32x8) -> (Vec3x8, f32x8) {
+    let p = refine_flat_point_x8(naive - shift, n, w) + shift;
+    (p, scale.max(shift.x.abs().max(shift.y.abs()).max(shift.z.abs())))
 }
 
 /// [`surface_hit`]'s geometry of up to 8 hits as lane rows (lanes past those given are unspecified).
@@ -150,8 +177,9 @@ fn hit_rows_x8(
         }
         let n = Vec3x8::splat(g.v);
         let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
-        let error_scale = o.x.abs().max(o.y.abs().max(o.z.abs()));
-        return HitRows { p: naive, n_facing: flip(ahead, n), error_scale, front: ahead.to_bitmask(), material, sph: 0, still: 0, uniform };
+        let shift = Vec3x8::splat(g.motion).scale(f32x8::from(*times));
+        let (p, error_scale) = flat_hits_x8(naive, n, shift, f32x8::splat(g.w), f32x8::splat(g.w_scale));
+        return HitRows { p, n_facing: flip(ahead, n), error_scale, front: ahead.to_bitmask(), material, sph: 0, still: 0, uniform };
     }
     let mut p = [[0.0f32; LANES]; 3];
     let mut nf = [[0.0f32; LANES]; 3];
@@ -160,6 +188,8 @@ fn hit_rows_x8(
     let (mut sph, mut still, mut pla, mut front) = (0u32, 0u32, 0u32, 0u32);
     let mut sc = [[0.0f32; LANES]; 3];
     let mut sr = [1.0f32; LANES];
+    // Flat lanes' planes and motion shifts.
+    let (mut fw, mut fs, mut fshift) = ([0.0f32; LANES], [0.0f32; LANES], [[0.0f32; LANES]; 3]);
     for (l, &i) in idx.iter().enumerate() {
         let g = &scene.prim_geo[prims[l] as usize];
         if g.r > 0.0 {
@@ -177,6 +207,11 @@ fn hit_rows_x8(
             for (row, c) in nf.iter_mut().zip(g.v.to_array()) {
                 row[l] = c;
             }
+            let shift = g.motion * times[l];
+            for (row, c) in fshift.iter_mut().zip(shift.to_array()) {
+                row[l] = c;
+            }
+            (fw[l], fs[l]) = (g.w, g.w_scale);
             material[l] = g.material;
         } else {
             // (`surface_hit` reads the ray's origin, direction and time only.)
@@ -192,14 +227,14 @@ fn hit_rows_x8(
     }
     let (mut pv, mut nv, mut sv) = (Vec3x8::from_rows(&p), Vec3x8::from_rows(&nf), f32x8::from(scale));
     if pla != 0 {
-        // The point o + t d, whose error scales with the origin's largest coordinate, and the normal
-        // turned to face the ray.
+        // The point o + t d projected onto the plane, and the normal turned to face the ray.
         let n = nv;
         let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
         let mask = mask_from_bits(pla);
-        pv = Vec3x8::select(mask, naive, pv);
+        let (fp, fscale) = flat_hits_x8(naive, n, Vec3x8::from_rows(&fshift), f32x8::from(fw), f32x8::from(fs));
+        pv = Vec3x8::select(mask, fp, pv);
         nv = Vec3x8::select(mask, flip(ahead, n), n);
-        sv = mask.select(o.x.abs().max(o.y.abs().max(o.z.abs())), sv);
+        sv = mask.select(fscale, sv);
         front |= ahead.to_bitmask() & pla;
     }
     if sph != 0 {
