@@ -10,6 +10,7 @@
 //! - `optics`: glass of index 1, 1.0001, 4; furnaces; touching media
 //! - `lights`: zero, tiny and huge lights
 //! - `budget`: 1 and 4096 samples per pixel; max depth 0 and 1000
+//! - `distant`: thin walls (a CSG shell, boxes) seen from 1e2 .. 1e4 away
 
 #[path = "extremes/support.rs"]
 mod support;
@@ -34,3 +35,6 @@ mod lights;
 
 #[path = "extremes/budget.rs"]
 mod budget;
+
+#[path = "extremes/distant.rs"]
+mod distant;

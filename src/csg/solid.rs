@@ -285,3 +285,57 @@ pub fn inside_object(shape: Shape, q: Vec3) -> bool {
         Shape::HalfSpace => q.z <= 0.0,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`project_object`] puts points a little off each canonical surface (1e-4 along a random
+    /// direction, away from edges) back on it: the surface's own distance function is ~0 there, and the
+    /// point moved no farther than it was off. Undefined cases give `None`.
+    #[test]
+    fn projection_lands_on_each_surface() {
+        let mut seed = 0x5eed_u64;
+        let mut u = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32) / (1u64 << 24) as f32
+        };
+        let (m, k) = cone_line(0.3, 0.8);
+        let cases: [(Shape, fn(Vec3) -> f32); 6] = [
+            (Shape::Sphere, |q| q.length() - 1.0),
+            (Shape::Box, |q| q.abs().max_element() - 1.0),
+            (Shape::Cylinder, |q| (q.x * q.x + q.y * q.y).sqrt() - 1.0),
+            (Shape::Cone { r0: 0.3, r1: 0.8 }, |q| {
+                let (m, k) = cone_line(0.3, 0.8);
+                ((q.x * q.x + q.y * q.y).sqrt() - m.mul_add(q.z, k)) / m.mul_add(m, 1.0).sqrt()
+            }),
+            (Shape::Torus { major: 1.0, minor: 0.25 }, |q| (((q.x * q.x + q.y * q.y).sqrt() - 1.0).powi(2) + q.z * q.z).sqrt() - 0.25),
+            (Shape::HalfSpace, |q| q.z),
+        ];
+        for (shape, dist) in cases {
+            for _ in 0..2000 {
+                let (a, z) = (u() * std::f32::consts::TAU, u() * 1.4 - 0.7);
+                // A surface point away from edges (sides of the cylinder and cone, a box face's middle).
+                let on = match shape {
+                    Shape::Sphere => Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5).normalize_or(Vec3::X),
+                    Shape::Box => Vec3::new(1.0, u() * 1.6 - 0.8, u() * 1.6 - 0.8),
+                    Shape::Cylinder => Vec3::new(a.cos(), a.sin(), z),
+                    Shape::Cone { .. } => Vec3::new(a.cos(), a.sin(), 0.0) * m.mul_add(z, k) + Vec3::Z * z,
+                    Shape::Torus { .. } => {
+                        let b = u() * std::f32::consts::TAU;
+                        let c = Vec3::new(a.cos(), a.sin(), 0.0);
+                        c + (c * b.cos() + Vec3::Z * b.sin()) * 0.25
+                    }
+                    Shape::HalfSpace => Vec3::new(u() * 4.0 - 2.0, u() * 4.0 - 2.0, 0.0),
+                };
+                assert!(dist(on).abs() < 2e-6, "{shape:?}: the test's surface point {on} is off by {}", dist(on));
+                let off = on + Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5).normalize_or(Vec3::Y) * 1e-4;
+                let q = project_object(shape, off).unwrap_or_else(|| panic!("{shape:?} {off}: no projection"));
+                assert!(dist(q).abs() < 2e-6, "{shape:?}: {off} projected to {q}, off the surface by {}", dist(q));
+                assert!((q - off).length() <= 1.001e-4 + 1e-6, "{shape:?}: {off} moved {} to {q}", (q - off).length());
+            }
+        }
+        assert!(project_object(Shape::Sphere, Vec3::ZERO).is_none());
+        assert!(project_object(Shape::Torus { major: 1.0, minor: 0.25 }, Vec3::new(0.0, 0.0, 0.1)).is_none());
+    }
+}

@@ -10,8 +10,7 @@ use super::queues::{
 };
 use crate::geometry::{
     normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_ellipsoid_point,
-    refine_flat_point, refine_flat_point_x8, refine_obox_point, refine_sphere_point,
-    refine_sphere_point_x8,
+    refine_flat_point, refine_flat_point_x8, refine_obox_point, refine_sphere_point, refine_sphere_point_x8,
 };
 use crate::light::{power_heuristic, sample_pdf, samples_for};
 use crate::optics::{
