@@ -179,6 +179,25 @@ fn csg_reference_cycles_and_depth_are_errors() {
     assert!(msg.contains("deeper") || msg.contains("depth") || msg.contains("recursion"), "{msg}");
 }
 
+/// A half-space left unbounded (a union operand, or the solid a difference subtracts from) is an error
+/// that says where a half-space may go; intersected with a bounded solid, or subtracted, it is fine.
+#[test]
+fn an_unbounded_half_space_says_where_one_belongs() {
+    let hs = "{ type = \"halfspace\", point = [0, 0, 0], normal = [0, 1, 0] }";
+    let ball = "{ type = \"sphere\", center = [0, 0, 0], radius = 1 }";
+    let solid =
+        |op: &str, a: &str, b: &str| format!("[[shapes]]\ntype = \"csg\"\nop = \"{op}\"\nmaterial = \"m\"\nchildren = [{a}, {b}]\n");
+    for (op, a, b) in [("difference", hs, ball), ("union", ball, hs)] {
+        let (_, field, msg) = fail(&solid(op, a, b));
+        assert_eq!(field, "shapes[0]", "{msg}");
+        assert!(msg.contains("unbounded") && msg.contains("intersected with a bounded solid or subtracted from one"), "{msg}");
+    }
+    for (op, a, b) in [("difference", ball, hs), ("intersection", hs, ball)] {
+        let text = format!("{BASE}{}", solid(op, a, b));
+        parse_scene(Path::new("ok.toml"), &text).unwrap_or_else(|e| panic!("{op}: {e}"));
+    }
+}
+
 #[test]
 fn syntax_error_has_line() {
     let text = format!("{BASE}\n[[shapes]\n");

@@ -58,7 +58,10 @@ impl std::fmt::Display for CsgError {
         match self {
             CsgError::EmptyNode => write!(f, "CSG node without children"),
             CsgError::TooDeep { limit } => write!(f, "CSG tree deeper than {limit} nested nodes"),
-            CsgError::Unbounded => write!(f, "CSG solid is unbounded (a half-space outside an intersection?)"),
+            CsgError::Unbounded => write!(
+                f,
+                "CSG solid is unbounded: a half-space must be intersected with a bounded solid or subtracted from one (it cannot be a union operand, nor the solid a difference subtracts from)"
+            ),
         }
     }
 }
