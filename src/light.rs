@@ -339,9 +339,9 @@ mod tests {
                 }
                 let (pv, yv) = (Vec3x8::from_rows(&p), Vec3x8::from_rows(&y));
                 let got = sample_pdf_x8(light, pv, yv).to_array();
-                for l in 0..LANES {
+                for (l, g) in got.iter().enumerate() {
                     let want = sample_pdf(light, pv.lane(l), yv.lane(l));
-                    assert_eq!(got[l].to_bits(), want.to_bits(), "{light:?} lane {l}: p {} y {}", pv.lane(l), yv.lane(l));
+                    assert_eq!(g.to_bits(), want.to_bits(), "{light:?} lane {l}: p {} y {}", pv.lane(l), yv.lane(l));
                     if want > 0.0 {
                         positive += 1;
                     } else {

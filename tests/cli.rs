@@ -75,6 +75,30 @@ fn render_writes_image_and_stats_json() {
     assert!(v["rays"]["shadow"].as_u64().unwrap() > 0);
 }
 
+/// More threads than the machine has hardware threads: a warning (stage times per thread then count
+/// waiting), and the same image as one thread.
+#[test]
+fn more_threads_than_cores_is_warned_and_changes_no_pixel() {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let scene = tiny_scene("scenes/shapes/sphere.toml", 40, 30);
+    let run = |threads: usize| {
+        let png = tmp(&format!("threads-{threads}.png"));
+        let out = strata()
+            .args(["render", scene.to_str().unwrap(), "-o", png.to_str().unwrap(), "--spp", "2", "--threads", &threads.to_string()])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        (String::from_utf8_lossy(&out.stderr).into_owned(), std::fs::read(&png).unwrap())
+    };
+    let (one_err, one) = run(1);
+    assert!(!one_err.contains("hardware threads"), "{one_err}");
+    if cores < 1024 {
+        let (err, many) = run(cores + 1);
+        assert!(err.contains(&format!("warning: --threads {} on {cores} hardware threads", cores + 1)), "{err}");
+        assert!(many == one, "the image depends on the thread count");
+    }
+}
+
 /// A render whose samples overflow the film (a point light of intensity 1e30: every lit sample is
 /// beyond 2^31) says so on stderr even with --quiet, and counts them in the JSON; the same scene with
 /// intensity 1 says nothing.

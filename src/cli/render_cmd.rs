@@ -169,6 +169,9 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     if a.threads > 1024 {
         return Err(Failure::input("--threads must be at most 1024"));
     }
+    if let Some(w) = oversubscribed(a.threads, std::thread::available_parallelism().map_or(0, |n| n.get())) {
+        errln!("warning: {w}");
+    }
     if a.tile == 0 || a.tile > 1024 {
         return Err(Failure::input("--tile must be in 1..=1024"));
     }
@@ -434,6 +437,18 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
         }
     }
     out
+}
+
+/// More worker threads than the machine runs at once: the image is the same (any thread count gives the
+/// same image), but the threads share the cores, so the summary's per-thread stage times and rates count
+/// waiting too. `cores` 0: unknown (no warning).
+pub fn oversubscribed(threads: usize, cores: usize) -> Option<String> {
+    (cores > 0 && threads > cores).then(|| {
+        format!(
+            "--threads {threads} on {cores} hardware threads: the threads share the cores (the image is the same; the stage times \
+             per thread and their rates then count time spent waiting for a core)"
+        )
+    })
 }
 
 /// The states of a render towards signals (see [`install_interrupt_handler`]).

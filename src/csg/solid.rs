@@ -301,7 +301,9 @@ mod tests {
             ((seed >> 40) as f32) / (1u64 << 24) as f32
         };
         let (m, k) = cone_line(0.3, 0.8);
-        let cases: [(Shape, fn(Vec3) -> f32); 6] = [
+        // Each shape with its signed distance function (exact near the part the points lie on).
+        type Distance = fn(Vec3) -> f32;
+        let cases: [(Shape, Distance); 6] = [
             (Shape::Sphere, |q| q.length() - 1.0),
             (Shape::Box, |q| q.abs().max_element() - 1.0),
             (Shape::Cylinder, |q| (q.x * q.x + q.y * q.y).sqrt() - 1.0),
