@@ -324,7 +324,9 @@ fn flush_hole_is_a_clean_opening() {
 /// `z ∈ [g, 1 + g]` (4 × 4 wide), seen from above by a slightly oblique ray. It is resolved when the
 /// boundary after the entry is the exit at `z = g` (fast path) / the reference has two intervals. The
 /// measured threshold must be within a factor 1.5 of the documented tolerance
-/// `1e-5 (max(1, |o|) + |t d|)` at the gap (world units along the ray).
+/// `1e-5 (max(L, |o'|_inf) + |t' d|)` at the gap (world units along the ray), with `o'` the origin re-based
+/// to just above the solid (`t'` from it) and `L` = 2 the solid's scale: the same whether the origin is
+/// 4 or 50 above (before re-basing, 50 above merged gaps 10x wider).
 #[test]
 fn smallest_resolved_gap() {
     let mut arena = CsgArena::new();
@@ -352,9 +354,12 @@ fn smallest_resolved_gap() {
                 iv.len() == 2
             }
         };
-        // Distance along the ray per unit gap, and the tolerance at the gap (t d ≈ height).
+        // Distance along the ray per unit gap, and the tolerance at the gap from the re-based origin.
         let along = (d.length() / d.z.abs()) as f64;
-        let predicted = 1e-5 * ((o.length().max(1.0) + height) as f64);
+        let bounds = (Vec3::new(-2.0, -2.0, -1.0), Vec3::new(2.0, 2.0, 1.0));
+        let o2 = dv(o) + dv(d) * strata::csg::reference::rebase_shift_f64(bounds, dv(o), dv(d));
+        assert!(o2.z > 1.0 && o2.z < 1.2, "re-based to {o2}");
+        let predicted = 1e-5 * (o2.abs().max_element().max(2.0) + o2.z * along);
         for fast in [true, false] {
             let mut smallest = f64::NAN;
             let mut g = 2e-3f64;

@@ -34,12 +34,17 @@ fn fill_crossings(csg: &Csg, s: &Solid, o: &Vec3x8, d: &Vec3x8, arena: &mut CsgA
     }
 }
 
-/// The crossing table of a packet ([`fill_crossings`]) and each lane's coincidence tolerance base.
+/// The crossing table of a packet ([`fill_crossings`]) and each lane's coincidence tolerance base: from
+/// the origin's length, or for lanes re-based next to the solid (`rebased`, see [`rebase_x8`]) its
+/// largest coordinate (there about the solid's own scale, the same for every ray that enters the solid
+/// through one face: the tolerance then does not vary across the pixels that see one face).
 #[inline(always)]
-fn prepare_x8(csg: &Csg, s: &Solid, ray: &Ray8, arena: &mut CsgArena) -> [f32; 8] {
+fn prepare_x8(csg: &Csg, s: &Solid, ray: &Ray8, rebased: f32x8, arena: &mut CsgArena) -> [f32; 8] {
     fill_crossings(csg, s, &ray.o, &ray.d, arena);
     let eps = f32x8::splat(COINCIDENT_EPS);
-    (eps * ray.o.dot(ray.o).sqrt().max(f32x8::splat(s.scale)) / ray.d.dot(ray.d).sqrt()).to_array()
+    let o_inf = ray.o.x.abs().max(ray.o.y.abs()).max(ray.o.z.abs());
+    let mag = rebased.select(o_inf, ray.o.dot(ray.o).sqrt());
+    (eps * mag.max(f32x8::splat(s.scale)) / ray.d.dot(ray.d).sqrt()).to_array()
 }
 
 /// First boundary of the solid along `o + t d` with `tmin < t < tmax` (`d` not necessarily unit); handles
@@ -55,7 +60,7 @@ pub fn first_hit(csg: &Csg, solid: u32, o: Vec3, d: Vec3, tmin: f32, tmax: f32, 
     let (ray, tmin8, shift) = rebase_x8(s, &Ray8::new(Vec3x8::splat(o), Vec3x8::splat(d), f32x8::splat(tmax)), f32x8::splat(tmin));
     let (o2, shift) = (ray.o.lane(0), shift.to_array()[0]);
     fill_crossings(csg, s, &ray.o, &ray.d, arena);
-    let base = tol_base(o2.length(), d.length(), s.scale);
+    let base = tol_base(if shift > 0.0 { o2.abs().max_element() } else { o2.length() }, d.length(), s.scale);
     let (tmin, tmax) = (tmin8.to_array()[0], ray.tmax.to_array()[0]);
     eval_lane(&LaneJob { prog: csg.program(s), leaf_start: s.leaf_start, lane: 0, tmin, tmax, base }, arena).map(|h| unshift(h, shift))
 }
@@ -94,7 +99,12 @@ fn rebase_x8(s: &Solid, ray: &Ray8, tmin: f32x8) -> (Ray8, f32x8, f32x8) {
         return (*ray, tmin, zero);
     }
     let moved = Ray8 { o: ray.d.mul_add(shift, ray.o), d: ray.d, inv_d: ray.inv_d, tmax: ray.tmax - shift };
-    (moved, tmin - shift, shift)
+    // A caller that asks again from the boundary it was given (`tmin` = its `t' + shift`, rounded) must
+    // not get it back: `tmin - shift` can round below `t'`, by at most an ULP of `tmin`; two ULPs more
+    // exclude it (crossings that close to `tmin` are one point in the caller's parameter anyway).
+    let bump = f32x8::splat(2.0 * f32::EPSILON) * tmin.abs();
+    let tmin = shift.simd_gt(zero).select(tmin - shift + bump, tmin);
+    (moved, tmin, shift)
 }
 
 /// 8 rays against one solid: leaf crossings by the 8-lane kernels (one call per leaf per packet), then the
@@ -187,7 +197,7 @@ fn prepare_lanes_x8<'a>(
         return None;
     }
     let (ray, tmin, shift) = rebase_x8(s, ray, tmin);
-    let base = prepare_x8(csg, s, &ray, arena);
+    let base = prepare_x8(csg, s, &ray, shift.simd_gt(f32x8::ZERO), arena);
     let may = lanes_with_boundaries_x8(csg.program(s), &arena.cross[..s.leaf_count as usize], tmin, ray.tmax, f32x8::from(base));
     Some((s, base, mask & may, ray, tmin, shift))
 }

@@ -11,7 +11,7 @@ use super::merge::COINCIDENT_EPS;
 use super::program::{eval_bool, Csg};
 use super::quartic::torus_f64;
 use super::solid::{cone_line, Leaf, Shape};
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 /// Crossings of one leaf, world-space ray, f64: `[a0, b0, a1, b1]`, NaN for absent intervals.
 pub fn leaf_f64(leaf: &Leaf, o: DVec3, d: DVec3) -> [f64; 4] {
@@ -154,6 +154,21 @@ pub fn half_space_f64(o: DVec3, d: DVec3) -> (f64, f64) {
     }
 }
 
+/// How far along `o + t d` the CSG code re-bases a ray before a solid with bounds `(lo, hi)` (`hit.rs`'s
+/// `rebase_x8`, in f64): to 1% of the bounds' diagonal (plus 1e-6 of `|o|_inf`) before the bounds' entry,
+/// where that is ahead of the origin; else 0.
+pub fn rebase_shift_f64((lo, hi): (Vec3, Vec3), o: DVec3, d: DVec3) -> f64 {
+    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+    let slab = |o: f64, d: f64, a: f64, b: f64| ((a - o) / d).min((b - o) / d);
+    let entry = slab(o.x, d.x, lo.x, hi.x).max(slab(o.y, d.y, lo.y, hi.y)).max(slab(o.z, d.z, lo.z, hi.z));
+    let t0 = entry - (0.01 * (hi - lo).length() + 1e-6 * o.abs().max_element()) / d.length();
+    if t0 > 0.0 && t0.is_finite() {
+        t0
+    } else {
+        0.0
+    }
+}
+
 /// All inside intervals `(entry, exit)` of a solid along `o + t d`, all `t` (f64 reference, see the module
 /// docs). Coincident crossings are grouped as in `merge.rs`; a group's boundary is reported at its first
 /// crossing. An unknown solid id gives no intervals.
@@ -175,14 +190,17 @@ pub fn intervals_f64(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f
     }
     evs.sort_by(|x, y| x.0.total_cmp(&y.0));
     let eps = COINCIDENT_EPS as f64;
-    let base = eps * o.length().max(s.scale as f64) / d.length();
+    // The tolerance measured from the origin re-based near the solid, as `hit.rs` re-bases it.
+    let shift = rebase_shift_f64(s.bounds, o, d);
+    let o2 = o + d * shift;
+    let base = eps * if shift > 0.0 { o2.abs().max_element() } else { o2.length() }.max(s.scale as f64) / d.length();
     let mut state = vec![false; leaves.len()];
     let prog = csg.program(s);
     let (mut inside, mut entry) = (false, 0.0);
     let mut i = 0;
     while i < evs.len() {
         let t0 = evs[i].0;
-        let end = t0 + (base + eps * t0.abs().min(1e300));
+        let end = t0 + (base + eps * (t0 - shift).abs().min(1e300));
         while i < evs.len() && evs[i].0 <= end {
             state[evs[i].1] ^= true;
             i += 1;

@@ -52,15 +52,17 @@ fn compare(text: &str, dist: f64, fov: f64, n: u32, path: impl Fn(DVec3, DVec3) 
     pixel_rays(n, fov).into_iter().enumerate().filter_map(|(i, d)| path(o, d).map(|l| (img.px[i].y as f64, (-sigma * l).exp()))).collect()
 }
 
-/// A CSG shell 0.01 thick (sphere minus sphere) from 10 and 100 radii away. Before the hit points were
+/// A CSG shell 0.01 thick (sphere minus sphere) from 10 to 1e4 radii away. Before the hit points were
 /// re-projected, 10,900 of 13,812 shell pixels were off by more than 0.01 at 100 (up to 0.18): rays
-/// spawned through the outer wall skipped the inner one.
+/// spawned through the outer wall skipped the inner one. Before the CSG code re-based rays near the
+/// solid, the coincidence tolerance from 1e3 away (1e-5 of the ray's length, 0.02) merged the two walls:
+/// 10,356 of 13,796 pixels were fully transparent.
 #[test]
 fn a_thin_csg_shell_seen_from_afar_absorbs_its_analytic_path() {
     let shell = "[[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmaterial = \"fog\"\nchildren = [\n\
                  { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 1.0 },\n\
                  { type = \"sphere\", center = [0.0, 0.0, 0.0], radius = 0.99 },\n]\n";
-    for dist in [10.0, 100.0] {
+    for dist in [10.0, 100.0, 1e3, 1e4] {
         let fov = 2.0 * (1.2f64 / dist).atan().to_degrees();
         // Pixels whose ray passes inside 0.995 of the outer radius (away from the silhouette's rim).
         let path = |o: DVec3, d: DVec3| {
@@ -71,9 +73,8 @@ fn a_thin_csg_shell_seen_from_afar_absorbs_its_analytic_path() {
         assert!(px.len() > 2000, "{} shell pixels", px.len());
         let worst = px.iter().map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         let mean = px.iter().map(|(a, b)| a - b).sum::<f64>() / px.len() as f64;
-        // (Where the inner sphere's chord is shorter than the CSG coincidence tolerance, 1e-5 of the
-        // ray's length, its two crossings are one event and the pixel absorbs the whole outer chord:
-        // at most 5 x 0.002 at 100.)
+        // (Near the inner sphere's silhouette its chord is short and its f32 roots sqrt(eps)-sensitive:
+        // a few pixels there are off by up to 0.013.)
         assert!(worst < 0.02 && mean.abs() < 1e-3, "camera at {dist}: worst pixel off by {worst}, mean {mean}");
     }
 }
