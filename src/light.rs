@@ -302,12 +302,9 @@ mod tests {
     use rand_core::{Rng, SeedableRng};
     use rand_xoshiro::Xoshiro256PlusPlus;
 
-    /// [`sample_pdf_x8`] and [`power_heuristic_x8`] against their scalar twins, bit for bit: points
-    /// around, behind, on the plane of, inside and far from each light, light points on and off the
-    /// light; the power heuristic with zero, tiny and huge densities on either side.
-    #[test]
-    fn pdf_and_power_heuristic_x8_match_scalar() {
-        let lights = [
+    /// One light of each kind, placed around the origin (receivers of the tests lie within 6 of it).
+    fn test_lights() -> [Light; 4] {
+        [
             Light::Point { position: Vec3::new(1.0, 4.0, -2.0), intensity: Vec3::new(5.0, 4.0, 3.0) },
             Light::Quad {
                 quad: Quad::new(Vec3::new(-1.0, 3.0, -1.0), Vec3::new(2.0, 0.4, 0.0), Vec3::new(0.0, 0.3, 1.5)),
@@ -315,7 +312,15 @@ mod tests {
             },
             Light::Disk { disk: Disk::new(Vec3::new(0.5, 2.0, 0.0), Vec3::new(0.0, -1.0, 0.2), 0.7), radiance: Vec3::splat(3.0) },
             Light::Sphere { center: Vec3::new(0.0, 5.0, 1.0), radius: 0.5, radiance: Vec3::splat(7.0) },
-        ];
+        ]
+    }
+
+    /// [`sample_pdf_x8`] and [`power_heuristic_x8`] against their scalar twins, bit for bit: points
+    /// around, behind, on the plane of, inside and far from each light, light points on and off the
+    /// light; the power heuristic with zero, tiny and huge densities on either side.
+    #[test]
+    fn pdf_and_power_heuristic_x8_match_scalar() {
+        let lights = test_lights();
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(12);
         let mut f = |s: f32| (rng.next_u32() >> 8) as f32 / 16_777_216.0 * s;
         let (mut positive, mut zero) = (0, 0);
@@ -369,15 +374,7 @@ mod tests {
     /// agreement to float rounding of the disk map's `sin_cos` (disk).
     #[test]
     fn x8_matches_scalar() {
-        let lights = [
-            Light::Point { position: Vec3::new(1.0, 4.0, -2.0), intensity: Vec3::new(5.0, 4.0, 3.0) },
-            Light::Quad {
-                quad: Quad::new(Vec3::new(-1.0, 3.0, -1.0), Vec3::new(2.0, 0.4, 0.0), Vec3::new(0.0, 0.3, 1.5)),
-                radiance: Vec3::new(2.0, 3.0, 4.0),
-            },
-            Light::Disk { disk: Disk::new(Vec3::new(0.5, 2.0, 0.0), Vec3::new(0.0, -1.0, 0.2), 0.7), radiance: Vec3::splat(3.0) },
-            Light::Sphere { center: Vec3::new(0.0, 5.0, 1.0), radius: 0.5, radiance: Vec3::splat(7.0) },
-        ];
+        let lights = test_lights();
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(11);
         let mut f = |s: f32| (rng.next_u32() >> 8) as f32 / 16_777_216.0 * s;
         for (k, light) in lights.iter().enumerate() {
