@@ -167,23 +167,47 @@ pub(crate) fn cone_line(r0: f32, r1: f32) -> (f32, f32) {
     (0.5 * (r1 - r0), 0.5 * (r0 + r1))
 }
 
+/// The axis of the unit box's face nearest `q` (the largest `|q_i|`).
+#[inline(always)]
+fn box_axis(q: Vec3) -> usize {
+    let a = q.abs();
+    if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    }
+}
+
+/// Whether `q` (`rho` its distance from the axis) is taken to be on the unit cylinder's cap rather than
+/// its side: nearer the cap's plane, or on the axis.
+#[inline(always)]
+fn cylinder_on_cap(q: Vec3, rho: f32) -> bool {
+    (1.0 - q.z.abs()).abs() < (rho - 1.0).abs() || rho == 0.0
+}
+
+/// The signed distance of `q` from the cone's slanted side `rho = m z + k` in the (rho, z) half-plane,
+/// and whether `q` is taken to be on a cap instead (nearer the cap's plane, or on the axis).
+#[inline(always)]
+fn cone_side(q: Vec3, rho: f32, m: f32, k: f32) -> (f32, bool) {
+    let s = (rho - m.mul_add(q.z, k)) / m.mul_add(m, 1.0).sqrt();
+    (s, (1.0 - q.z.abs()).abs() < s.abs() || rho == 0.0)
+}
+
 /// Object-space outward normal (not normalised) at an object-space point `q`.
 pub fn object_normal(shape: Shape, q: Vec3) -> Vec3 {
     match shape {
         Shape::Sphere => q,
         Shape::Box => {
-            let a = q.abs();
-            if a.x >= a.y && a.x >= a.z {
-                Vec3::new(q.x.signum(), 0.0, 0.0)
-            } else if a.y >= a.z {
-                Vec3::new(0.0, q.y.signum(), 0.0)
-            } else {
-                Vec3::new(0.0, 0.0, q.z.signum())
-            }
+            let mut n = Vec3::ZERO;
+            let i = box_axis(q);
+            n[i] = q[i].signum();
+            n
         }
         Shape::Cylinder => {
             let rho = (q.x * q.x + q.y * q.y).sqrt();
-            if (1.0 - q.z.abs()).abs() < (rho - 1.0).abs() || rho == 0.0 {
+            if cylinder_on_cap(q, rho) {
                 Vec3::new(0.0, 0.0, q.z.signum())
             } else {
                 Vec3::new(q.x / rho, q.y / rho, 0.0)
@@ -192,9 +216,7 @@ pub fn object_normal(shape: Shape, q: Vec3) -> Vec3 {
         Shape::Cone { r0, r1 } => {
             let (m, k) = cone_line(r0, r1);
             let rho = (q.x * q.x + q.y * q.y).sqrt();
-            // Distance to the slanted side in the (rho, z) half-plane.
-            let side = (rho - m.mul_add(q.z, k)).abs() / m.mul_add(m, 1.0).sqrt();
-            if (1.0 - q.z.abs()).abs() < side || rho == 0.0 {
+            if cone_side(q, rho, m, k).1 {
                 Vec3::new(0.0, 0.0, q.z.signum())
             } else {
                 // Gradient of rho - (m z + k).
@@ -222,21 +244,14 @@ pub fn project_object(shape: Shape, q: Vec3) -> Option<Vec3> {
     match shape {
         Shape::Sphere => Some(q.normalize_or_zero()).filter(|v| *v != Vec3::ZERO),
         Shape::Box => {
-            let a = q.abs();
             let mut out = q;
-            let i = if a.x >= a.y && a.x >= a.z {
-                0
-            } else if a.y >= a.z {
-                1
-            } else {
-                2
-            };
+            let i = box_axis(q);
             out[i] = if q[i] < 0.0 { -1.0 } else { 1.0 };
             Some(out)
         }
         Shape::Cylinder => {
             let rho = (q.x * q.x + q.y * q.y).sqrt();
-            if (1.0 - q.z.abs()).abs() < (rho - 1.0).abs() || rho == 0.0 {
+            if cylinder_on_cap(q, rho) {
                 Some(cap(q))
             } else {
                 Some(Vec3::new(q.x / rho, q.y / rho, q.z))
@@ -246,8 +261,8 @@ pub fn project_object(shape: Shape, q: Vec3) -> Option<Vec3> {
             let (m, k) = cone_line(r0, r1);
             let rho = (q.x * q.x + q.y * q.y).sqrt();
             let len = m.mul_add(m, 1.0).sqrt();
-            let s = (rho - m.mul_add(q.z, k)) / len;
-            if (1.0 - q.z.abs()).abs() < s.abs() || rho == 0.0 {
+            let (s, on_cap) = cone_side(q, rho, m, k);
+            if on_cap {
                 Some(cap(q))
             } else {
                 // Along the side's normal (1, -m) / len in the (rho, z) half-plane.

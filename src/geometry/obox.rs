@@ -150,6 +150,15 @@ pub fn intersect_obox_f64(world_to_object: DAffine3, half: DVec3, o: DVec3, d: D
 /// is closest to `+-half` relative to `half` (largest `|p'_i| / half_i`), mapped by the normal
 /// matrix.
 pub fn normal_obox(b: &OBox, p: Vec3) -> Vec3 {
+    let (q, i) = obox_face(b, p);
+    let sign = if q[i] < 0.0 { -1.0 } else { 1.0 };
+    (b.normal_matrix.col(i) * sign).normalize_or_zero()
+}
+
+/// A world point `p` in the box's object frame (`q`, the box `[-half, half]`) and the axis of the face it
+/// lies on: the largest `|q_i| / half_i` (the face [`normal_obox`] and `refine_obox_point` take).
+#[inline]
+pub(crate) fn obox_face(b: &OBox, p: Vec3) -> (Vec3, usize) {
     let q = Mat3::from(b.world_to_object.matrix3) * (p - b.center);
     let r = (q / b.half).abs();
     let i = if r.x >= r.y && r.x >= r.z {
@@ -159,6 +168,5 @@ pub fn normal_obox(b: &OBox, p: Vec3) -> Vec3 {
     } else {
         2
     };
-    let sign = if q[i] < 0.0 { -1.0 } else { 1.0 };
-    (b.normal_matrix.col(i) * sign).normalize_or_zero()
+    (q, i)
 }

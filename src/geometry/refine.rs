@@ -40,16 +40,7 @@ fn mag(v: Vec3) -> f32 {
 /// world space. `None` for a non-finite result (a degenerate box).
 #[inline]
 pub fn refine_obox_point(b: &OBox, p: Vec3) -> Option<(Vec3, f32)> {
-    let m = glam::Mat3::from(b.world_to_object.matrix3);
-    let mut q = m * (p - b.center);
-    let r = (q / b.half).abs();
-    let i = if r.x >= r.y && r.x >= r.z {
-        0
-    } else if r.y >= r.z {
-        1
-    } else {
-        2
-    };
+    let (mut q, i) = super::obox::obox_face(b, p);
     q[i] = if q[i] < 0.0 { -b.half[i] } else { b.half[i] };
     let w = b.to_world * q;
     let out = b.center + w;
