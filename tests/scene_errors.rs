@@ -187,12 +187,23 @@ fn an_unbounded_half_space_says_where_one_belongs() {
     let ball = "{ type = \"sphere\", center = [0, 0, 0], radius = 1 }";
     let solid =
         |op: &str, a: &str, b: &str| format!("[[shapes]]\ntype = \"csg\"\nop = \"{op}\"\nmaterial = \"m\"\nchildren = [{a}, {b}]\n");
-    for (op, a, b) in [("difference", hs, ball), ("union", ball, hs)] {
+    // The error names the child that makes the solid unbounded, at its own line, however deep.
+    let nested = |op: &str, a: &str, b: &str| format!("{{ type = \"csg\", op = \"{op}\", children = [{a}, {b}] }}");
+    let hs2 = "{ type = \"halfspace\", point = [0, 0, 0], normal = [0, -1, 0] }";
+    for (op, a, b, culprit) in [
+        ("difference", hs, ball, "shapes[0].children[0]"),
+        ("union", ball, hs, "shapes[0].children[1]"),
+        ("union", ball, &nested("difference", hs, ball), "shapes[0].children[1].children[0]"),
+        ("difference", &nested("union", ball, hs), ball, "shapes[0].children[0].children[1]"),
+        ("union", ball, &nested("intersection", hs, hs2), "shapes[0].children[1]"),
+    ] {
         let (_, field, msg) = fail(&solid(op, a, b));
-        assert_eq!(field, "shapes[0]", "{msg}");
+        assert_eq!(field, culprit, "{msg}");
         assert!(msg.contains("unbounded") && msg.contains("intersected with a bounded solid or subtracted from one"), "{msg}");
+        assert!(msg.contains("`shapes[0]`"), "the message names the solid too: {msg}");
     }
-    for (op, a, b) in [("difference", ball, hs), ("intersection", hs, ball)] {
+    // An unbounded union inside an intersection with a bounded solid is bounded, and accepted.
+    for (op, a, b) in [("difference", ball, hs), ("intersection", hs, ball), ("intersection", ball, &nested("union", ball, hs))] {
         let text = format!("{BASE}{}", solid(op, a, b));
         parse_scene(Path::new("ok.toml"), &text).unwrap_or_else(|e| panic!("{op}: {e}"));
     }

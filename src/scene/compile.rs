@@ -55,6 +55,7 @@ pub fn parse_scene(path: &Path, text: &str) -> R<Scene> {
         lights: Vec::new(),
         used_solids: BTreeSet::new(),
         lenient_material: false,
+        unbounded_by: None,
         warnings: Vec::new(),
         checkers: Default::default(),
     };
@@ -78,6 +79,9 @@ struct Compiler<'a> {
     used_solids: BTreeSet<String>,
     /// While checking an unused solid: a leaf may lack a material (a use would give it one).
     lenient_material: bool,
+    /// Set by each `csg_tree` call: for an unbounded subtree, the child that makes it so (its span, field
+    /// and what it is); `None` for a bounded one. Names the culprit when a top-level solid is unbounded.
+    unbounded_by: Option<(Range<usize>, String, String)>,
     /// What the scene says that is valid but likely not meant (`Scene::warnings`).
     warnings: Vec<String>,
     /// Checker textures' scales and where they were given, checked against the scene's extent at the end.
@@ -723,7 +727,17 @@ impl Compiler<'_> {
         let mut stack = Vec::new();
         let tree = self.csg_tree(def, field, Affine3A::IDENTITY, material, 0, &mut stack)?;
         let _ = t; // the transform was applied inside csg_tree (it reads the def's own transform)
-        let solid = self.csg.add_solid(&tree).map_err(|e| self.err(def.span(), field, format!("{e}")))?;
+        let solid = self.csg.add_solid(&tree).map_err(|e| match (e, self.unbounded_by.take()) {
+            (csg::program::CsgError::Unbounded, Some((span, at, what))) => self.err(
+                span,
+                at,
+                format!(
+                    "{what} makes the CSG solid `{field}` unbounded: a half-space must be intersected with a bounded solid \
+                     or subtracted from one (it cannot be a union operand, nor the solid a difference subtracts from)"
+                ),
+            ),
+            _ => self.err(def.span(), field, format!("{e}")),
+        })?;
         let (lo, hi) = self.csg.bounds(solid);
         if !lo.cmple(hi).all() {
             // An empty solid (e.g. a disjoint intersection) contributes nothing.
@@ -862,7 +876,46 @@ impl Compiler<'_> {
     }
 
     /// Build a CSG tree; `t` is the parent's transform, `material` the inherited override.
+    /// [`Self::csg_tree_inner`], then `unbounded_by` for the subtree: itself for a bare half-space; for a
+    /// node the inner call has set it from its children.
     fn csg_tree(
+        &mut self,
+        def: &S<ShapeDef>,
+        field: &str,
+        parent: Affine3A,
+        material: Option<u32>,
+        depth: usize,
+        uses: &mut Vec<String>,
+    ) -> R<CsgTree> {
+        self.unbounded_by = None;
+        let tree = self.csg_tree_inner(def, field, parent, material, depth, uses)?;
+        if let CsgTree::Leaf(leaf) = &tree {
+            self.unbounded_by = leaf.bounds().is_none().then(|| (def.span(), field.to_string(), "this half-space".to_string()));
+        }
+        Ok(tree)
+    }
+
+    /// Set `unbounded_by` for a node of `op` over `kids`, whose culprits (`None`: bounded) are `culprits`.
+    fn node_culprit(
+        &mut self,
+        op: Op,
+        kids: &[CsgTree],
+        mut culprits: Vec<Option<(Range<usize>, String, String)>>,
+        span: Range<usize>,
+        field: &str,
+    ) {
+        self.unbounded_by = if csg::program::node_is_bounded(op, kids) {
+            None
+        } else {
+            match op {
+                Op::Union => culprits.into_iter().flatten().next(),
+                Op::Difference => culprits.swap_remove(0),
+                Op::Intersection => Some((span, field.to_string(), "this intersection of unbounded solids only".to_string())),
+            }
+        };
+    }
+
+    fn csg_tree_inner(
         &mut self,
         def: &S<ShapeDef>,
         field: &str,
@@ -992,18 +1045,21 @@ impl Compiler<'_> {
                     if let Some(op) = &s.op {
                         return Err(self.err(op.span(), f("op"), "a `group` has no op: it is the union of its children minus those marked `hole = true`"));
                     }
-                    let (mut solids, mut holes) = (Vec::new(), Vec::new());
+                    let (mut solids, mut holes, mut culprits) = (Vec::new(), Vec::new(), Vec::new());
                     for (i, c) in children.iter().enumerate() {
                         let sub = self.csg_tree(c, &format!("{field}.children[{i}]"), t, material, depth + 1, uses)?;
                         if c.get_ref().hole.as_ref().is_some_and(|h| *h.get_ref()) {
                             holes.push(sub);
                         } else {
                             solids.push(sub);
+                            culprits.push(self.unbounded_by.take());
                         }
                     }
                     if solids.is_empty() {
                         return Err(self.err(sp, f("children"), "a group needs at least one child that is not a hole"));
                     }
+                    // (Holes are subtracted: only the solids' union can make the group unbounded.)
+                    self.node_culprit(Op::Union, &solids, culprits, sp.clone(), field);
                     let body = CsgTree::Node { op: Op::Union, children: solids };
                     if holes.is_empty() {
                         body
@@ -1018,13 +1074,15 @@ impl Compiler<'_> {
                         "difference" => Op::Difference,
                         other => return Err(self.err(op_d.span(), f("op"), format!("expected union, intersection or difference, got `{other}`"))),
                     };
-                    let mut kids = Vec::with_capacity(children.len());
+                    let (mut kids, mut culprits) = (Vec::with_capacity(children.len()), Vec::with_capacity(children.len()));
                     for (i, c) in children.iter().enumerate() {
                         if let Some(h) = &c.get_ref().hole {
                             return Err(self.err(h.span(), format!("{field}.children[{i}].hole"), "`hole` only applies to children of a `group`"));
                         }
                         kids.push(self.csg_tree(c, &format!("{field}.children[{i}]"), t, material, depth + 1, uses)?);
+                        culprits.push(self.unbounded_by.take());
                     }
+                    self.node_culprit(op, &kids, culprits, sp.clone(), field);
                     CsgTree::Node { op, children: kids }
                 }
             }
