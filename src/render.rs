@@ -41,6 +41,8 @@ pub struct RenderStats {
     pub rays: RayCounts,
     pub rays_per_second: f64,
     pub nonfinite_samples: u64,
+    /// Crossings into a fifth nested medium, which a ray's medium stack (4 deep) could not keep.
+    pub lost_media: u64,
     pub csg_candidates: u64,
     /// CPU seconds per stage, summed over threads.
     pub stage_seconds: StageTimes,
@@ -281,6 +283,7 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
         rays,
         rays_per_second: rays.total as f64 / seconds.max(1e-9),
         nonfinite_samples: c.nonfinite_samples,
+        lost_media: c.lost_media,
         csg_candidates: c.csg_candidates,
         stage_seconds: times,
         completed: completed.iter().all(|&c| c),

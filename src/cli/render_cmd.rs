@@ -319,6 +319,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         crate::film::output::write_atomic(j, |tmp| std::fs::write(tmp, text).map_err(|e| e.to_string())).map_err(Failure::runtime)?;
     }
     crate::film::warn_discarded(stats.nonfinite_samples);
+    crate::film::warn_lost_media(stats.lost_media);
     if !stats.completed {
         let f = film_out.as_deref().unwrap_or(&out);
         errln!(

@@ -32,6 +32,16 @@ pub fn warn_discarded(discarded: u64) {
     }
 }
 
+/// Warn (on stderr) of crossings into a medium that rays could not keep: a fifth nested medium.
+pub fn warn_lost_media(lost: u64) {
+    if lost > 0 {
+        errln!(
+            "warning: {lost} ray crossings entered a fifth nested medium, beyond the 4 a ray keeps: inside it those \
+             rays took the medium they were in (its absorption and index were lost); see scenes/README.md, \"Nested media\""
+        );
+    }
+}
+
 /// Whether a sample may be accumulated: every channel finite and below [`MAX_SAMPLE_VALUE`] in
 /// magnitude (`abs() < MAX` is false for NaN, so one comparison rejects NaN, infinities and huge values).
 #[inline(always)]

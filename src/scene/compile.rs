@@ -320,7 +320,9 @@ impl Compiler<'_> {
         } else {
             Default::default()
         };
+        let camera_media = if features.dielectric { self.camera_media(&camera, &file.camera, &bounds) } else { Vec::new() };
         Ok(Scene {
+            camera_media,
             width,
             height,
             background,
@@ -345,6 +347,86 @@ impl Compiler<'_> {
             warnings: std::mem::take(&mut self.warnings),
             hash,
         })
+    }
+
+    /// The media the camera starts in ([`Scene::camera_media`]): every solid prim (sphere, ellipsoid, box,
+    /// CSG solid of one material) of a non-thin dielectric that contains the camera's position at shutter
+    /// open, outermost (largest bounds) first. Warns where that cannot hold for every camera ray: a
+    /// medium the camera leaves or enters during the shutter, or whose surface the lens aperture
+    /// crosses, a CSG solid of several materials around the camera, more media than a ray's stack keeps.
+    fn camera_media(&mut self, camera: &Camera, def: &S<CameraDef>, bounds: &[Aabb]) -> Vec<u32> {
+        let pos = camera.position;
+        // The aperture's rim, where it crosses the surface the lens centre is inside of.
+        let rim: Vec<Vec3> = if camera.lens_radius > 0.0 {
+            [camera.right, -camera.right, camera.up, -camera.up].iter().map(|&a| pos + a * camera.lens_radius).collect()
+        } else {
+            Vec::new()
+        };
+        let mut found: Vec<(f32, u32)> = Vec::new();
+        let mut notes: Vec<String> = Vec::new();
+        let name = |c: &Self, m: u32| c.material_ids.iter().find(|(_, &id)| id == m).map_or_else(|| format!("#{m}"), |(n, _)| n.clone());
+        for (i, p) in self.prims.iter().enumerate() {
+            let material = match p.shape {
+                Shape::Csg { solid } => {
+                    let mut ms = self.csg.solid_leaves(solid).map(|k| self.csg.leaf(k).material);
+                    let first = ms.next().unwrap_or(p.material);
+                    if ms.any(|m| m != first) {
+                        let medium = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
+                        if self.csg.inside(solid, pos) && self.csg.solid_leaves(solid).any(|k| medium(self.csg.leaf(k).material)) {
+                            notes
+                                .push("a CSG solid of several materials contains it: camera rays take none of them as their medium".into());
+                        }
+                        continue;
+                    }
+                    first
+                }
+                Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_) => p.material,
+                _ => continue,
+            };
+            if !matches!(&self.materials[material as usize], Material::Dielectric(d) if !d.thin) {
+                continue;
+            }
+            let inside = |x: Vec3, t: f32| -> bool {
+                let x = x - p.motion * t;
+                match &p.shape {
+                    Shape::Sphere { center, radius } => (x.as_dvec3() - center.as_dvec3()).length_squared() < (*radius as f64).powi(2),
+                    Shape::Ellipsoid(e) => e.world_to_object.transform_point3(x).length_squared() < 1.0,
+                    Shape::Box(b) => b.world_to_object.transform_point3(x).abs().cmplt(b.half).all(),
+                    Shape::Csg { solid } => self.csg.inside(*solid, x),
+                    _ => false,
+                }
+            };
+            let at_open = inside(pos, camera.shutter[0]);
+            let nm = name(self, material);
+            if at_open != inside(pos, camera.shutter[1]) {
+                notes.push(format!(
+                    "the moving `{nm}` solid {} the camera during the shutter: camera rays take the media at shutter open",
+                    if at_open { "leaves" } else { "reaches" }
+                ));
+            }
+            if rim.iter().any(|&x| inside(x, camera.shutter[0]) != at_open) {
+                notes.push(format!(
+                    "the lens aperture crosses the surface of a `{nm}` solid: camera rays take the media at the lens centre"
+                ));
+            }
+            if at_open {
+                found.push((bounds[i].surface_area(), material));
+            }
+        }
+        // Outermost first: a solid inside another has the smaller bounds.
+        found.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let depth = crate::wavefront::queues::MediumStack::DEPTH;
+        if found.len() > depth {
+            notes.push(format!(
+                "the camera is inside {} nested media; a ray keeps {depth}: camera rays start in the {depth} innermost",
+                found.len()
+            ));
+        }
+        for n in notes {
+            self.warn(def.span(), "camera.position", n);
+        }
+        let skip = found.len().saturating_sub(depth);
+        found.into_iter().skip(skip).map(|(_, m)| m).collect()
     }
 
     fn camera(&self, def: &S<CameraDef>, width: u32, height: u32) -> R<Camera> {

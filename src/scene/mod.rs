@@ -296,6 +296,10 @@ pub struct Scene {
     /// faces may lie on and give way to (`wavefront::intersect::glass_gives_way`); empty in a scene
     /// where no glass can touch an opaque surface.
     pub glass_neighbours: glass_neighbours::GlassNeighbours,
+    /// The media the camera is inside (materials of the non-thin dielectric solids that contain its
+    /// position at shutter open), outermost first: camera rays start with them on their medium stack.
+    /// Empty for a camera in air (nearly always).
+    pub camera_media: Vec<u32>,
     /// Valid input that is likely not what was meant (an empty CSG solid), each naming its file, line
     /// and field; the CLI prints them as warnings.
     pub warnings: Vec<String>,

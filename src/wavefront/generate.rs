@@ -5,7 +5,7 @@
 //! strategy. Lens, time and wavelength are drawn only when the scene needs them.
 
 use super::dims;
-use super::queues::{PathTable, RayQueue, RayRows};
+use super::queues::{MediumStack, PathTable, RayQueue, RayRows};
 use crate::optics::{sample_wavelength, sample_wavelength_pdf, wavelength_to_rgb};
 use crate::sample::{sample_1d_keyed, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
 use crate::scene::{Profile, Scene};
@@ -74,6 +74,8 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     let mut pending = false;
     let mut k = 0;
     let mut next_path = paths.len() as u32;
+    // The media the camera is inside (none, nearly always).
+    let media = scene.camera_media.iter().fold(MediumStack::default(), |s, &m| s.push(m));
     // Rays (and their path ids, from `next_path` on) for the first `k` lanes of `b`; `one`: its lanes are
     // one pixel's samples (one key per dimension, in lane 0).
     let emit = |k: usize, b: &Lanes, one: bool, next_path: &mut u32, rays: &mut RayQueue| {
@@ -89,12 +91,13 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         let off = filter_offsets(profile.filter, sample(&area, &keys[0]));
         let lens = if f.lens { sample_disk_concentric_x8(sample(&lens_set, &keys[1])) } else { [f32x8::ZERO; 2] };
         let (o, d) = cam.rays_x8(f32x8::from(b.cx) + off[0], f32x8::from(b.cy) + off[1], lens);
-        // New paths: branch, depth, bounce counts, flags and media all start empty (zero).
+        // New paths: branch, depth, bounce counts and flags start empty (zero); media, the camera's.
         let mut rows = RayRows {
             o: o.rows(),
             d: d.rows(),
             throughput: [[1.0; LANES]; 3],
             path: std::array::from_fn(|l| first + l as u32),
+            media: [media; LANES],
             ..RayRows::default()
         };
         if f.motion || f.dispersion {

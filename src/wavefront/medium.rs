@@ -15,8 +15,9 @@
 //! Real interfaces with equal indices on both sides (an index-matched pair, a dielectric of index 1 in
 //! air) reflect nothing and do not bend; shading treats them as null crossings too.
 //!
-//! A ray that leaves a medium it never entered (its entry was lost: camera inside, or a fifth nested
-//! medium that did not fit the stack) is taken to have been inside it.
+//! A ray that leaves a medium it never entered (its entry was lost: a fifth nested medium that did not
+//! fit the stack, counted as [`Crossing::lost`]) is taken to have been inside it. Camera rays start with
+//! the media around the camera (`Scene::camera_media`).
 
 use super::queues::MediumStack;
 use crate::scene::{Dielectric, Material, Scene};
@@ -63,6 +64,9 @@ pub struct Crossing {
     pub after: Option<u32>,
     /// The stack of a ray that goes through.
     pub stack: MediumStack,
+    /// Entering a medium the full stack could not keep (a fifth nested one): it is not on `stack`, so
+    /// the ray takes the medium it was in for this one (counted, and warned of after the render).
+    pub lost: bool,
 }
 
 impl Crossing {
@@ -78,7 +82,7 @@ impl Crossing {
 pub fn cross(scene: &Scene, stack: MediumStack, m: u32, entering: bool) -> Crossing {
     if entering {
         let after = stack.push(m);
-        Crossing { before: current(scene, stack), after: current(scene, after), stack: after }
+        Crossing { before: current(scene, stack), after: current(scene, after), stack: after, lost: stack.is_full() }
     } else {
         let before = if stack.contains(m) {
             current(scene, stack)
@@ -91,7 +95,7 @@ pub fn cross(scene: &Scene, stack: MediumStack, m: u32, entering: bool) -> Cross
             }
         };
         let after = stack.remove(m);
-        Crossing { before, after: current(scene, after), stack: after }
+        Crossing { before, after: current(scene, after), stack: after, lost: false }
     }
 }
 

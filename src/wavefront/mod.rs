@@ -49,6 +49,8 @@ pub struct Counters {
     /// Rays that entered the csg_merge stage (ray x solid candidates).
     pub csg_candidates: u64,
     pub nonfinite_samples: u64,
+    /// Crossings into a medium beyond the 4 a ray's stack keeps (their absorption and index are lost).
+    pub lost_media: u64,
     pub samples: u64,
 }
 
@@ -60,6 +62,7 @@ impl Counters {
         self.shadow_cleared += o.shadow_cleared;
         self.csg_candidates += o.csg_candidates;
         self.nonfinite_samples += o.nonfinite_samples;
+        self.lost_media += o.lost_media;
         self.samples += o.samples;
     }
     pub fn total_rays(&self) -> u64 {

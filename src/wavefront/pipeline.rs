@@ -67,7 +67,7 @@ pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut
             counters.csg_candidates += csg.len() as u64;
             timed!(times.csg_merge, csg_merge(scene, cur, csg, hits, csg_arena));
         }
-        timed!(times.shade, shade(scene, profile, seed, cur, hits, order, ShadeOut { paths, next, nee }));
+        counters.lost_media += timed!(times.shade, shade(scene, profile, seed, cur, hits, order, ShadeOut { paths, next, nee }));
         // Shading points scattered by incoherent bounces: their shadow rays share few BVH nodes.
         let scattered = hits.scattered.then_some(&mut hits.wide_stack);
         let (traced, cleared) = timed!(times.shadow, shadow_with(scene, profile, seed, nee, paths, csg_arena, scattered));

@@ -36,6 +36,11 @@ impl MediumStack {
     pub fn contains(self, m: u32) -> bool {
         (0..Self::DEPTH).any(|i| ((self.0 >> (16 * i)) & 0xffff) as u32 == m + 1)
     }
+    /// Whether every slot is taken (a further `push` is dropped).
+    #[inline]
+    pub fn is_full(self) -> bool {
+        self.0 >> (16 * (Self::DEPTH - 1)) != 0
+    }
     /// Enter medium `m` (no-op when full).
     #[inline]
     pub fn push(self, m: u32) -> Self {

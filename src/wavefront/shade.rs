@@ -286,8 +286,10 @@ pub struct ShadeOut<'a> {
     pub nee: &'a mut NeeQueue,
 }
 
+/// Shade every hit of `rays`; returns the number of crossings into a medium that a ray's full medium
+/// stack could not keep (a fifth nested medium: its absorption and index are lost for that ray).
 #[allow(clippy::too_many_arguments)]
-pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits: &HitQueue, order: &mut Vec<u32>, out: ShadeOut) {
+pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits: &HitQueue, order: &mut Vec<u32>, out: ShadeOut) -> u64 {
     let n = rays.len();
     // Stable counting sort of ray indices by material kind (misses last).
     let mut counts = [0usize; MaterialKind::COUNT + 2];
@@ -414,6 +416,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
             }
         }
     }
+    ctx.lost_media.get()
 }
 
 /// The MIS weight (power heuristic) of glossy lobe ray `r` that found light `prim` at `t`: its own density
@@ -481,12 +484,21 @@ struct Ctx<'a> {
     /// The diffuse-bounce and glossy-lobe samplers (the profile's strategies over the pixel's samples).
     diffuse: Sampler2d,
     glossy: Sampler2d,
+    /// Crossings into a medium the ray's stack was too full to keep ([`medium::Crossing::lost`]).
+    lost_media: std::cell::Cell<u64>,
 }
 
 impl<'a> Ctx<'a> {
     fn new(scene: &'a Scene, profile: &'a Profile, seed: u64) -> Self {
         let sampler = |s| Sampler2d::new(s, profile.spp);
-        Ctx { scene, profile, seed, diffuse: sampler(profile.diffuse_strategy), glossy: sampler(profile.glossy_strategy) }
+        Ctx {
+            scene,
+            profile,
+            seed,
+            diffuse: sampler(profile.diffuse_strategy),
+            glossy: sampler(profile.glossy_strategy),
+            lost_media: Default::default(),
+        }
     }
 
     /// Up to 8 Lambert hits (`idx`, ray indices): the geometry of each hit (shape dispatch) and its
@@ -799,6 +811,7 @@ impl<'a> Ctx<'a> {
                 // As `dielectric`: null crossings are not bounces (no depth check for them).
                 Material::Dielectric(_) => {
                     let c = medium::cross(scene, media[l], material, geo.front & bit != 0);
+                    self.count_lost(c);
                     stack[l] = c.stack;
                     let (n1, n2) = if c.is_real() {
                         (ior_of(scene, c.before, lambda[l], disp), ior_of(scene, c.after, lambda[l], disp))
@@ -1128,6 +1141,13 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    #[inline(always)]
+    fn count_lost(&self, c: medium::Crossing) {
+        if c.lost {
+            self.lost_media.set(self.lost_media.get() + 1);
+        }
+    }
+
     /// A smooth dielectric surface: a null crossing passes the ray on unchanged; a real interface reflects
     /// and refracts by the exact Fresnel equations (or Schlick's), between the media that
     /// [`medium::cross`] finds on both sides; a thin sheet reflects and transmits without bending.
@@ -1142,6 +1162,7 @@ impl<'a> Ctx<'a> {
             (ior(medium::current(scene, r.media)), ior(Some(this)), r.media)
         } else {
             let c = medium::cross(scene, r.media, this, hit.front);
+            self.count_lost(c);
             if !c.is_real() {
                 next.push(&passed(r, p_trans, c.stack));
                 return;

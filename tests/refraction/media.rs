@@ -150,3 +150,102 @@ fn liquid_in_glass_with_equal_priorities_last_entered_wins() {
     eprintln!("  against the priority model instead: {a2:.2e} rad");
     assert!(a2 > 3.0 * TOL && a2 > 100.0 * a, "equal priorities should not reproduce the priority model ({a2})");
 }
+
+/// A camera inside media starts in them: the ray is absorbed from the camera on, and leaves each
+/// medium through a real interface. Centre pixels (a pinhole at the centre of every sphere, looking at
+/// a quad light that fills the view) against closed forms.
+#[test]
+fn a_camera_inside_media_starts_in_them() {
+    let head = "[image]\nwidth = 5\nheight = 5\n[camera]\nposition = [0, 0, 0]\nlook_at = [0, 0, -1]\nfov = 1\n";
+    let light = "[[lights]]\ntype = \"quad\"\norigin = [-50, -50, -10]\nu = [100, 0, 0]\nv = [0, 100, 0]\nradiance = [1, 1, 1]\n";
+    let sphere = |r: f64, m: &str| format!("[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = {r}\nmaterial = \"{m}\"\n");
+    let mut profile = split_profile();
+    (profile.spp, profile.max_depth, profile.throughput_cutoff) = (1, 64, 1e-9);
+    profile.pixel_strategy = strata::sample::Strategy::Center;
+    let centre = |text: &str| {
+        let s = scene(text);
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        images::render(&s, profile.clone(), 1).to_rgb()[2 * 5 + 2].as_dvec3()
+    };
+    // Water (index 1.33, sigma 2) of radius 5 around the camera: the light through the exit face, and again
+    // after each pair of internal reflections (each a diameter of water): (1 - R) e^-5s / (1 - R^2 e^-20s).
+    let r0 = ((1.33f64 - 1.0) / 2.33).powi(2);
+    let water = "[materials.w]\ntype = \"dielectric\"\nior = 1.33\nabsorption = [2, 1, 0.5]\n";
+    let got = centre(&format!("{head}{water}{}{light}", sphere(5.0, "w")));
+    for (c, s) in [2.0f64, 1.0, 0.5].into_iter().enumerate() {
+        let want = (1.0 - r0) * (-5.0 * s).exp() / (1.0 - r0 * r0 * (-20.0 * s).exp());
+        assert!((got[c] - want).abs() < 1e-4 * want, "channel {c}: {} against {want}", got[c]);
+    }
+    // Two nested index-1 media (no reflection): the inner one's absorption over its radius 1, the outer
+    // one's over the 2 beyond. Declared either way round: the inner medium is the one the camera is in.
+    let (a, b) = (
+        "[materials.a]\ntype = \"dielectric\"\nior = 1.0\nabsorption = [1, 1, 1]\n",
+        "[materials.b]\ntype = \"dielectric\"\nior = 1.0\nabsorption = [0.5, 0.5, 0.5]\n",
+    );
+    for shapes in [format!("{}{}", sphere(1.0, "a"), sphere(3.0, "b")), format!("{}{}", sphere(3.0, "b"), sphere(1.0, "a"))] {
+        let got = centre(&format!("{head}{a}{b}{shapes}{light}"));
+        let want = (-1.0f64 - 0.5 * 2.0).exp();
+        assert!((got.x - want).abs() < 1e-5, "{} against {want}", got.x);
+    }
+    // Inside a CSG solid (a box with a spherical hole away from the camera): 3 of box along the ray.
+    let csg = "[[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmaterial = \"a\"\nchildren = [{ type = \"box\", min = [-4, -4, -3], max = [4, 4, 4] }, \
+               { type = \"sphere\", center = [0, 3, 0], radius = 0.5 }]\n";
+    let got = centre(&format!("{head}{a}{csg}{light}"));
+    assert!((got.x - (-3.0f64).exp()).abs() < 1e-5, "{} against {}", got.x, (-3.0f64).exp());
+}
+
+/// Where the camera's medium cannot hold for every camera ray, the scene says so, naming the camera.
+#[test]
+fn a_camera_medium_that_does_not_hold_is_warned_of() {
+    let glass = "[materials.g]\ntype = \"dielectric\"\nior = 1.5\n";
+    let cam = |extra: &str| {
+        format!("[image]\nwidth = 4\nheight = 4\n[camera]\nposition = [0, 0, 0]\nlook_at = [0, 0, -1]\nfov = 30\n{extra}{glass}")
+    };
+    let ball = |r: f64, extra: &str| format!("[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = {r}\nmaterial = \"g\"\n{extra}");
+    let cases = [
+        (cam("aperture = 0.2\nfocus_distance = 3\n") + &ball(0.1, ""), "lens aperture crosses"),
+        (cam("shutter = [0, 1]\n") + &ball(0.5, "motion = [1, 0, 0]\n"), "leaves the camera during the shutter"),
+        (cam("") + &(1..=5).map(|i| ball(i as f64, "")).collect::<String>(), "inside 5 nested media"),
+    ];
+    for (text, needle) in cases {
+        let s = scene(&text);
+        assert!(s.warnings.iter().any(|w| w.contains("camera.position") && w.contains(needle)), "{needle}: {:?}", s.warnings);
+    }
+    // Nothing to say for a camera well inside one medium, or outside all.
+    for text in [cam("aperture = 0.01\nfocus_distance = 3\n") + &ball(1.0, ""), cam("") + &ball(1.0, "").replace("[0, 0, 0]", "[0, 0, -5]")]
+    {
+        assert!(scene(&text).warnings.is_empty(), "{:?}", scene(&text).warnings);
+    }
+}
+
+/// A ray keeps 4 nested media; crossings into a fifth are counted (the CLI warns of them), never silent.
+/// Five concentric index-1 spheres, only the innermost absorbing, seen from outside.
+#[test]
+fn a_fifth_nested_medium_is_counted() {
+    use strata::film::Film;
+    use strata::render::{render_into, RenderJob};
+    use strata::wavefront::Settings;
+    let spheres = |n: usize| {
+        let mut t = String::from(
+            "[image]\nwidth = 5\nheight = 5\nbackground = [1, 1, 1]\n[camera]\nposition = [0, 0, 10]\nlook_at = [0, 0, 0]\nfov = 2\n",
+        );
+        for i in 0..n {
+            let sigma = if i + 1 == n { 1.0 } else { 0.0 };
+            t += &format!("[materials.m{i}]\ntype = \"dielectric\"\nior = 1.0\nabsorption = [{sigma}, {sigma}, {sigma}]\n");
+            t += &format!("[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = {}\nmaterial = \"m{i}\"\n", 1.0 - 0.1 * i as f64);
+        }
+        t
+    };
+    let mut profile = split_profile();
+    (profile.spp, profile.max_depth) = (1, 16);
+    profile.pixel_strategy = strata::sample::Strategy::Center;
+    for (n, lost) in [(4, false), (5, true)] {
+        let s = scene(&spheres(n));
+        let (film, stats) = render_into(&RenderJob::new(&s, Settings { profile: profile.clone(), seed: 1 }), Film::new(5, 5));
+        assert_eq!(stats.lost_media > 0, lost, "{n} media: {} lost crossings", stats.lost_media);
+        // With 4 the innermost absorbs over its diameter; the fifth's absorption is what is lost.
+        let centre = film.to_rgb()[2 * 5 + 2].x as f64;
+        let want = (-2.0 * (1.0 - 0.1 * (n - 1) as f64)).exp();
+        assert_eq!((centre - want).abs() < 1e-4, !lost, "{n} media: centre {centre}, absorbed {want}");
+    }
+}
