@@ -97,10 +97,14 @@ impl LightBuffer {
             return None;
         }
         let c0 = center.as_dvec3();
-        // The longest ray answered: 256x the farthest bound point (shading points lie on the
-        // primitives, or on unbounded planes; points on planes farther out are refused at query time).
-        // Its rounding allowance is then 2^-12 of the scene's reach from the light.
-        let reach = prims.iter().map(|(_, b)| (b.center - c0).length() + b.radius).fold(0.0f64, f64::max);
+        // The longest ray answered: 256x the scene's reach from the light (shading points lie on the
+        // primitives, or on unbounded planes; points farther out are refused at query time and traced
+        // through the BVH). Its rounding allowance is then 2^-12 of that reach. The reach is the 99th
+        // percentile of the prims' farthest points, not the farthest: one huge prim (a ground sphere of
+        // radius 1e8) would otherwise widen the allowance until every prim went on the `always` list.
+        let mut far: Vec<f64> = prims.iter().map(|(_, b)| (b.center - c0).length() + b.radius).collect();
+        let k = (far.len() - 1) * 99 / 100;
+        let reach = *far.select_nth_unstable_by(k, f64::total_cmp).1;
         if !reach.is_finite() {
             return None;
         }
@@ -184,6 +188,13 @@ impl LightBuffer {
     /// Entries over all cells (what the scene's buffer budget counts).
     pub fn entry_count(&self) -> usize {
         self.entries.len()
+    }
+
+    /// Mean entries per non-empty cell: the prims a ray whose cell lists any tests, at most (the
+    /// distance cut stops most lists early).
+    pub fn mean_list(&self) -> f64 {
+        let lists = self.start.windows(2).filter(|w| w[1] > w[0]).count();
+        self.entries.len() as f64 / lists.max(1) as f64
     }
 
     /// The cell of each lane's direction `q = o - center` from the centre, or [`NO_CELL`] where the

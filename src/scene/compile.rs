@@ -1265,8 +1265,13 @@ pub fn light_buffers(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bounded:
     light_buffers_within(lights, prims, bounds, bounded, LIGHT_BUFFER_ENTRIES)
 }
 
-/// [`light_buffers`] within `budget` entries in all: a buffer that would exceed what is left of it is
-/// not built (that light's shadow rays are traced through the BVH).
+/// [`light_buffers`] within `budget` entries in all: the first buffer that would exceed what is left of
+/// it is dropped, and no more are built (those lights' shadow rays are traced through the BVH); so are
+/// lights past the first [`MAX_LIGHT_BUFFERS`] point lights, whose buffers would cost more to build
+/// than they save (1,000 point lights over 1e4 spheres: 15 s to build, the render as fast without),
+/// and a buffer whose `always` list is longer than [`MAX_ALWAYS`] or whose cells list more than
+/// [`MAX_MEAN_LIST`] prims on average (each of its rays would test all of those: one huge prim around
+/// the light, or a light above a lattice of long thin beams, whose cones are wide).
 fn light_buffers_within(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bounded: &[u32], budget: usize) -> Vec<Option<LightBuffer>> {
     if prims.iter().any(|p| matches!(p.shape, Shape::Csg { .. })) {
         return vec![None; lights.len()];
@@ -1282,13 +1287,23 @@ fn light_buffers_within(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bound
             (pid, bound)
         })
         .collect();
-    let mut budget = budget;
+    let (mut budget, mut built) = (budget, 0);
     lights
         .iter()
         .map(|l| match *l {
-            Light::Point { position, .. } if budget > 0 => {
+            Light::Point { position, .. } if budget > 0 && built < MAX_LIGHT_BUFFERS => {
+                built += 1;
                 let lb = LightBuffer::build(position, 0.0, &spheres, None)?;
-                budget = budget.checked_sub(lb.entry_count())?;
+                if lb.always().len() > MAX_ALWAYS || lb.mean_list() > MAX_MEAN_LIST {
+                    return None;
+                }
+                match budget.checked_sub(lb.entry_count()) {
+                    Some(left) => budget = left,
+                    None => {
+                        budget = 0;
+                        return None;
+                    }
+                }
                 Some(lb)
             }
             _ => None,
@@ -1296,8 +1311,18 @@ fn light_buffers_within(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bound
         .collect()
 }
 
-/// Entries (8 bytes each) all of a scene's light buffers may hold together: 256 MiB.
-pub const LIGHT_BUFFER_ENTRIES: usize = 32 << 20;
+/// Point lights that get a light buffer (the first ones declared).
+pub const MAX_LIGHT_BUFFERS: usize = 32;
+
+/// The longest `always` list a light buffer may have (beyond it the BVH answers that light's rays).
+pub const MAX_ALWAYS: usize = 16;
+
+/// The most entries a light buffer's non-empty cells may hold on average (`bench_spheres`: 1.3).
+pub const MAX_MEAN_LIST: f64 = 32.0;
+
+/// Entries (8 bytes each) all of a scene's light buffers may hold together: 128 MiB (a buffer's build
+/// takes 12 bytes per entry more while it runs).
+pub const LIGHT_BUFFER_ENTRIES: usize = 16 << 20;
 
 fn mark_passable(materials: &mut [Material], used: &[bool]) {
     let media: Vec<&Dielectric> = materials
@@ -1435,5 +1460,39 @@ mod tests {
         // Room for the first buffer only: the others are traced through the BVH.
         let some = light_buffers_within(&lights, &prims, &bounds, &bounded, first);
         assert!(some[0].is_some() && some[2].is_none() && some[3].is_none());
+        // At most MAX_LIGHT_BUFFERS point lights get one (the first declared).
+        let many: Vec<Light> = (0..MAX_LIGHT_BUFFERS + 5).map(|i| light(8.0 + i as f32 * 0.1)).collect();
+        let built = light_buffers_within(&many, &prims, &bounds, &bounded, usize::MAX);
+        assert!(built[..MAX_LIGHT_BUFFERS].iter().all(Option::is_some) && built[MAX_LIGHT_BUFFERS..].iter().all(Option::is_none));
+    }
+
+    /// A light above a lattice of long thin beams (boxes 40 long, 0.04 thick): every beam's bounding
+    /// sphere is 20 wide, so its cone covers much of the light's sky and the cells list hundreds of
+    /// beams each. No buffer is built (the BVH answers: 13.5 s -> 0.07 s in a user trial's render);
+    /// the same number of small boxes keeps one.
+    #[test]
+    fn beams_that_fill_the_lights_sky_get_no_buffer() {
+        let light = [Light::Point { position: Vec3::new(10.0, 40.0, 10.0), intensity: Vec3::ONE }];
+        let boxes = |long: f32| -> Vec<Prim> {
+            (0..400)
+                .map(|i| {
+                    let (a, y) = ((i % 20) as f32 * 2.0 - 20.0, 0.5 + 0.05 * (i % 7) as f32);
+                    let (lo, hi) = if i % 2 == 0 {
+                        (Vec3::new(-long, y, a - 0.02), Vec3::new(long, y + 0.04, a + 0.02))
+                    } else {
+                        (Vec3::new(a - 0.02, y + 0.5, -long), Vec3::new(a + 0.02, y + 0.54, long))
+                    };
+                    let b = OBox::new(Affine3A::from_translation((lo + hi) * 0.5), (hi - lo) * 0.5);
+                    Prim { shape: Shape::Box(b), material: 0, motion: Vec3::ZERO, is_light: false }
+                })
+                .collect()
+        };
+        for (long, kept) in [(20.0, false), (0.02, true)] {
+            let prims = boxes(long);
+            let bounds: Vec<Aabb> = prims.iter().map(|p| prim_bounds(&p.shape, &Csg::new()).unwrap()).collect();
+            let bounded: Vec<u32> = (0..prims.len() as u32).collect();
+            let lb = light_buffers_within(&light, &prims, &bounds, &bounded, usize::MAX);
+            assert_eq!(lb[0].is_some(), kept, "half length {long}");
+        }
     }
 }
