@@ -665,15 +665,18 @@ fn identical_samples_are_warned_about() {
 }
 
 /// A zero-length shutter in a scene with motion is warned about (every time sample is one instant; the
-/// image at that instant is checked in tests/distribution); an open shutter is not.
+/// image at that instant is checked in tests/distribution), the default `[0, 0]` (no `shutter` given)
+/// and one sample per pixel included; an open shutter is not.
 #[test]
 fn a_zero_length_shutter_with_motion_is_warned_about() {
     let scene = tmp("shutter.toml");
-    for (shutter, warned) in [("[0.5, 0.5]", true), ("[0.0, 1.0]", false)] {
+    for (shutter, spp, warned) in
+        [("shutter = [0.5, 0.5]", "4", true), ("", "4", true), ("shutter = [0.5, 0.5]", "1", true), ("shutter = [0.0, 1.0]", "4", false)]
+    {
         std::fs::write(
             &scene,
             format!(
-                "[image]\nwidth = 8\nheight = 6\n[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\nfov = 40\nshutter = {shutter}\n\
+                "[image]\nwidth = 8\nheight = 6\n[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\nfov = 40\n{shutter}\n\
                  [materials.m]\ntype = \"lambert\"\nalbedo = [0.6, 0.5, 0.4]\n\
                  [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\nmotion = [1, 0, 0]\n\
                  [[lights]]\ntype = \"point\"\nposition = [0, 4, 4]\nintensity = [9, 9, 9]\n"
@@ -681,9 +684,9 @@ fn a_zero_length_shutter_with_motion_is_warned_about() {
         )
         .unwrap();
         let out = tmp("shutter.png");
-        let o = strata().args(["render", scene.to_str().unwrap(), "-q", "--spp", "4", "-o", out.to_str().unwrap()]).output().unwrap();
+        let o = strata().args(["render", scene.to_str().unwrap(), "-q", "--spp", spp, "-o", out.to_str().unwrap()]).output().unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(0), "{err}");
-        assert_eq!(err.contains("has zero length: every time sample is the instant 0.5"), warned, "{shutter}: {err}");
+        assert_eq!(err.contains("has zero length") && err.contains("no motion blur"), warned, "{shutter}: {err}");
     }
 }

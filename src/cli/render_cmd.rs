@@ -411,8 +411,13 @@ pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
 pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     let mut out = Vec::new();
     let [t0, t1] = scene.camera.shutter;
-    if scene.features.motion && t0 == t1 && p.spp > 1 {
-        out.push(format!("shutter [{t0}, {t1}] has zero length: every time sample is the instant {t0} (no motion blur)"));
+    // (`features.motion` is off for a shutter [0, 0], the default: ask the prims.)
+    if t0 == t1 && scene.prims.iter().any(|p| p.motion != glam::Vec3::ZERO) {
+        let default = if t0 == 0.0 { " (the default: give camera.shutter, e.g. [0, 1])" } else { "" };
+        out.push(format!(
+            "shutter [{t0}, {t1}] has zero length{default}: every time sample is the instant {t0}, so shapes with `motion` show no \
+             motion blur"
+        ));
     }
     if p.light_strategy == Strategy::Grid && scene.features.area_lights && p.light_samples == 1 && p.spp > 1 {
         out.push(
