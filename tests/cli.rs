@@ -65,12 +65,15 @@ fn render_writes_image_and_stats_json() {
     let img = image::open(&png).unwrap().into_rgb8();
     assert_eq!(img.dimensions(), (320, 240));
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    for k in ["width", "height", "spp", "seconds", "rays", "rays_per_second", "nonfinite_samples"] {
+    for k in ["width", "height", "spp", "seconds", "setup_seconds", "rays", "rays_per_second", "nonfinite_samples", "lost_media"] {
         assert!(v.get(k).is_some(), "missing {k}");
     }
     assert_eq!(v["width"], 320);
     assert_eq!(v["spp"], 2);
     assert_eq!(v["nonfinite_samples"], 0);
+    assert_eq!(v["lost_media"], 0);
+    assert!(v["setup_seconds"].as_f64().unwrap() > 0.0);
+    assert!(stdout.contains("setup: ") && stdout.contains("(read, parse, BVH)"), "{stdout}");
     assert_eq!(v["rays"]["camera"], 320 * 240 * 2);
     assert!(v["rays"]["shadow"].as_u64().unwrap() > 0);
 }

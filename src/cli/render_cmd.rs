@@ -155,7 +155,10 @@ fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
 }
 
 pub fn run(a: RenderArgs) -> Result<u8, Failure> {
+    let setup = Instant::now();
     let scene = load_scene(&a.scene).map_err(Failure::input)?;
+    // Reading, parsing, the BVHs and the light buffers: not in the render's time, so said apart.
+    let setup_seconds = setup.elapsed().as_secs_f64();
     let profile = resolve_profile(&a)?;
     for w in &scene.warnings {
         errln!("warning: {w}");
@@ -294,7 +297,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         write_film(f, &header, &film).map_err(Failure::runtime)?;
     }
     if !a.quiet {
-        print_summary(&a.scene, &scene, &job, &stats, &out);
+        print_summary(&a.scene, &scene, &job, &stats, setup_seconds, &out);
         let resumed = match &a.resume {
             Some(r) => format!(", resumed {resumed_units} of {n_units} work units from {}", r.display()),
             None => String::new(),
@@ -311,6 +314,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     if let Some(j) = &a.stats_json {
         let json = StatsJson {
             stats: &stats,
+            setup_seconds,
             work_units: WorkUnitsJson { done: header.units_done(), total: n_units, resumed: resumed_units },
             filter: job.settings.profile.filter.name(),
             strategies: UsedStrategies(used_strategies(&scene, &job.settings.profile)),
@@ -341,6 +345,8 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
 struct StatsJson<'a> {
     #[serde(flatten)]
     stats: &'a RenderStats,
+    /// Reading and compiling the scene (parse, BVHs, light buffers), before the render.
+    setup_seconds: f64,
     work_units: WorkUnitsJson,
     filter: &'static str,
     strategies: UsedStrategies,
@@ -571,7 +577,7 @@ fn mega(x: u64) -> String {
     format!("{:.2}M", x as f64 / 1e6)
 }
 
-pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStats, out: &Path) {
+pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStats, setup_seconds: f64, out: &Path) {
     let mut o = String::new();
     // Written at once and errors ignored: `strata render ... | head` must not panic on a closed pipe.
     macro_rules! wl { ($($t:tt)*) => {{ use std::fmt::Write as _; let _ = writeln!(o, $($t)*); }}; }
@@ -611,6 +617,13 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
         wl!("  shadow rays cleared untraced by the light-cone test: {}", mega(s.rays.shadow_cleared));
     }
     wl!("  time: {:.3} s wall, {:.2} M rays/s", s.seconds, s.rays_per_second / 1e6);
+    let points = scene.lights.iter().filter(|l| l.is_point()).count();
+    let buffers = if points > 0 {
+        format!(", light buffers for {} of {points} point lights", scene.light_buffers.iter().flatten().count())
+    } else {
+        String::new()
+    };
+    wl!("  setup: {setup_seconds:.3} s before the render (read, parse, BVH{buffers})");
     let t = &s.stage_seconds;
     wl!(
         "  stages (thread s): generate {:.3}, intersect {:.3}, csg_merge {:.3}, shade {:.3}, shadow {:.3}, accumulate {:.3}",
