@@ -566,7 +566,10 @@ fn interrupt_writes_what_was_done_and_says_so() {
     read_until(&mut lines, "work units");
     sigint(&child);
     let notice = read_until(&mut lines, "interrupted: finishing the work units in flight");
-    assert!(notice.contains(&format!("then writing {} and the film {} (Ctrl-C again", png.display(), film.display())), "{notice}");
+    assert!(
+        notice.contains(&format!("then writing {} and the film {} (a second Ctrl-C or signal quits", png.display(), film.display())),
+        "{notice}"
+    );
     let rest: String = lines.map(|l| l.unwrap() + "\n").collect();
     let status = child.wait().unwrap();
     let mut stdout = String::new();

@@ -456,3 +456,19 @@ fn a_checker_finer_than_the_coordinates_resolve_is_warned_about() {
         }
     }
 }
+
+/// Errors a newcomer meets first read as the mistake they are: `[lights]` for `[[lights]]`, a missing
+/// file (no position), a coordinate beyond the f32 range.
+#[test]
+fn first_mistakes_read_as_what_they_are() {
+    let text = format!("{BASE}[lights]\ntype = \"point\"\nposition = [0, 3, 0]\nintensity = [1, 1, 1]\n");
+    let e = parse_scene(Path::new("l.toml"), &text).unwrap_err();
+    assert!(e.message.contains("write `[[lights]]`"), "{e}");
+    assert_eq!(e.line, text.lines().position(|l| l == "[lights]").unwrap() + 1, "{e}");
+    let e = strata::scene::load_scene(Path::new("/nonexistent/nope.toml")).unwrap_err();
+    assert_eq!(e.to_string().split(": ").next(), Some("/nonexistent/nope.toml"), "{e}");
+    assert!(e.to_string().contains("cannot read file"), "{e}");
+    let (_, field, msg) = fail("[[shapes]]\ntype = \"sphere\"\ncenter = [1e39, 0, 0]\nradius = 1\nmaterial = \"m\"\n");
+    assert_eq!(field, "shapes[0].center");
+    assert!(msg.contains("f32 range"), "{msg}");
+}

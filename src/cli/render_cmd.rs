@@ -502,7 +502,7 @@ fn install_interrupt_handler(
             cancel.store(true, Ordering::SeqCst);
             say(&format!(
                 "interrupted: finishing the work units in flight, then writing {out} and the film {film_out} \
-                 (Ctrl-C again to quit at once without writing)"
+                 (a second Ctrl-C or signal quits at once without writing)"
             ));
         }
         // A signal within DEBOUNCE of the first is the same interrupt: GNU `timeout` (and schedulers that

@@ -103,7 +103,11 @@ impl Compiler<'_> {
     fn finite3(&self, v: &V3, field: &str) -> R<Vec3> {
         let a = v.get_ref().0;
         if a.iter().any(|x| !x.is_finite()) {
-            return Err(self.err(v.span(), field, "components must be finite numbers"));
+            return Err(self.err(
+                v.span(),
+                field,
+                "components must be finite numbers (not NaN or inf, and within f32 range: |x| < 3.4e38)",
+            ));
         }
         Ok(Vec3::from_array(a))
     }

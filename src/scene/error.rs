@@ -84,6 +84,12 @@ impl Source<'_> {
             let msg = "`[[...]]` makes an array of tables; a single table belongs here: write `[...]`".to_string();
             return self.error(span.clone(), self.key_at(span.start), msg);
         }
+        if !line.starts_with("[[") && line.starts_with('[') && message.starts_with("invalid type: map, expected a sequence") {
+            // `[lights]` where `[[lights]]` belongs (shapes, lights: arrays of tables).
+            let name = self.key_at(span.start);
+            let msg = format!("`[{name}]` makes one table; `{name}` is a list: write `[[{name}]]` before each entry");
+            return self.error(span.clone(), name, msg);
+        }
         let named = message.strip_prefix("unknown field ").or_else(|| message.strip_prefix("missing field "));
         let field = named.and_then(extract_backticked).unwrap_or_else(|| self.key_at(span.start));
         self.error(span, field, message)
@@ -135,9 +141,9 @@ pub fn read_text(path: &Path) -> Result<String, InputError> {
     let mut bytes = Vec::new();
     std::fs::File::open(path)
         .and_then(|f| std::io::Read::read_to_end(&mut std::io::Read::take(f, MAX_INPUT_BYTES as u64 + 1), &mut bytes))
-        .map_err(|e| err(1, format!("cannot read file: {e}")))?;
+        .map_err(|e| err(0, format!("cannot read file: {e}")))?;
     if bytes.len() > MAX_INPUT_BYTES {
-        return Err(err(1, format!("file is larger than the limit of {MAX_INPUT_BYTES} bytes")));
+        return Err(err(0, format!("file is larger than the limit of {MAX_INPUT_BYTES} bytes (16 MiB)")));
     }
     String::from_utf8(bytes).map_err(|e| {
         let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
