@@ -696,3 +696,41 @@ fn a_zero_length_shutter_with_motion_is_warned_about() {
         assert_eq!(err.contains("has zero length") && err.contains("no motion blur"), warned, "{shutter}: {err}");
     }
 }
+
+/// `--size WxH` renders the scene at another size (the image and the summary say so), a film records it
+/// (a resume at the scene's own size is refused, naming the sizes), and bad sizes are input errors.
+#[test]
+fn size_renders_at_another_size() {
+    let (png, film) = (tmp("sized.png"), tmp("sized.film"));
+    let o = strata()
+        .args([
+            "render",
+            "scenes/shapes/sphere.toml",
+            "--size",
+            "40x30",
+            "--spp",
+            "1",
+            "-o",
+            png.to_str().unwrap(),
+            "--film",
+            film.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("40x30"));
+    assert_eq!(image::open(&png).unwrap().into_rgb8().dimensions(), (40, 30));
+    let o = strata()
+        .args(["render", "scenes/shapes/sphere.toml", "--spp", "1", "-o", png.to_str().unwrap(), "--resume", film.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("image size: film 40x30, this render 320x240"), "{err}");
+    for bad in ["40", "0x30", "40x16385", "8192x8192", "ax3"] {
+        let o = strata().args(["render", "scenes/shapes/sphere.toml", "--size", bad, "-o", png.to_str().unwrap()]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{bad}: {err}");
+        assert!(err.contains(&format!("--size {bad}: ")), "{bad}: {err}");
+    }
+}

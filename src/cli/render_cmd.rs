@@ -6,7 +6,7 @@ use crate::film::output::{check_file_writable, check_writable, write_image};
 use crate::film::Film;
 use crate::render::{check_render_size, render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
 use crate::sample::Strategy;
-use crate::scene::{load_scene, Profile, Scene};
+use crate::scene::{load_scene_sized, Profile, Scene};
 use crate::wavefront::Settings;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -39,6 +39,9 @@ pub struct RenderArgs {
     /// Maximum bounces (overrides the profile).
     #[arg(long)]
     pub max_depth: Option<u32>,
+    /// Image size WxH instead of the scene's (e.g. 160x100 for a quick look; the camera keeps its fov).
+    #[arg(long, value_name = "WxH")]
+    pub size: Option<String>,
     /// Override any profile field: --set key=value (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
@@ -122,6 +125,19 @@ pub fn default_output(scene: &Path, ext: &str) -> PathBuf {
     PathBuf::from(format!("{stem}.{ext}"))
 }
 
+/// Parse `--size WxH` within the scene format's limits on the image.
+pub fn parse_size(text: &str) -> Result<(u32, u32), Failure> {
+    let side = crate::scene::MAX_IMAGE_SIDE;
+    let bad = |why: String| Failure::input(format!("--size {text}: {why}"));
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(|| bad("expected WxH, e.g. 320x200".into()))?;
+    let parse = |s: &str| s.trim().parse::<i64>().ok().filter(|v| (1..=side).contains(v)).map(|v| v as u32);
+    let (w, h) = parse(w).zip(parse(h)).ok_or_else(|| bad(format!("each side must be a whole number in 1..={side}")))?;
+    if w as u64 * h as u64 > crate::scene::MAX_PIXELS {
+        return Err(bad(format!("{} pixels; the limit is {}", w as u64 * h as u64, crate::scene::MAX_PIXELS)));
+    }
+    Ok((w, h))
+}
+
 /// Parse `--samples A..B` against the profile's spp.
 pub fn parse_samples(text: &str, spp: u32) -> Result<Range<u32>, Failure> {
     let bad = || Failure::input(format!("--samples {text}: expected A..B with 0 <= A < B <= spp ({spp})"));
@@ -155,8 +171,9 @@ fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
 }
 
 pub fn run(a: RenderArgs) -> Result<u8, Failure> {
+    let size = a.size.as_deref().map(parse_size).transpose()?;
     let setup = Instant::now();
-    let scene = load_scene(&a.scene).map_err(Failure::input)?;
+    let scene = load_scene_sized(&a.scene, size).map_err(Failure::input)?;
     // Reading, parsing, the BVHs and the light buffers: not in the render's time, so said apart.
     let setup_seconds = setup.elapsed().as_secs_f64();
     let profile = resolve_profile(&a)?;

@@ -2,7 +2,7 @@
 
 use super::Failure;
 use crate::sample::Strategy;
-use crate::scene::{load_scene, Material, Profile, Scene};
+use crate::scene::{load_scene_sized, Material, Profile, Scene};
 use crate::study::reference::{obtain, RefError, ReferenceSource};
 use crate::study::run::{
     configure, light_only, run_series, slopes, summarize, Plan, RunResult, Summary, TIME_SLOPE_MIN_COUNTS, TIME_SLOPE_MIN_GROWTH,
@@ -85,6 +85,9 @@ pub struct StudyArgs {
     /// Worker threads (default: all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Image size WxH instead of the scene's (the camera keeps its fov), as `render --size`.
+    #[arg(long, value_name = "WxH")]
+    pub size: Option<String>,
     /// With `light` among several integrals: n light samples per shading point as well as n spp.
     #[arg(long)]
     pub light_samples_from_spp: bool,
@@ -134,7 +137,8 @@ struct Setup {
 }
 
 fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
-    let scene = load_scene(&a.scene).map_err(Failure::input)?;
+    let size = a.size.as_deref().map(super::render_cmd::parse_size).transpose()?;
+    let scene = load_scene_sized(&a.scene, size).map_err(Failure::input)?;
     let profile = super::load_profile(&a.profile, |_| Vec::new(), &a.set)?;
     for w in &scene.warnings {
         errln!("warning: {w}");

@@ -37,12 +37,24 @@ const BEYOND: &str = "beyond that the kernels' f32 squares overflow";
 
 /// Read, parse, validate and compile a scene file.
 pub fn load_scene(path: &Path) -> R<Scene> {
+    load_scene_sized(path, None)
+}
+
+/// [`load_scene`] at `size` (width, height) instead of the file's `[image]` size, when given (the
+/// CLI's `--size`; the caller checks its limits). The camera keeps its `fov`: a new aspect ratio shows
+/// more or less of the scene across, as in the file.
+pub fn load_scene_sized(path: &Path, size: Option<(u32, u32)>) -> R<Scene> {
     let text = read_text(path)?;
-    parse_scene(path, &text)
+    parse_scene_sized(path, &text, size)
 }
 
 /// Parse, validate and compile scene text; `path` is used in error messages.
 pub fn parse_scene(path: &Path, text: &str) -> R<Scene> {
+    parse_scene_sized(path, text, None)
+}
+
+/// [`parse_scene`] at `size` instead of the file's image size, when given.
+pub fn parse_scene_sized(path: &Path, text: &str, size: Option<(u32, u32)>) -> R<Scene> {
     let src = Source { path, text };
     let file: SceneFile = toml::from_str(text).map_err(|e| src.from_toml(&e))?;
     let mut c = Compiler {
@@ -55,6 +67,7 @@ pub fn parse_scene(path: &Path, text: &str) -> R<Scene> {
         lights: Vec::new(),
         used_solids: BTreeSet::new(),
         lenient_material: false,
+        size,
         unbounded_by: None,
         warnings: Vec::new(),
         checkers: Default::default(),
@@ -79,6 +92,8 @@ struct Compiler<'a> {
     used_solids: BTreeSet<String>,
     /// While checking an unused solid: a leaf may lack a material (a use would give it one).
     lenient_material: bool,
+    /// The image size to use instead of the file's (`--size`).
+    size: Option<(u32, u32)>,
     /// Set by each `csg_tree` call: for an unbounded subtree, the child that makes it so (its span, field
     /// and what it is); `None` for a bounded one. Names the culprit when a top-level solid is unbounded.
     unbounded_by: Option<(Range<usize>, String, String)>,
@@ -179,8 +194,8 @@ impl Compiler<'_> {
             }
             Ok(v as u32)
         };
-        let width = check_side(&img.width, "width")?;
-        let height = check_side(&img.height, "height")?;
+        let (width, height) = (check_side(&img.width, "width")?, check_side(&img.height, "height")?);
+        let (width, height) = self.size.unwrap_or((width, height));
         if width as u64 * height as u64 > MAX_PIXELS {
             return Err(self.err(
                 img.height.span(),

@@ -8,7 +8,7 @@ pub mod glass_neighbours;
 pub mod leaf_spheres;
 pub mod profile;
 
-pub use compile::{load_scene, parse_scene};
+pub use compile::{load_scene, load_scene_sized, parse_scene, parse_scene_sized};
 pub use error::InputError;
 pub use profile::{Branching, Profile};
 
