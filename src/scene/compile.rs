@@ -161,8 +161,9 @@ impl Compiler<'_> {
                 v.span(),
                 field,
                 format!(
-                    "background components must be below {MAX_SAMPLE_VALUE:.0} (2^31, the film's range: every sample that sees it would be discarded), got {:e}; scale every radiance and intensity of the scene down by one factor",
-                    c.max_element()
+                    "background components must be below {MAX_SAMPLE_VALUE:.0} (2^31, the film's range: every sample that sees it would be discarded), got {:e}{}; scale every radiance and intensity of the scene down by one factor",
+                    c.max_element(),
+                    if c.max_element() == MAX_SAMPLE_VALUE { " (the value as f32: the largest accepted is 2147483520)" } else { "" }
                 ),
             ));
         }
