@@ -153,6 +153,32 @@ fn fresnel_matches_sp_amplitudes_and_f32_matches_f64() {
     }
 }
 
+/// Near an index ratio of 1 (glass of index 1.0001, an index-matched pair) the f32 reflectance keeps
+/// its relative precision: against the s/p amplitude formula in f64 at the same f32 inputs, within 1e-4
+/// of R at every angle (short of the critical angle's neighbourhood for eta > 1), both sides of 1. The plain
+/// amplitude numerators cancel there: R of 2.5e-9 at n = 1.0001 came out 0 (a user trial).
+#[test]
+fn fresnel_near_an_index_ratio_of_one_keeps_relative_precision() {
+    for eta in [1.0001f32, 1.0 / 1.0001, 1.001, 0.999, 1.01, 0.99, 1.3, 0.7] {
+        for k in 0..200 {
+            let c32 = ((k as f64 + 0.5) / 200.0 * FRAC_PI_2).cos() as f32;
+            let (c, e) = (c32 as f64, eta as f64);
+            let ct2 = 1.0 - e * e * (1.0 - c * c);
+            // (Beyond, or within cos_t < 0.1 of, the critical angle the f32 cos_t^2 itself cancels:
+            // that conditioning is `fresnel_total_internal_reflection_and_continuity`'s.)
+            if ct2 <= 0.0 || (eta > 1.0 && ct2 < 0.01) {
+                continue;
+            }
+            let ct = ct2.sqrt();
+            let (rs, rp) = ((e * c - ct) / (e * c + ct), (c - e * ct) / (c + e * ct));
+            let want = 0.5 * (rs * rs + rp * rp);
+            let got = fresnel_dielectric(c32, eta) as f64;
+            // (Where R crosses the p-amplitude's zero it is still rs^2 / 2: no cancellation of R itself.)
+            assert!((got - want).abs() <= 1e-4 * want + 1e-30, "eta {eta} cos {c32}: {got:e} against {want:e}");
+        }
+    }
+}
+
 #[test]
 fn fresnel_total_internal_reflection_and_continuity() {
     for (n1, n2) in [(1.5f64, 1.0f64), (2.42, 1.0), (4.0, 1.0), (1.5, 1.33)] {

@@ -70,8 +70,13 @@ fn fresnel_parts_x8(cos_i: f32x8, eta: f32x8) -> (f32x8, f32x8, f32x8) {
     let ok = ct2.simd_gt(zero);
     let ct = ct2.sqrt();
     let e = eta.simd_gt(f32x8::splat(f32::MIN_POSITIVE)).select(eta, f32x8::splat(f32::MIN_POSITIVE));
-    let rs = (e * c - ct) / (e * c + ct);
-    let rp = (c - e * ct) / (c + e * ct);
+    // Near eta = 1 the numerators from Snell's identities, as `fresnel_dielectric` forms them.
+    let near = (e - one).abs().simd_lt(f32x8::splat(0.5));
+    let (m, q, e2) = (e - one, e + one, e * e);
+    let (s, p) = (e * c + ct, c + e * ct);
+    let g = c * c - e2 * ((one - c) * (one + c));
+    let rs = near.select((m / s) * (q / s), (e * c - ct) / s);
+    let rp = near.select(-((m / p) * (q / p)) * g, (c - e * ct) / p);
     (ok.select(f32x8::splat(0.5) * (rs * rs + rp * rp), one), c, ct2)
 }
 
