@@ -202,6 +202,13 @@ fn an_unbounded_half_space_says_where_one_belongs() {
         assert!(msg.contains("unbounded") && msg.contains("intersected with a bounded solid or subtracted from one"), "{msg}");
         assert!(msg.contains("`shapes[0]`"), "the message names the solid too: {msg}");
     }
+    // Through a named solid: the half-space's own definition, at its line.
+    let text = format!(
+        "{BASE}[solids.h]\ntype = \"halfspace\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\n{}",
+        solid("union", ball, "{ use = \"h\" }")
+    );
+    let e = parse_scene(Path::new("bad.toml"), &text).unwrap_err();
+    assert_eq!((e.field.as_str(), e.line), ("solids.h", text.lines().position(|l| l == "[solids.h]").unwrap() + 1), "{e}");
     // An unbounded union inside an intersection with a bounded solid is bounded, and accepted.
     for (op, a, b) in [("difference", ball, hs), ("intersection", hs, ball), ("intersection", ball, &nested("union", ball, hs))] {
         let text = format!("{BASE}{}", solid(op, a, b));

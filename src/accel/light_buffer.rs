@@ -93,6 +93,22 @@ impl LightBuffer {
     /// point light), over `prims` (id, bound). `side`: cells per face side, or `None` to choose from the
     /// bounds (so that a typical primitive covers a few cells). `None` when there is nothing to list.
     pub fn build(center: Vec3, light_radius: f32, prims: &[(u32, Bound)], side: Option<u32>) -> Option<Self> {
+        Self::build_within(center, light_radius, prims, side, usize::MAX, f64::INFINITY)
+    }
+
+    /// [`LightBuffer::build`], given up (`None`) as soon as its entries would pass `max_entries` or
+    /// `max_mean` per cell of the cube (so `max_mean` per non-empty cell too): the cells' lists are
+    /// counted while they are made, and making stops there, so a buffer that would not pay costs
+    /// neither its memory nor its time (a lattice of long beams around a light: 10^5 cells per beam).
+    /// Whether it is given up does not depend on the thread count.
+    pub fn build_within(
+        center: Vec3,
+        light_radius: f32,
+        prims: &[(u32, Bound)],
+        side: Option<u32>,
+        max_entries: usize,
+        max_mean: f64,
+    ) -> Option<Self> {
         if prims.is_empty() || !center.is_finite() || !(light_radius >= 0.0) {
             return None;
         }
@@ -134,17 +150,29 @@ impl LightBuffer {
         // (cell, near^2, id) for every cell a cone meets, cones in parallel chunks (concatenated in
         // order, so the result does not depend on the thread count).
         let table = FaceCells::new(n);
+        let cap = max_entries.min((max_mean * cells as f64).min(usize::MAX as f64) as usize);
+        let made = std::sync::atomic::AtomicUsize::new(0);
+        let over = || made.load(std::sync::atomic::Ordering::Relaxed) > cap;
         let chunks: Vec<Vec<(u32, f32, u32)>> = cones
             .par_chunks(4096)
             .map(|chunk| {
                 let mut out = Vec::new();
                 for &(id, axis, alpha, near) in chunk {
+                    if over() {
+                        break;
+                    }
+                    let before = out.len();
                     let near2 = round_down((near * near) as f32, near * near);
                     table.for_each_cell(axis, alpha, |cell| out.push((cell, near2, id)));
+                    made.fetch_add(out.len() - before, std::sync::atomic::Ordering::Relaxed);
                 }
                 out
             })
             .collect();
+        // (The total is the same whatever the chunks' order: over the cap, some chunk saw it so.)
+        if made.into_inner() > cap {
+            return None;
+        }
         // Counting sort by cell, then each cell's entries by distance (and id: a total order).
         let mut start = vec![0u32; cells + 1];
         for e in chunks.iter().flatten() {
@@ -418,6 +446,34 @@ mod tests {
         assert_eq!(&cells[..4], &[NO_CELL; 4]);
         for &c in &cells[4..] {
             assert!(c < 6 * lb.side() * lb.side(), "{cells:?}");
+        }
+    }
+
+    /// A build given a cap gives up (`None`) exactly when its entries would pass it, whatever the
+    /// thread count, and otherwise equals the uncapped build: wide cones (spheres close around the
+    /// light) make many entries, and caps just below and at the count decide.
+    #[test]
+    fn a_capped_build_gives_up_past_its_cap() {
+        let mut f = crate::sample::hash::test_uniforms(0xcab);
+        let spheres: Vec<(u32, Bound)> = (0..5000)
+            .map(|i| {
+                let c = DVec3::new(f() as f64 * 20.0 - 10.0, f() as f64 * 4.0, f() as f64 * 20.0 - 10.0);
+                (i, Bound { center: c, radius: 0.05 + f() as f64 * if i % 10 == 0 { 2.0 } else { 0.1 } })
+            })
+            .collect();
+        let light = Vec3::new(0.5, 6.0, -0.5);
+        let full = LightBuffer::build(light, 0.0, &spheres, None).unwrap();
+        let n = full.entry_count();
+        assert!(n > 10_000, "{n} entries");
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                assert!(LightBuffer::build_within(light, 0.0, &spheres, None, n - 1, f64::INFINITY).is_none());
+                let at = LightBuffer::build_within(light, 0.0, &spheres, None, n, f64::INFINITY).unwrap();
+                assert_eq!((at.entry_count(), &at.start, &at.always), (n, &full.start, &full.always));
+                let cells = 6.0 * (full.side() as f64).powi(2);
+                assert!(LightBuffer::build_within(light, 0.0, &spheres, None, usize::MAX, (n as f64 - 1.0) / cells).is_none());
+            });
         }
     }
 }

@@ -252,16 +252,6 @@ fn check(tree: &CsgTree, depth: usize) -> Result<(), CsgError> {
     }
 }
 
-/// Whether a node of `op` over `children` has finite bounds, by the rule [`Csg::add_solid`] applies (a
-/// union with an unbounded operand is unbounded, a difference is as bounded as its first operand, an
-/// intersection is bounded when one operand is). The scene compiler asks it of each node to name the
-/// child that makes a solid unbounded.
-pub fn node_is_bounded(op: Op, children: &[CsgTree]) -> bool {
-    let (mut leaves, mut instrs) = (Vec::new(), Vec::new());
-    let bounds: Vec<Bound> = children.iter().map(|c| compile(c, 0, &mut leaves, &mut instrs)).collect();
-    matches!(combine(op, &bounds), Bound::Finite(..))
-}
-
 /// The bound of a node of `op` over its children's `bounds`.
 fn combine(op: Op, bounds: &[Bound]) -> Bound {
     match op {

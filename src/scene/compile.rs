@@ -340,7 +340,7 @@ impl Compiler<'_> {
         } else {
             Default::default()
         };
-        let camera_media = if features.dielectric { self.camera_media(&camera, &file.camera, &bounds) } else { Vec::new() };
+        let camera_media = if features.dielectric { self.camera_media(&camera, &file.camera) } else { Vec::new() };
         Ok(Scene {
             camera_media,
             width,
@@ -374,7 +374,7 @@ impl Compiler<'_> {
     /// open, outermost (largest bounds) first. Warns where that cannot hold for every camera ray: a
     /// medium the camera leaves or enters during the shutter, or whose surface the lens aperture
     /// crosses, a CSG solid of several materials around the camera, more media than a ray's stack keeps.
-    fn camera_media(&mut self, camera: &Camera, def: &S<CameraDef>, bounds: &[Aabb]) -> Vec<u32> {
+    fn camera_media(&mut self, camera: &Camera, def: &S<CameraDef>) -> Vec<u32> {
         let pos = camera.position;
         // The aperture's rim, where it crosses the surface the lens centre is inside of.
         let rim: Vec<Vec3> = if camera.lens_radius > 0.0 {
@@ -385,7 +385,7 @@ impl Compiler<'_> {
         let mut found: Vec<(f32, u32)> = Vec::new();
         let mut notes: Vec<String> = Vec::new();
         let name = |c: &Self, m: u32| c.material_ids.iter().find(|(_, &id)| id == m).map_or_else(|| format!("#{m}"), |(n, _)| n.clone());
-        for (i, p) in self.prims.iter().enumerate() {
+        for p in &self.prims {
             let material = match p.shape {
                 Shape::Csg { solid } => {
                     let mut ms = self.csg.solid_leaves(solid).map(|k| self.csg.leaf(k).material);
@@ -417,20 +417,23 @@ impl Compiler<'_> {
                 }
             };
             let at_open = inside(pos, camera.shutter[0]);
-            let nm = name(self, material);
             if at_open != inside(pos, camera.shutter[1]) {
                 notes.push(format!(
-                    "the moving `{nm}` solid {} the camera during the shutter: camera rays take the media at shutter open",
+                    "the moving `{}` solid {} the camera during the shutter: camera rays take the media at shutter open",
+                    name(self, material),
                     if at_open { "leaves" } else { "reaches" }
                 ));
             }
             if rim.iter().any(|&x| inside(x, camera.shutter[0]) != at_open) {
                 notes.push(format!(
-                    "the lens aperture crosses the surface of a `{nm}` solid: camera rays take the media at the lens centre"
+                    "the lens aperture crosses the surface of a `{}` solid: camera rays take the media at the lens centre",
+                    name(self, material)
                 ));
             }
             if at_open {
-                found.push((bounds[i].surface_area(), material));
+                // (The bounds of the solid itself, not swept over the shutter as the BVH's are.)
+                let area = prim_bounds(&p.shape, &self.csg).map_or(f32::INFINITY, |b| b.surface_area());
+                found.push((area, material));
             }
         }
         // Outermost first: a solid inside another has the smaller bounds.
@@ -991,29 +994,23 @@ impl Compiler<'_> {
     ) -> R<CsgTree> {
         self.unbounded_by = None;
         let tree = self.csg_tree_inner(def, field, parent, material, depth, uses)?;
-        if let CsgTree::Leaf(leaf) = &tree {
+        // (A `use` of a bare half-space: the inner call has named the definition, at its own line.)
+        if let (CsgTree::Leaf(leaf), None) = (&tree, &def.get_ref().use_solid) {
             self.unbounded_by = leaf.bounds().is_none().then(|| (def.span(), field.to_string(), "this half-space".to_string()));
         }
         Ok(tree)
     }
 
-    /// Set `unbounded_by` for a node of `op` over `kids`, whose culprits (`None`: bounded) are `culprits`.
-    fn node_culprit(
-        &mut self,
-        op: Op,
-        kids: &[CsgTree],
-        mut culprits: Vec<Option<(Range<usize>, String, String)>>,
-        span: Range<usize>,
-        field: &str,
-    ) {
-        self.unbounded_by = if csg::program::node_is_bounded(op, kids) {
-            None
-        } else {
-            match op {
-                Op::Union => culprits.into_iter().flatten().next(),
-                Op::Difference => culprits.swap_remove(0),
-                Op::Intersection => Some((span, field.to_string(), "this intersection of unbounded solids only".to_string())),
-            }
+    /// Set `unbounded_by` for a node of `op` whose children's culprits (`None`: bounded) are `culprits`.
+    /// The rule is `Csg::add_solid`'s bounds, on the children's flags (a child is unbounded exactly when
+    /// it has a culprit): a union is bounded when all its operands are, a difference when its first is,
+    /// an intersection when any is (a half-space only clips a finite box).
+    fn node_culprit(&mut self, op: Op, mut culprits: Vec<Option<(Range<usize>, String, String)>>, span: Range<usize>, field: &str) {
+        self.unbounded_by = match op {
+            Op::Union => culprits.into_iter().flatten().next(),
+            Op::Difference => culprits.swap_remove(0),
+            Op::Intersection if culprits.iter().any(Option::is_none) => None,
+            Op::Intersection => Some((span, field.to_string(), "this intersection of unbounded solids only".to_string())),
         };
     }
 
@@ -1161,7 +1158,7 @@ impl Compiler<'_> {
                         return Err(self.err(sp, f("children"), "a group needs at least one child that is not a hole"));
                     }
                     // (Holes are subtracted: only the solids' union can make the group unbounded.)
-                    self.node_culprit(Op::Union, &solids, culprits, sp.clone(), field);
+                    self.node_culprit(Op::Union, culprits, sp.clone(), field);
                     let body = CsgTree::Node { op: Op::Union, children: solids };
                     if holes.is_empty() {
                         body
@@ -1184,7 +1181,7 @@ impl Compiler<'_> {
                         kids.push(self.csg_tree(c, &format!("{field}.children[{i}]"), t, material, depth + 1, uses)?);
                         culprits.push(self.unbounded_by.take());
                     }
-                    self.node_culprit(op, &kids, culprits, sp.clone(), field);
+                    self.node_culprit(op, culprits, sp.clone(), field);
                     CsgTree::Node { op, children: kids }
                 }
             }
@@ -1313,17 +1310,12 @@ fn light_buffers_within(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bound
         .map(|l| match *l {
             Light::Point { position, .. } if budget > 0 && built < MAX_LIGHT_BUFFERS => {
                 built += 1;
-                let lb = LightBuffer::build(position, 0.0, &spheres, None)?;
+                // (Given up while it is made once past the budget or the mean: `None` either way.)
+                let lb = LightBuffer::build_within(position, 0.0, &spheres, None, budget, MAX_MEAN_LIST)?;
                 if lb.always().len() > MAX_ALWAYS || lb.mean_list() > MAX_MEAN_LIST {
                     return None;
                 }
-                match budget.checked_sub(lb.entry_count()) {
-                    Some(left) => budget = left,
-                    None => {
-                        budget = 0;
-                        return None;
-                    }
-                }
+                budget -= lb.entry_count();
                 Some(lb)
             }
             _ => None,

@@ -134,7 +134,8 @@ fn extract_backticked(s: &str) -> Option<String> {
     Some(s[a + 1..a + 1 + b].to_string())
 }
 
-/// Read a file as UTF-8 text, with an `InputError` (line 1) for unreadable or non-UTF-8 files.
+/// Read a file as UTF-8 text, with an `InputError` for unreadable (line 0: no position) or non-UTF-8
+/// (at the first bad byte) files.
 pub fn read_text(path: &Path) -> Result<String, InputError> {
     let err = |line: usize, message: String| InputError { file: path.to_path_buf(), line, column: 1, field: String::new(), message };
     // Read at most one byte past the limit: a huge file (or /dev/zero) is refused without being read.

@@ -15,9 +15,11 @@
 //! Real interfaces with equal indices on both sides (an index-matched pair, a dielectric of index 1 in
 //! air) reflect nothing and do not bend; shading treats them as null crossings too.
 //!
-//! A ray that leaves a medium it never entered (its entry was lost: a fifth nested medium that did not
-//! fit the stack, counted as [`Crossing::lost`]) is taken to have been inside it. Camera rays start with
-//! the media around the camera (`Scene::camera_media`).
+//! A fifth nested medium does not fit the stack: its entry is lost (counted as [`Crossing::lost`]) and
+//! both its surfaces are null crossings for that ray, which stays in the medium it was in. A ray that
+//! leaves a medium it never entered on a stack with room (the camera inside a medium it does not start
+//! in: a CSG solid of several materials, an aperture or shutter across a surface) is taken to have been
+//! inside it. Camera rays start with the media around the camera (`Scene::camera_media`).
 
 use super::queues::MediumStack;
 use crate::scene::{Dielectric, Material, Scene};
@@ -84,7 +86,9 @@ pub fn cross(scene: &Scene, stack: MediumStack, m: u32, entering: bool) -> Cross
         let after = stack.push(m);
         Crossing { before: current(scene, stack), after: current(scene, after), stack: after, lost: stack.is_full() }
     } else {
-        let before = if stack.contains(m) {
+        let before = if stack.contains(m) || stack.is_full() {
+            // (Not on a full stack: a fifth medium whose entry was lost, and whose surface was a null
+            // crossing on the way in; on the way out too, so the ray stays in the medium it was in.)
             current(scene, stack)
         } else {
             let inside = stack.push(m);

@@ -247,5 +247,19 @@ fn a_fifth_nested_medium_is_counted() {
         let centre = film.to_rgb()[2 * 5 + 2].x as f64;
         let want = (-2.0 * (1.0 - 0.1 * (n - 1) as f64)).exp();
         assert_eq!((centre - want).abs() < 1e-4, !lost, "{n} media: centre {centre}, absorbed {want}");
+        if lost {
+            assert!((centre - 1.0).abs() < 1e-6, "the lost medium neither absorbs nor reflects: {centre}");
+        }
     }
+    // The lost fifth medium of index 1.5: both its surfaces are null crossings for the ray that could
+    // not keep it (none on the way in, none on the way out: no reflection of 4% at its exit). A black
+    // background and a light behind the spheres, so that a reflection would lose light.
+    let light = "[[lights]]\ntype = \"quad\"\norigin = [-50, -50, -10]\nu = [100, 0, 0]\nv = [0, 100, 0]\nradiance = [1, 1, 1]\n";
+    let text = spheres(5).replace("[materials.m4]\ntype = \"dielectric\"\nior = 1.0", "[materials.m4]\ntype = \"dielectric\"\nior = 1.5");
+    let text = text.replace("background = [1, 1, 1]", "background = [0, 0, 0]") + light;
+    assert!(text.contains("ior = 1.5") && text.contains("background = [0, 0, 0]"));
+    let (film, stats) = render_into(&RenderJob::new(&scene(&text), Settings { profile, seed: 1 }), Film::new(5, 5));
+    assert!(stats.lost_media > 0);
+    let centre = film.to_rgb()[2 * 5 + 2].x;
+    assert!((centre - 1.0).abs() < 1e-6, "the lost medium neither absorbs nor reflects: {centre}");
 }
