@@ -980,9 +980,8 @@ impl Compiler<'_> {
         Ok((o, u, v))
     }
 
-    /// Build a CSG tree; `t` is the parent's transform, `material` the inherited override.
-    /// [`Self::csg_tree_inner`], then `unbounded_by` for the subtree: itself for a bare half-space; for a
-    /// node the inner call has set it from its children.
+    /// Build a CSG tree ([`Self::csg_tree_inner`]), then `unbounded_by` for the subtree: itself for a
+    /// bare half-space; for a node the inner call has set it from its children.
     fn csg_tree(
         &mut self,
         def: &S<ShapeDef>,
@@ -1014,6 +1013,7 @@ impl Compiler<'_> {
         };
     }
 
+    /// Build a CSG tree; `parent` is the parent's transform, `material` the inherited override.
     fn csg_tree_inner(
         &mut self,
         def: &S<ShapeDef>,
