@@ -472,7 +472,8 @@ fn cli_writes_csv_plot_and_sheet() {
 }
 
 /// `--reference-spp` renders once and caches; the cache is reused only for the same scene text, profile
-/// and N; a cached reference given back as `--reference FILE.exr` gives the same errors.
+/// and N, and only the image it wrote (not one copied over it); a cached reference given back as
+/// `--reference FILE.exr` gives the same errors.
 #[test]
 fn reference_cache_is_reused_only_when_fresh() {
     let dir = tmp_dir("cache");
@@ -498,6 +499,13 @@ fn reference_cache_is_reused_only_when_fresh() {
     assert_eq!(mse_col(&csv1), mse_col(&csv2));
     // A different N, a different profile: not reused.
     assert!(run_ok(&args("32")).contains("rendered in"));
+    // The 64-sample image replaced by the 32-sample one (same size): its sidecar no longer matches.
+    let other =
+        std::fs::read_dir(d).unwrap().map(|e| e.unwrap().path()).find(|p| p.extension().is_some_and(|e| e == "exr") && *p != exrs[0]);
+    let saved = std::fs::read(&exrs[0]).unwrap();
+    std::fs::copy(other.expect("the 32-sample reference"), &exrs[0]).unwrap();
+    assert!(run_ok(&args("64")).contains("rendered in"), "a replaced reference image is not reused");
+    assert_eq!(std::fs::read(&exrs[0]).unwrap(), saved, "the re-rendered reference is the same image");
     let mut with_profile = args("64");
     with_profile.extend(["--profile", "final"]);
     assert!(run_ok(&with_profile).contains("rendered in"));

@@ -6,8 +6,9 @@
 //! strategy and `N` samples, or the analytic image with the matching footprint and light).
 //!
 //! Cache: `DIR/reference-<key>.exr` with a sidecar `reference-<key>.txt` holding the full key text (crate
-//! version, scene hash and size, seed, N, the complete reference profile). A cached file is reused only if
-//! the sidecar's text equals the current key exactly and the image has the scene's size; any change to
+//! version, scene hash and size, seed, N, the complete reference profile) and the hash of the image written
+//! with it. A cached file is reused only if the sidecar's key equals the current key exactly, the image
+//! is the one written (not replaced since) and has the scene's size; any change to
 //! the scene file, profile, mapping or N gives a different key (and so a fresh render).
 
 use super::analytic::{Footprint, QuadIrradiance};
@@ -111,6 +112,13 @@ pub fn cache_key_text(scene: &Scene, reference_profile: &Profile) -> String {
     )
 }
 
+/// The sidecar's text: the cache key, then the FNV-1a hash of the image's f32 bits.
+fn with_image_hash(key: &str, px: &[glam::Vec3]) -> String {
+    let h = px.iter().flat_map(|c| c.to_array()).flat_map(|x| x.to_bits().to_le_bytes());
+    let h = h.fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+    format!("{key}image {h:016x}\n")
+}
+
 /// FNV-1a of the key text (file name only; the sidecar holds the full text that is compared).
 fn key_hash(text: &str) -> u64 {
     text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
@@ -133,9 +141,11 @@ fn rendered(scene: &Scene, profile: &Profile, plan: &Plan, n: u32, out_dir: &Pat
     } else {
         "samples per pixel".to_string()
     };
-    if std::fs::read_to_string(&txt).ok().as_deref() == Some(key.as_str()) {
-        if let Ok((w, h, px)) = read_image(&exr) {
-            if (w, h) == (scene.width, scene.height) {
+    if let (Ok(side), Ok((w, h, px))) = (std::fs::read_to_string(&txt), read_image(&exr)) {
+        // The sidecar holds the key and the hash of the image written with it: an image replaced since
+        // (another reference of the same size copied over it) is not served.
+        if side == with_image_hash(&key, &px) && (w, h) == (scene.width, scene.height) {
+            {
                 let description = format!("jittered, {n} {what}, reused cached {}", exr.display());
                 return Ok(Reference { image: px.iter().map(|c| c.as_dvec3()).collect(), description });
             }
@@ -147,7 +157,10 @@ fn rendered(scene: &Scene, profile: &Profile, plan: &Plan, n: u32, out_dir: &Pat
     // The image first, then the sidecar: an interrupted write leaves no sidecar, so no stale reuse.
     let _ = std::fs::remove_file(&txt);
     write_image(&exr, scene.width, scene.height, &rgb).map_err(RefError::Runtime)?;
-    write_atomic(&txt, |tmp| std::fs::write(tmp, &key).map_err(|e| e.to_string())).map_err(RefError::Runtime)?;
+    // (Hashed as read back, as a later study reads it.)
+    let (_, _, written) = read_image(&exr).map_err(RefError::Runtime)?;
+    let side = with_image_hash(&key, &written);
+    write_atomic(&txt, |tmp| std::fs::write(tmp, &side).map_err(|e| e.to_string())).map_err(RefError::Runtime)?;
     let description = format!("jittered, {n} {what}, rendered in {seconds:.2} s, cached as {}", exr.display());
     Ok(Reference { image: rgb.iter().map(|c| c.as_dvec3()).collect(), description })
 }

@@ -206,6 +206,12 @@ fn a_camera_medium_that_does_not_hold_is_warned_of() {
         (cam("aperture = 0.2\nfocus_distance = 3\n") + &ball(0.1, ""), "lens aperture crosses"),
         (cam("shutter = [0, 1]\n") + &ball(0.5, "motion = [1, 0, 0]\n"), "leaves the camera during the shutter"),
         (cam("") + &(1..=5).map(|i| ball(i as f64, "")).collect::<String>(), "inside 5 nested media"),
+        (
+            cam("[materials.w]\ntype = \"dielectric\"\nior = 1.33\n")
+                + "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [{ type = \"sphere\", center = [0, 0, 0], radius = 1, material = \"g\" }, \
+                   { type = \"box\", min = [2, 2, 2], max = [3, 3, 3], material = \"w\" }]\n",
+            "several materials",
+        ),
     ];
     for (text, needle) in cases {
         let s = scene(&text);
