@@ -252,15 +252,6 @@ fn check(tree: &CsgTree, depth: usize) -> Result<(), CsgError> {
     }
 }
 
-/// The bound of a node of `op` over its children's `bounds`.
-fn combine(op: Op, bounds: &[Bound]) -> Bound {
-    match op {
-        Op::Union => bounds.iter().fold(EMPTY, |a, b| union(a, *b)),
-        Op::Intersection => intersect(bounds),
-        Op::Difference => bounds[0],
-    }
-}
-
 /// World bound of a subtree: a box (possibly empty), or infinite with the plane of a bare half-space.
 #[derive(Clone, Copy, Debug)]
 enum Bound {
@@ -288,7 +279,11 @@ fn compile(tree: &CsgTree, leaf_start: usize, leaves: &mut Vec<Leaf>, instrs: &m
                     instrs.push(Instr::Op(*op));
                 }
             }
-            combine(*op, &bounds)
+            match op {
+                Op::Union => bounds.iter().fold(EMPTY, |a, b| union(a, *b)),
+                Op::Intersection => intersect(&bounds),
+                Op::Difference => bounds[0],
+            }
         }
     }
 }

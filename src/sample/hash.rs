@@ -13,6 +13,12 @@ pub const GOLDEN_GAMMA: u64 = 0x9e37_79b9_7f4a_7c15;
 /// The largest `f32` below 1 (1 - 2^-24): the upper clamp of every `[0, 1)` sample.
 pub const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
+/// FNV-1a (64-bit) of a byte stream: stable across runs and platforms (std's hasher is not). Names
+/// scene texts and cached study references; not for sampling.
+pub fn fnv1a(bytes: impl IntoIterator<Item = u8>) -> u64 {
+    bytes.into_iter().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+}
+
 /// SplitMix64 finaliser (Stafford Mix13): a bijective 64-bit mixer with full avalanche.
 #[inline(always)]
 pub fn mix64(x: u64) -> u64 {

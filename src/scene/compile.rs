@@ -77,7 +77,7 @@ pub fn parse_scene_sized(path: &Path, text: &str, size: Option<(u32, u32)>) -> R
 
 fn hash_text(text: &str) -> u64 {
     // FNV-1a: stable across runs and platforms (std's hasher is not).
-    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+    crate::sample::hash::fnv1a(text.bytes())
 }
 
 struct Compiler<'a> {
@@ -1282,8 +1282,9 @@ pub fn light_buffers(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bounded:
     light_buffers_within(lights, prims, bounds, bounded, LIGHT_BUFFER_ENTRIES)
 }
 
-/// [`light_buffers`] within `budget` entries in all: the first buffer that would exceed what is left of
-/// it is dropped, and no more are built (those lights' shadow rays are traced through the BVH); so are
+/// [`light_buffers`] within `budget` entries in all: a buffer that would exceed what is left of it is
+/// given up while it is made, and none is built once the budget is spent (those lights' shadow rays are
+/// traced through the BVH); so are
 /// lights past the first [`MAX_LIGHT_BUFFERS`] point lights, whose buffers would cost more to build
 /// than they save (1,000 point lights over 1e4 spheres: 15 s to build, the render as fast without),
 /// and a buffer whose `always` list is longer than [`MAX_ALWAYS`] or whose cells list more than

@@ -114,14 +114,13 @@ pub fn cache_key_text(scene: &Scene, reference_profile: &Profile) -> String {
 
 /// The sidecar's text: the cache key, then the FNV-1a hash of the image's f32 bits.
 fn with_image_hash(key: &str, px: &[glam::Vec3]) -> String {
-    let h = px.iter().flat_map(|c| c.to_array()).flat_map(|x| x.to_bits().to_le_bytes());
-    let h = h.fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+    let h = crate::sample::hash::fnv1a(px.iter().flat_map(|c| c.to_array()).flat_map(|x| x.to_bits().to_le_bytes()));
     format!("{key}image {h:016x}\n")
 }
 
 /// FNV-1a of the key text (file name only; the sidecar holds the full text that is compared).
 fn key_hash(text: &str) -> u64 {
-    text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+    crate::sample::hash::fnv1a(text.bytes())
 }
 
 /// Paths of the cached reference and its sidecar for `key_text`.
