@@ -980,26 +980,6 @@ impl Compiler<'_> {
         Ok((o, u, v))
     }
 
-    /// Build a CSG tree ([`Self::csg_tree_inner`]), then `unbounded_by` for the subtree: itself for a
-    /// bare half-space; for a node the inner call has set it from its children.
-    fn csg_tree(
-        &mut self,
-        def: &S<ShapeDef>,
-        field: &str,
-        parent: Affine3A,
-        material: Option<u32>,
-        depth: usize,
-        uses: &mut Vec<String>,
-    ) -> R<CsgTree> {
-        self.unbounded_by = None;
-        let tree = self.csg_tree_inner(def, field, parent, material, depth, uses)?;
-        // (A `use` of a bare half-space: the inner call has named the definition, at its own line.)
-        if let (CsgTree::Leaf(leaf), None) = (&tree, &def.get_ref().use_solid) {
-            self.unbounded_by = leaf.bounds().is_none().then(|| (def.span(), field.to_string(), "this half-space".to_string()));
-        }
-        Ok(tree)
-    }
-
     /// Set `unbounded_by` for a node of `op` whose children's culprits (`None`: bounded) are `culprits`.
     /// The rule is `Csg::add_solid`'s bounds, on the children's flags (a child is unbounded exactly when
     /// it has a culprit): a union is bounded when all its operands are, a difference when its first is,
@@ -1013,8 +993,10 @@ impl Compiler<'_> {
         };
     }
 
-    /// Build a CSG tree; `parent` is the parent's transform, `material` the inherited override.
-    fn csg_tree_inner(
+    /// Build a CSG tree; `parent` is the parent's transform, `material` the inherited override. Sets
+    /// `unbounded_by` for the subtree: a bare half-space names itself, a node the child that makes it
+    /// unbounded (`node_culprit`), a `use` what its definition's tree set; `None` when bounded.
+    fn csg_tree(
         &mut self,
         def: &S<ShapeDef>,
         field: &str,
@@ -1023,6 +1005,7 @@ impl Compiler<'_> {
         depth: usize,
         uses: &mut Vec<String>,
     ) -> R<CsgTree> {
+        self.unbounded_by = None;
         if depth > MAX_CSG_DEPTH {
             return Err(self.err(def.span(), field, format!("CSG nesting deeper than {MAX_CSG_DEPTH}")));
         }
@@ -1135,7 +1118,9 @@ impl Compiler<'_> {
                 self.check_fields(def, field, kind, &["point", "normal", "hole"])?;
                 let p = self.vec3(self.req(&s.point, sp.clone(), &f("point"))?, &f("point"))?;
                 let n = self.unit(self.req(&s.normal, sp.clone(), &f("normal"))?, &f("normal"))?;
-                leaf(csg::Shape::HalfSpace, csg_halfspace_placement(p, n), mat(self)?)
+                let m = mat(self)?;
+                self.unbounded_by = Some((sp.clone(), field.to_string(), "this half-space".to_string()));
+                leaf(csg::Shape::HalfSpace, csg_halfspace_placement(p, n), m)
             }
             "csg" | "group" => {
                 self.check_fields(def, field, kind, &["op", "children", "motion", "hole"])?;
