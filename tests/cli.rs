@@ -51,6 +51,18 @@ fn bad_flags_are_input_errors() {
     }
 }
 
+/// A negative count reaches the flag's own parser, which names it (clap had read `-1` as an unknown
+/// flag and suggested `-- -1`).
+#[test]
+fn negative_counts_are_named_as_bad_values() {
+    for (cmd, flag) in [("render", "--threads"), ("render", "--spp"), ("render", "--seed"), ("study", "--threads"), ("study", "--seeds")] {
+        let out = strata().args([cmd, "scenes/shapes/sphere.toml", flag, "-1"]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{cmd} {flag}: {err}");
+        assert!(err.contains(&format!("invalid value '-1' for '{flag}")) && !err.contains("tip:"), "{cmd} {flag}: {err}");
+    }
+}
+
 #[test]
 fn render_writes_image_and_stats_json() {
     let png = tmp("sphere.png");

@@ -465,7 +465,8 @@ fn a_checker_finer_than_the_coordinates_resolve_is_warned_about() {
 }
 
 /// Errors a newcomer meets first read as the mistake they are: `[lights]` for `[[lights]]`, a missing
-/// file (no position), a coordinate beyond the f32 range.
+/// file (no position), a coordinate beyond the f32 range, a value where a table belongs, a table or key
+/// written twice.
 #[test]
 fn first_mistakes_read_as_what_they_are() {
     let text = format!("{BASE}[lights]\ntype = \"point\"\nposition = [0, 3, 0]\nintensity = [1, 1, 1]\n");
@@ -478,4 +479,28 @@ fn first_mistakes_read_as_what_they_are() {
     let (_, field, msg) = fail("[[shapes]]\ntype = \"sphere\"\ncenter = [1e39, 0, 0]\nradius = 1\nmaterial = \"m\"\n");
     assert_eq!(field, "shapes[0].center");
     assert!(msg.contains("f32 range"), "{msg}");
+    // A value where a table belongs names the table as the file writes it, not serde's Rust type.
+    let (_, field, msg) = fail("[materials]\nwhite = 3\n");
+    assert_eq!(field, "white");
+    assert!(msg.contains("expected a material table ([materials.NAME]") && !msg.contains("MaterialDef"), "{msg}");
+    let (_, field, msg) = fail("[[shapes]]\ntype = \"sphere\"\ntransform = 3\n");
+    assert_eq!(field, "transform");
+    assert!(msg.contains("expected a transform table") && !msg.contains("TransformDef"), "{msg}");
+    // Written twice: a list's header says how to write several entries, another table's says it may
+    // appear once, a key that it is given twice.
+    let sphere = "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\n";
+    let twice = [
+        (format!("[shapes]\n{sphere}[shapes]\n{sphere}"), "shapes", "write `[[shapes]]` before each entry"),
+        ("[materials.m]\ntype = \"lambert\"\n".to_string(), "materials.m", "table `[materials.m]` is defined twice"),
+        ("[[shapes]]\ntype = \"sphere\"\nradius = 1\nradius = 2\n".to_string(), "radius", "`radius` is given twice in one table"),
+    ];
+    for (extra, want, says) in twice {
+        let (line, field, msg) = fail(&extra);
+        let text = format!("{BASE}{extra}");
+        // At the second of the two.
+        let needle = if want == "radius" { "radius = 2" } else { extra.lines().next().unwrap() };
+        let second = text.lines().enumerate().filter(|(_, l)| l.starts_with(needle)).map(|(i, _)| i + 1).last().unwrap();
+        assert_eq!((field.as_str(), line), (want, second), "{extra}");
+        assert!(msg.contains(says), "{msg}");
+    }
 }

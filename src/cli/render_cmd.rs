@@ -28,16 +28,16 @@ pub struct RenderArgs {
     #[arg(long, default_value = "preview")]
     pub profile: String,
     /// Samples per pixel (overrides the profile).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub spp: Option<u32>,
     /// One strategy for every integral: center, grid, random, jittered, sobol (overrides the profile).
     #[arg(long)]
     pub strategy: Option<String>,
     /// Samples per area light per shading point (overrides the profile).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub light_samples: Option<u32>,
     /// Maximum bounces (overrides the profile).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub max_depth: Option<u32>,
     /// Image size WxH instead of the scene's (e.g. 160x100 for a quick look; the camera keeps its fov).
     #[arg(long, value_name = "WxH")]
@@ -46,13 +46,13 @@ pub struct RenderArgs {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// Worker threads (default: all cores).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
     pub threads: usize,
     /// Random seed: same seed, same image.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     pub seed: u64,
     /// Tile side in pixels (does not change the image).
-    #[arg(long, default_value_t = crate::render::TILE)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = crate::render::TILE)]
     pub tile: u32,
     /// Write the render summary as JSON.
     #[arg(long)]
@@ -67,7 +67,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "PATH")]
     pub film: Option<PathBuf>,
     /// Write the film every SECONDS while rendering (to --film, else back to the --resume film).
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
     pub checkpoint_every: Option<f64>,
     /// Continue the render saved in FILM (a checkpoint or the film of an interrupted render): completed
     /// work units are skipped, and the result is bit-identical to an uninterrupted render.

@@ -68,13 +68,13 @@ pub struct StudyArgs {
     #[arg(long, default_value = "all")]
     pub integrals: String,
     /// Independent seeds (1..=K) per strategy and count; the error is averaged over them.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 4)]
     pub seeds: u32,
     /// Reference: a linear EXR of the scene's size, or `analytic` (Lambert plane under one quad light).
     #[arg(long, value_name = "FILE.exr|analytic", conflicts_with = "reference_spp")]
     pub reference: Option<String>,
     /// Render the reference with N jittered samples (cached in the output directory).
-    #[arg(long, value_name = "N")]
+    #[arg(long, allow_negative_numbers = true, value_name = "N")]
     pub reference_spp: Option<u32>,
     /// Output directory (created if missing).
     #[arg(long, default_value = "study")]
@@ -83,7 +83,7 @@ pub struct StudyArgs {
     #[arg(long)]
     pub sheet: bool,
     /// Worker threads (default: all cores).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
     pub threads: usize,
     /// Image size WxH instead of the scene's (the camera keeps its fov), as `render --size`.
     #[arg(long, value_name = "WxH")]

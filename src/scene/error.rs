@@ -90,9 +90,23 @@ impl Source<'_> {
             let msg = format!("`[{name}]` makes one table; `{name}` is a list: write `[[{name}]]` before each entry");
             return self.error(span.clone(), name, msg);
         }
+        if message == "duplicate key" {
+            // A table header or a key written twice: say which, and for the lists how to write several.
+            let name = self.key_at(span.start);
+            let at = span.start.min(self.text.len());
+            let line_start = self.text[..at].rfind('\n').map_or(0, |i| i + 1);
+            let msg = if !self.text[line_start..].trim_start().starts_with('[') {
+                format!("`{name}` is given twice in one table")
+            } else if name == "shapes" || name == "lights" {
+                format!("`[{name}]` appears twice; `{name}` is a list: write `[[{name}]]` before each entry")
+            } else {
+                format!("table `[{name}]` is defined twice; a table's header may appear once")
+            };
+            return self.error(span, name, msg);
+        }
         let named = message.strip_prefix("unknown field ").or_else(|| message.strip_prefix("missing field "));
         let field = named.and_then(extract_backticked).unwrap_or_else(|| self.key_at(span.start));
-        self.error(span, field, message)
+        self.error(span, field, plain_struct_names(&message))
     }
 
     /// The key of the `key = value` entry that byte `offset` lies in, looking back along its own line
@@ -126,6 +140,27 @@ impl Source<'_> {
         }
         String::new()
     }
+}
+
+/// The reader's words for the file's tables ("expected struct MaterialDef", serde's name for the Rust
+/// type) as what a scene writer knows them by.
+fn plain_struct_names(message: &str) -> String {
+    const NAMES: [(&str, &str); 9] = [
+        ("SceneFile", "a scene file ([image], [camera], [materials.NAME], [[shapes]], [[lights]])"),
+        ("ImageDef", "the [image] table (width, height, background)"),
+        ("CameraDef", "the [camera] table (position, look_at, fov, ...)"),
+        ("CheckerDef", "a checker table ({ a = [r, g, b], b = [r, g, b], scale = s })"),
+        ("MaterialDef", "a material table ([materials.NAME] with type = \"lambert\", ...)"),
+        ("TransformDef", "a transform table ({ scale = [...], rotate = [...], translate = [...] })"),
+        ("ShapeDef", "a shape table ([[shapes]] with type = \"sphere\", ...)"),
+        ("LightDef", "a light table ([[lights]] with type = \"point\", ...)"),
+        ("Profile", "a profile table (name, spp, strategies, ...)"),
+    ];
+    let mut out = message.to_string();
+    for (rust, plain) in NAMES {
+        out = out.replace(&format!("expected struct {rust}"), &format!("expected {plain}"));
+    }
+    out
 }
 
 fn extract_backticked(s: &str) -> Option<String> {
