@@ -497,6 +497,30 @@ fn reference_cache_is_reused_only_when_fresh() {
     let csv2 = std::fs::read_to_string(Path::new(d).join("study.csv")).unwrap();
     let mse_col = |csv: &str| csv.lines().skip(1).map(|l| l.split(',').nth(5).unwrap().to_string()).collect::<Vec<_>>();
     assert_eq!(mse_col(&csv1), mse_col(&csv2));
+    // Another build of the renderer (this executable with one byte appended: another hash) renders its
+    // own reference, the same image here (the code is the same).
+    let other_exe = dir.join("strata-other-build");
+    let mut bytes = std::fs::read(env!("CARGO_BIN_EXE_strata")).unwrap();
+    bytes.push(0);
+    std::fs::write(&other_exe, bytes).unwrap();
+    #[cfg(unix)]
+    std::fs::set_permissions(&other_exe, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
+    // (A file just written can be "busy" for exec while a thread of this test binary that forked in the
+    // meantime holds it open: ETXTBSY, retried.)
+    let run_other = || std::process::Command::new(&other_exe).current_dir(root()).args(args("64")).output();
+    let mut out = run_other();
+    for _ in 0..50 {
+        match &out {
+            Err(e) if e.raw_os_error() == Some(26) => std::thread::sleep(std::time::Duration::from_millis(20)),
+            _ => break,
+        }
+        out = run_other();
+    }
+    let out = out.unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rebuilt = String::from_utf8_lossy(&out.stdout);
+    assert!(rebuilt.contains("rendered in") && !rebuilt.contains("reused cached"), "another build reused the cache: {rebuilt}");
+    assert_eq!(mse_col(&csv1), mse_col(&std::fs::read_to_string(Path::new(d).join("study.csv")).unwrap()));
     // A different N, a different profile: not reused.
     assert!(run_ok(&args("32")).contains("rendered in"));
     // The 64-sample image replaced by the 32-sample one (same size): its sidecar no longer matches.

@@ -341,6 +341,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
     crate::film::warn_discarded(stats.nonfinite_samples);
     crate::film::warn_lost_media(stats.lost_media);
+    crate::film::warn_dim(&film);
     if !stats.completed {
         let f = film_out.as_deref().unwrap_or(&out);
         errln!(

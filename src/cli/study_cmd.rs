@@ -358,7 +358,7 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
 /// `grid_floor`: the grid runs' light integral is a fixed grid (see [`fixed_light_grid`]).
 fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool) {
     outln!(
-        "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12}   (mean over {} seeds)",
+        "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12}   (means over {} seeds; efficiency = 1 / (mean mse x mean seconds))",
         "strategy",
         "spp",
         "seconds",

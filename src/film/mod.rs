@@ -42,6 +42,41 @@ pub fn warn_lost_media(lost: u64) {
     }
 }
 
+/// Brightest pixel means below this (2^-20) may be off by more than 2^-13 of their value: the film
+/// rounds each sample to a multiple of 2^-32 ([`FIXED_ONE`]).
+pub const DIM_PIXEL: f32 = 1.0 / 1_048_576.0;
+
+/// Warn (on stderr) of an image so dim that the film's fixed point shows: every pixel 0 (light below
+/// 2^-33 per sample rounds to nothing), or a brightest pixel below [`DIM_PIXEL`] (each sample is off by
+/// up to 2^-33, a relative error of 2^-33 / value: a trial's scene scaled by 1e-9 rendered 6.9% dark,
+/// by 1e-11 black). Silent for a film without samples.
+pub fn warn_dim(film: &Film) {
+    if let Some(w) = dim_warning(film) {
+        errln!("warning: {w}");
+    }
+}
+
+/// The text of [`warn_dim`]'s warning, if any.
+pub fn dim_warning(film: &Film) -> Option<String> {
+    if film.total_samples() == 0 {
+        return None;
+    }
+    let brightest = film.pixels().map(|p| p.mean().abs().max_element()).fold(0.0f32, f32::max);
+    let fix = "if the scene's light should be brighter, scale every radiance and intensity up by one factor (the image is linear)";
+    if brightest == 0.0 {
+        Some(format!("every pixel of the image is 0: the film stores each sample to 2^-32 (2.3e-10), so light below 1.2e-10 per sample rounds to nothing; {fix}"))
+    } else if brightest < DIM_PIXEL {
+        let off = 0.5 / FIXED_ONE / brightest as f64;
+        Some(format!(
+            "the brightest pixel is {brightest:.3e}: the film stores each sample to 2^-32 (2.3e-10), so pixels this dim can be off by up to \
+             {:.2}% of their value; {fix}",
+            off * 100.0
+        ))
+    } else {
+        None
+    }
+}
+
 /// Whether a sample may be accumulated: every channel finite and below [`MAX_SAMPLE_VALUE`] in
 /// magnitude (`abs() < MAX` is false for NaN, so one comparison rejects NaN, infinities and huge values).
 #[inline(always)]

@@ -6,7 +6,7 @@
 //! strategy and `N` samples, or the analytic image with the matching footprint and light).
 //!
 //! Cache: `DIR/reference-<key>.exr` with a sidecar `reference-<key>.txt` holding the full key text (crate
-//! version, scene hash and size, seed, N, the complete reference profile) and the hash of the image written
+//! version, the executable's hash, scene hash and size, seed, N, the complete reference profile) and the hash of the image written
 //! with it. A cached file is reused only if the sidecar's key equals the current key exactly, the image
 //! is the one written (not replaced since) and has the scene's size; any change to
 //! the scene file, profile, mapping or N gives a different key (and so a fresh render).
@@ -104,12 +104,28 @@ pub fn analytic(scene: &Scene, profile: &Profile, integrals: &IntegralSet) -> Re
 pub fn cache_key_text(scene: &Scene, reference_profile: &Profile) -> String {
     let profile = serde_json::to_string(reference_profile).expect("profiles serialise");
     format!(
-        "strata study reference v1\ncrate {}\nscene {:016x} {}x{}\nseed {REFERENCE_SEED}\nprofile {profile}\n",
+        "strata study reference v2\ncrate {}\nrenderer {}\nscene {:016x} {}x{}\nseed {REFERENCE_SEED}\nprofile {profile}\n",
         env!("CARGO_PKG_VERSION"),
+        renderer_id(),
         scene.hash,
         scene.width,
         scene.height
     )
+}
+
+/// The running executable's FNV-1a hash, as the cache key's `renderer` line: a reference rendered by
+/// another build (pulled changes, a local edit) is not reused, which the crate version (0.1.0 at every
+/// commit) could not tell. An executable that cannot be read gives a line that matches no other run.
+fn renderer_id() -> String {
+    static ID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    ID.get_or_init(|| match std::env::current_exe().and_then(std::fs::read) {
+        Ok(bytes) => format!("{:016x}", crate::sample::hash::fnv1a(bytes)),
+        Err(e) => {
+            let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+            format!("unreadable ({e}): process {} at {now}", std::process::id())
+        }
+    })
+    .clone()
 }
 
 /// The sidecar's text: the cache key, then the FNV-1a hash of the image's f32 bits.

@@ -166,6 +166,7 @@ pub fn render_cancellable(
     // (Discarded samples would bias every error measured from this image.)
     crate::film::warn_discarded(stats.nonfinite_samples);
     crate::film::warn_lost_media(stats.lost_media);
+    crate::film::warn_dim(&film);
     Some((film, stats.seconds, stats.rays.total))
 }
 

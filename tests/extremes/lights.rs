@@ -168,3 +168,45 @@ fn huge_quad_light_stays_finite() {
     eprintln!("huge quad light: image mean {} (pi L rho / pi = 0.5 expected), max {}", img.mean().x, img.max());
     assert!(img.max() as f64 <= 0.5 / PI * 1e8 / 100.0);
 }
+
+/// Light so dim that the film's fixed point (each sample rounded to 2^-32) shows is warned of, and the
+/// warning's bound holds: a point light scaled by 1e-9 renders each pixel within 2^-33 of 1e-9 times
+/// the unit-scale image (rounding moves pixels by more than 1% here: the warning is not idle), and the
+/// brightest pixel within the percentage the warning states; scaled by 1e-20 every pixel is 0 and the
+/// warning says so; at unit scale there is none.
+#[test]
+fn light_below_the_films_resolution_is_warned_of() {
+    use strata::film::{dim_warning, Film};
+    use strata::render::{render_into, RenderJob};
+    use strata::wavefront::Settings;
+    let film_at = |scale: f64| {
+        let light = format!("type = \"point\"\nposition = [0, 3, 0]\nintensity = [{0:e}, {0:e}, {0:e}]", 10.0 * scale);
+        let scene = parse(&floor_scene(&light, false));
+        let mut job = RenderJob::new(&scene, Settings { profile: profile(&[("spp", "4")]), seed: SEED });
+        job.threads = 2;
+        render_into(&job, Film::new(scene.width, scene.height)).0
+    };
+    let unit = film_at(1.0);
+    assert_eq!(dim_warning(&unit), None);
+    let dim = film_at(1e-9);
+    let w = dim_warning(&dim).expect("a warning at 1e-9");
+    assert!(w.starts_with("the brightest pixel is "), "{w}");
+    let stated: f64 = w.split("off by up to ").nth(1).and_then(|r| r.split('%').next()).unwrap().parse().unwrap();
+    let (mut moved, mut brightest) = (0usize, (0.0f64, 0.0f64));
+    for (a, b) in unit.to_rgb().iter().zip(dim.to_rgb()) {
+        for c in 0..3 {
+            let (want, got) = (a[c] as f64 * 1e-9, b[c] as f64);
+            assert!((got - want).abs() <= 0.5 / 4_294_967_296.0 + 1e-5 * want, "{got:e} against {want:e}");
+            moved += ((got - want).abs() > 0.01 * want) as usize;
+            if want > brightest.0 {
+                brightest = (want, got);
+            }
+        }
+    }
+    assert!(moved > 0, "no pixel moved by 1%: the warning would be idle");
+    let off = 100.0 * (brightest.1 - brightest.0).abs() / brightest.0;
+    assert!(off <= stated + 0.01, "brightest pixel off by {off:.3}%, the warning says up to {stated}%");
+    let black = film_at(1e-20);
+    assert!(black.to_rgb().iter().all(|p| *p == glam::Vec3::ZERO));
+    assert!(dim_warning(&black).is_some_and(|w| w.starts_with("every pixel of the image is 0")));
+}
