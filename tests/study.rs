@@ -507,6 +507,8 @@ fn reference_cache_is_reused_only_when_fresh() {
     std::fs::set_permissions(&other_exe, std::os::unix::fs::PermissionsExt::from_mode(0o755)).unwrap();
     // (A file just written can be "busy" for exec while a thread of this test binary that forked in the
     // meantime holds it open: ETXTBSY, retried.)
+    let files = |d: &str| std::fs::read_dir(d).unwrap().map(|e| e.unwrap().path()).collect::<std::collections::BTreeSet<_>>();
+    let before = files(d);
     let run_other = || std::process::Command::new(&other_exe).current_dir(root()).args(args("64")).output();
     let mut out = run_other();
     for _ in 0..50 {
@@ -521,6 +523,10 @@ fn reference_cache_is_reused_only_when_fresh() {
     let rebuilt = String::from_utf8_lossy(&out.stdout);
     assert!(rebuilt.contains("rendered in") && !rebuilt.contains("reused cached"), "another build reused the cache: {rebuilt}");
     assert_eq!(mse_col(&csv1), mse_col(&std::fs::read_to_string(Path::new(d).join("study.csv")).unwrap()));
+    // (Its reference and sidecar go again: the steps below count this build's references.)
+    for p in files(d).difference(&before) {
+        std::fs::remove_file(p).unwrap();
+    }
     // A different N, a different profile: not reused.
     assert!(run_ok(&args("32")).contains("rendered in"));
     // The 64-sample image replaced by the 32-sample one (same size): its sidecar no longer matches.

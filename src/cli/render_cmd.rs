@@ -429,10 +429,10 @@ pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
 }
 
 /// Samples that do not sample what their integral asks: one light sample on a `grid` (the light's centre
-/// for every camera sample: a hard shadow at any spp), 2D grids and jittered sets whose count has no
-/// near-square factorisation (`grid_shape` gives strips more than 4 times longer than wide, e.g. 1 x 7
-/// for a prime: the integral is stratified along one axis only; a user trial measured jittered light
-/// samples at 17 with 4x the error of 16), and a shutter of zero length in a scene with motion.
+/// for every camera sample: a hard shadow at any spp), 2D grids whose count has no near-square
+/// factorisation (`grid_shape` gives strips more than 4 times longer than wide, e.g. 1 x 7 for a prime:
+/// the integral is sampled along one axis; jittered sets of such counts take strata of a covering grid,
+/// `jitter_shape`), and a shutter of zero length in a scene with motion.
 pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     let mut out = Vec::new();
     let [t0, t1] = scene.camera.shutter;
@@ -452,33 +452,18 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
         );
     }
     for (name, s) in used_strategies(scene, p) {
-        if !matches!(s, Strategy::Grid | Strategy::Jittered) || name == "time" || name == "wavelength" {
-            continue;
-        }
-        // The set's size: jittered light samples form one set over a pixel's camera samples
-        // (`wavefront::shadow`), every other set is a pixel's spp.
-        let across = name == "light" && s == Strategy::Jittered && u64::from(p.spp) * u64::from(p.light_samples) <= 1 << 24;
-        let (n, count) = match (name, across) {
-            ("light", true) => (p.spp * p.light_samples, format!("spp x light_samples = {}", p.spp * p.light_samples)),
-            ("light", false) => (p.light_samples, format!("light_samples {}", p.light_samples)),
-            _ => (p.spp, format!("spp {}", p.spp)),
-        };
-        if n < 5 {
+        let n = if name == "light" { p.light_samples } else { p.spp };
+        if s != Strategy::Grid || name == "time" || name == "wavelength" || n < 5 {
             continue;
         }
         let [a, b] = crate::sample::strategy::grid_shape(n);
         if b > 4 * a {
-            let (what, effect) = if s == Strategy::Grid {
-                ("grid", format!("the {name} integral is sampled along one axis only"))
-            } else {
-                ("jittered set", format!("stratified along one axis only, so the {name} error can exceed that of fewer samples"))
-            };
+            let count = if name == "light" { "light_samples" } else { "spp" };
             out.push(format!(
-                "{name} {what} of {n} samples is {a} x {b} strips ({count} has no near-square factors): {effect}; a count such as \
-                 {} or {} gives a square grid{}",
+                "{name} grid of {n} samples is {a} x {b} strips ({count} {n} has no near-square factors): the {name} integral is \
+                 sampled along one axis only; a count such as {} or {} gives a square grid",
                 n.isqrt().pow(2),
-                (n.isqrt() + 1).pow(2),
-                if s == Strategy::Jittered { " (sobol stratifies any count)" } else { "" }
+                (n.isqrt() + 1).pow(2)
             ));
         }
     }

@@ -26,7 +26,11 @@
 //!
 //! Non-square `n` (grid, jittered): `nx` is the largest divisor of `n` that is `<= sqrt(n)` and
 //! `ny = n / nx` ([`grid_shape`]), so there are always exactly `n` strata (a prime `n` gives `1 x n`
-//! strips, `n = 8` gives `2 x 4`). The stratum of sample `index` is `permute(index, n, key)`
+//! strips, `n = 8` gives `2 x 4`). Jittered sets whose factorisation is such strips (more than 4 times
+//! longer than wide) use the smallest near-square grid of `m >= n` strata instead ([`jitter_shape`]:
+//! 7 -> 2 x 4, 17 -> 4 x 5) and take `n` distinct strata of it, always through the permutation
+//! (unbiased: each sample's stratum is uniform over the `m`). The stratum of sample `index` is
+//! `permute(index, m, key)` (`m = n` but for those jittered sets)
 //! ([`permute`], after Kensler 2013), with `key` from `(seed, stream, dim)`: the pixel-area, lens and
 //! time samples of one pixel sample land in unrelated strata. Stratum `s` is column `s % nx`, row
 //! `s / nx`.
@@ -37,7 +41,7 @@
 //! - Jittered points lie *exactly* in their stratum `[k/n, (k+1)/n)` (computed in fixed point; float
 //!   `(k + u) / n` would round onto the next stratum's edge), for up to 2^24 strata per axis.
 //! - `n == 0` is treated as 1. `index >= n` never panics: grid and jittered wrap the stratum
-//!   (`index % n`, the jitter still uses the full index, so it is a fresh point in a repeated stratum);
+//!   (`index % m`, the jitter still uses the full index, so it is a fresh point in a repeated stratum);
 //!   random and sobol simply continue their sequence.
 //! - The `_keyed` variants take a precomputed [`stream_key`]`(seed, stream, dim)` (saves four 64-bit
 //!   mixes per call when many samples of one sequence are drawn).
@@ -57,5 +61,5 @@ pub mod warp;
 pub use filter::{sample_filter, sample_filter_pdf, sample_filter_x8, Filter};
 pub use hash::{hash_combine, hash_u32, mix64, permute, random_2d_keyed, random_f32, random_f32_keyed, stream_key, ONE_MINUS_EPSILON};
 pub use sobol::{sobol_owen_1d, sobol_owen_2d};
-pub use strategy::{grid_shape, sample_1d, sample_1d_keyed, sample_2d, sample_2d_keyed, Sampler2d, Strategy};
+pub use strategy::{grid_shape, jitter_shape, sample_1d, sample_1d_keyed, sample_2d, sample_2d_keyed, Sampler2d, Strategy};
 pub use warp::{sample_disk_concentric, sample_disk_concentric_pdf, sample_disk_concentric_x8};

@@ -88,6 +88,41 @@ pub fn grid_shape(n: u32) -> [u32; 2] {
     [nx, n / nx]
 }
 
+/// The strata of a jittered set of `n` samples: [`grid_shape`]`(n)` where that is near square (its
+/// strips at most 4 times longer than wide), else the smallest near-square `nx x ny >= n` grid of the
+/// two around `sqrt(n)` (7 -> 2 x 4, 17 -> 4 x 5, 31 -> 5 x 7), of which a set takes `n` distinct strata
+/// chosen by its permutation. Each sample is then still uniform over the square (its stratum is uniform
+/// over the `nx ny`), so the estimate stays unbiased, and it is stratified along both axes: as `1 x 17`
+/// strips, 17 jittered light samples had 4x the soft-shadow error of 16.
+#[inline]
+pub fn jitter_shape(n: u32) -> [u32; 2] {
+    let n = n.max(1);
+    let [a, b] = grid_shape(n);
+    if b <= 4 * a {
+        return [a, b];
+    }
+    let r = n.isqrt();
+    let (c1, c2) = ([r, n.div_ceil(r)], [r + 1, n.div_ceil(r + 1)]);
+    let size = |c: [u32; 2]| c[0] as u64 * c[1] as u64;
+    let best = if size(c1) <= size(c2) { c1 } else { c2 };
+    // (Counts within 2^16 of 2^32 keep their strips rather than overflow the strata count.)
+    if size(best) > u32::MAX as u64 {
+        [a, b]
+    } else {
+        best
+    }
+}
+
+/// The strata of `strategy`'s sets of `n` samples: [`jitter_shape`] for jittered, [`grid_shape`] else.
+#[inline]
+fn strata_shape(strategy: Strategy, n: u32) -> [u32; 2] {
+    if strategy == Strategy::Jittered {
+        jitter_shape(n)
+    } else {
+        grid_shape(n)
+    }
+}
+
 /// The 32-bit permutation key of a sequence key (both halves folded in; `permute` mixes it again).
 #[inline(always)]
 fn perm_key(key: u64) -> u32 {
@@ -175,7 +210,7 @@ pub fn sample_2d_keyed(strategy: Strategy, key: u64, index: u32, n: u32) -> [f32
         Strategy::Random => random_2d_keyed(key, index),
         Strategy::Sobol => sobol_owen_2d(key, index),
         Strategy::Grid | Strategy::Jittered => {
-            let [nx, ny] = grid_shape(n);
+            let [nx, ny] = strata_shape(strategy, n);
             let s = permute(index, nx * ny, perm_key(key));
             let (sx, sy) = (s % nx, s / nx);
             if strategy == Strategy::Grid {
@@ -204,8 +239,16 @@ pub struct Sampler2d {
 impl Sampler2d {
     pub fn new(strategy: Strategy, n: u32) -> Sampler2d {
         let n = n.max(1);
-        let [nx, ny] = grid_shape(n);
+        let [nx, ny] = strata_shape(strategy, n);
         Sampler2d { strategy, n, nx, ny }
+    }
+
+    /// The set's strata: `n`, or more for a jittered set of a count without near-square factors
+    /// ([`jitter_shape`]), whose samples then take `n` of them through the permutation (always
+    /// permuted: the first `n` strata in row order would leave the rest of the square unsampled).
+    #[inline(always)]
+    fn strata(&self) -> u32 {
+        self.nx * self.ny
     }
 
     /// Sample `index` of the set keyed by `key` (see [`stream_key`]); equals `sample_2d_keyed(strategy, key, index, n)`.
@@ -301,7 +344,8 @@ impl Sampler2d {
             // Other counts (48, 100, 1000 spp): the same strata and jitter as `sample_impl`, with the
             // cycle-walking permutation in 8 lanes and the integer divisions as f64 ones (exact here,
             // see `jitter_in_cell_div`), which vectorise where the integer ones do not.
-            let s = if permuted { permute_x8(index, &PermuteShape::new(self.n), &keys.map(perm_key)) } else { *index };
+            let permuted = permuted || self.strata() != self.n;
+            let s = if permuted { permute_x8(index, &PermuteShape::new(self.strata()), &keys.map(perm_key)) } else { *index };
             let (nx, ny) = (self.nx as f64, self.ny as f64);
             for l in 0..LANES {
                 let sl = s[l] as f64;
@@ -344,7 +388,7 @@ impl Sampler2d {
             Strategy::Sobol => sobol_owen_2d(key, index),
             Strategy::Grid | Strategy::Jittered => {
                 let (nx, ny) = (self.nx, self.ny);
-                let s = if permuted { permute(index, nx * ny, perm_key(key)) } else { index % (nx * ny) };
+                let s = if permuted || self.strata() != self.n { permute(index, nx * ny, perm_key(key)) } else { index % (nx * ny) };
                 let (sx, sy) = if nx.is_power_of_two() { (s & (nx - 1), s >> nx.trailing_zeros()) } else { (s % nx, s / nx) };
                 if self.strategy == Strategy::Grid {
                     [cell_centre(sx, nx), cell_centre(sy, ny)]
@@ -398,14 +442,16 @@ mod tests {
                 for i in 0..n {
                     assert_eq!(s.sample(key, i), sample_2d_keyed(strategy, key, i, n));
                     if matches!(strategy, Strategy::Grid | Strategy::Jittered) {
-                        let [nx, ny] = grid_shape(n);
+                        let [nx, ny] = strata_shape(strategy, n);
                         let u = s.sample_unpermuted(key, i);
                         let (cx, cy) = ((u[0] * nx as f32) as u32, (u[1] * ny as f32) as u32);
+                        cells.resize((nx * ny) as usize, 0);
                         cells[(cy * nx + cx) as usize] += 1;
                     }
                 }
+                // n distinct strata: all of them, or n of a jittered set's covering grid (7 of 2 x 4).
                 if matches!(strategy, Strategy::Grid | Strategy::Jittered) {
-                    assert!(cells.iter().all(|&c| c == 1), "{strategy:?} n={n}: {cells:?}");
+                    assert!(cells.iter().all(|&c| c <= 1) && cells.iter().sum::<u32>() == n, "{strategy:?} n={n}: {cells:?}");
                 }
             }
         }
@@ -519,6 +565,27 @@ mod tests {
                 assert_eq!(quotient_below_2_24(s as f64, d as f64), (s / d) as f64, "{s} / {d}");
             }
             assert!(checked >= 4, "{d}");
+        }
+    }
+
+    #[test]
+    fn jitter_shape_covers_counts_without_near_square_factors() {
+        for (n, shape) in [(0, [1, 1]), (1, [1, 1]), (2, [1, 2]), (4, [2, 2]), (5, [2, 3]), (7, [2, 4]), (12, [3, 4]), (16, [4, 4])] {
+            assert_eq!(jitter_shape(n), shape, "n = {n}");
+        }
+        for (n, shape) in [(17, [4, 5]), (22, [4, 6]), (31, [5, 7]), (4099, [64, 65])] {
+            assert_eq!(jitter_shape(n), shape, "n = {n}");
+        }
+        for n in (1..5000u32).chain([u32::MAX, u32::MAX - 4, (1 << 31) - 1]) {
+            let [nx, ny] = jitter_shape(n);
+            let m = nx as u64 * ny as u64;
+            assert!(m >= n as u64 && m <= u32::MAX as u64, "n = {n}: {nx} x {ny}");
+            if m != n as u64 {
+                // Near square, and fewer than a row and a column of strata unused.
+                assert!(nx <= ny && ny <= nx + 2 && m - (n as u64) < (nx + ny) as u64, "n = {n}: {nx} x {ny}");
+            } else {
+                assert_eq!([nx, ny], grid_shape(n), "n = {n}");
+            }
         }
     }
 
