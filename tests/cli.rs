@@ -61,6 +61,13 @@ fn negative_counts_are_named_as_bad_values() {
         assert_eq!(out.status.code(), Some(2), "{cmd} {flag}: {err}");
         assert!(err.contains(&format!("invalid value '-1' for '{flag}")) && !err.contains("tip:"), "{cmd} {flag}: {err}");
     }
+    // Text flags reach their own parsers, which name the flag.
+    for (cmd, flag, value) in [("study", "--spp", "-1"), ("render", "--size", "-3x4"), ("study", "--size", "-3x4")] {
+        let out = strata().args([cmd, "scenes/shapes/sphere.toml", flag, value]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{cmd} {flag}: {err}");
+        assert!(err.contains(flag.trim_start_matches('-')) && !err.contains("tip:"), "{cmd} {flag} {value}: {err}");
+    }
 }
 
 #[test]

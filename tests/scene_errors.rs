@@ -494,6 +494,9 @@ fn first_mistakes_read_as_what_they_are() {
         ("[materials.m]\ntype = \"lambert\"\n".to_string(), "materials.m", "table `[materials.m]` is defined twice"),
         ("[[shapes]]\ntype = \"sphere\"\nradius = 1\nradius = 2\n".to_string(), "radius", "`radius` is given twice in one table"),
     ];
+    // A value, then a header of the same name: the value's line is named.
+    let e = parse_scene(Path::new("v.toml"), &format!("shapes = 3\n{BASE}[[shapes]]\n{sphere}")).unwrap_err();
+    assert!(e.message.contains("`shapes` is already given a value at line 1; it cannot also be a table `[[shapes]]`"), "{e}");
     for (extra, want, says) in twice {
         let (line, field, msg) = fail(&extra);
         let text = format!("{BASE}{extra}");

@@ -523,10 +523,12 @@ fn reference_cache_is_reused_only_when_fresh() {
     let rebuilt = String::from_utf8_lossy(&out.stdout);
     assert!(rebuilt.contains("rendered in") && !rebuilt.contains("reused cached"), "another build reused the cache: {rebuilt}");
     assert_eq!(mse_col(&csv1), mse_col(&std::fs::read_to_string(Path::new(d).join("study.csv")).unwrap()));
-    // (Its reference and sidecar go again: the steps below count this build's references.)
+    // (Its reference and sidecar go again: the steps below count this build's references. The 45 MB
+    // copy goes too.)
     for p in files(d).difference(&before) {
         std::fs::remove_file(p).unwrap();
     }
+    std::fs::remove_file(&other_exe).unwrap();
     // A different N, a different profile: not reused.
     assert!(run_ok(&args("32")).contains("rendered in"));
     // The 64-sample image replaced by the 32-sample one (same size): its sidecar no longer matches.

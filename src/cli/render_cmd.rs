@@ -40,7 +40,7 @@ pub struct RenderArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub max_depth: Option<u32>,
     /// Image size WxH instead of the scene's (e.g. 160x100 for a quick look; the camera keeps its fov).
-    #[arg(long, value_name = "WxH")]
+    #[arg(long, allow_hyphen_values = true, value_name = "WxH")]
     pub size: Option<String>,
     /// Override any profile field: --set key=value (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
@@ -341,7 +341,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
     crate::film::warn_discarded(stats.nonfinite_samples);
     crate::film::warn_lost_media(stats.lost_media);
-    crate::film::warn_dim(&film);
+    crate::film::warn_dim(&film, scene.has_light());
     if !stats.completed {
         let f = film_out.as_deref().unwrap_or(&out);
         errln!(

@@ -62,7 +62,7 @@ pub struct StudyArgs {
     #[arg(long, default_value = "random,jittered")]
     pub strategies: String,
     /// Sample counts, comma-separated (see --help for what a count means for each integral).
-    #[arg(long, default_value = "1,4,16,64")]
+    #[arg(long, allow_negative_numbers = true, default_value = "1,4,16,64")]
     pub spp: String,
     /// Integrals to sample with the strategy: pixel, light, lens, time, glossy (comma-separated), or all.
     #[arg(long, default_value = "all")]
@@ -86,7 +86,7 @@ pub struct StudyArgs {
     #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
     pub threads: usize,
     /// Image size WxH instead of the scene's (the camera keeps its fov), as `render --size`.
-    #[arg(long, value_name = "WxH")]
+    #[arg(long, allow_hyphen_values = true, value_name = "WxH")]
     pub size: Option<String>,
     /// With `light` among several integrals: n light samples per shading point as well as n spp.
     #[arg(long)]

@@ -46,30 +46,34 @@ pub fn warn_lost_media(lost: u64) {
 /// rounds each sample to a multiple of 2^-32 ([`FIXED_ONE`]).
 pub const DIM_PIXEL: f32 = 1.0 / 1_048_576.0;
 
-/// Warn (on stderr) of an image so dim that the film's fixed point shows: every pixel 0 (light below
-/// 2^-33 per sample rounds to nothing), or a brightest pixel below [`DIM_PIXEL`] (each sample is off by
-/// up to 2^-33, a relative error of 2^-33 / value: a trial's scene scaled by 1e-9 rendered 6.9% dark,
-/// by 1e-11 black). Silent for a film without samples.
-pub fn warn_dim(film: &Film) {
-    if let Some(w) = dim_warning(film) {
+/// Warn (on stderr) of an image so dim that the film's fixed point shows: every pixel 0 in a scene that
+/// has light (below 2^-33 per sample it rounds to nothing), or a brightest pixel below [`DIM_PIXEL`]
+/// (each sample is off by up to 2^-33, a relative error of 2^-33 / value: a trial's scene scaled by 1e-9
+/// rendered 6.9% dark, by 1e-11 black). `lit`: the scene has a light, an emitter or a background.
+/// Silent for a film without samples.
+pub fn warn_dim(film: &Film, lit: bool) {
+    if let Some(w) = dim_warning(film, lit) {
         errln!("warning: {w}");
     }
 }
 
 /// The text of [`warn_dim`]'s warning, if any.
-pub fn dim_warning(film: &Film) -> Option<String> {
-    if film.total_samples() == 0 {
+pub fn dim_warning(film: &Film, lit: bool) -> Option<String> {
+    if film.total_samples() == 0 || !lit {
         return None;
     }
     let brightest = film.pixels().map(|p| p.mean().abs().max_element()).fold(0.0f32, f32::max);
     let fix = "if the scene's light should be brighter, scale every radiance and intensity up by one factor (the image is linear)";
     if brightest == 0.0 {
-        Some(format!("every pixel of the image is 0: the film stores each sample to 2^-32 (2.3e-10), so light below 1.2e-10 per sample rounds to nothing; {fix}"))
+        Some(format!(
+            "every pixel of the image is 0: no light reached the camera, or it was below the film's resolution (each sample is stored to \
+             2^-32, 2.3e-10, so light below 1.2e-10 per sample rounds to nothing); {fix}"
+        ))
     } else if brightest < DIM_PIXEL {
         let off = 0.5 / FIXED_ONE / brightest as f64;
         Some(format!(
-            "the brightest pixel is {brightest:.3e}: the film stores each sample to 2^-32 (2.3e-10), so pixels this dim can be off by up to \
-             {:.2}% of their value; {fix}",
+            "the brightest pixel is {brightest:.3e}: the film stores each sample to 2^-32 (2.3e-10), so that pixel can be off by up to \
+             {:.2}% of its value and dimmer ones by more (2^-33 absolute); {fix}",
             off * 100.0
         ))
     } else {

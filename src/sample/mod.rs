@@ -18,7 +18,8 @@
 //! - `grid`: the centres of an `nx x ny` grid of sub-squares (1D: `(k + 0.5) / n`); no randomness in the
 //!   *set* of points, identical for every stream: a midpoint quadrature rule.
 //! - `random`: independent uniform points (the hash of the inputs).
-//! - `jittered`: one uniform point in each of the `nx x ny` strata (1D: `(k + u) / n`).
+//! - `jittered`: one uniform point in each of the `nx x ny` strata (in `n` distinct strata of a covering
+//!   grid for counts without near-square factors, below; 1D: `(k + u) / n`).
 //! - `sobol`: Owen-scrambled Sobol (0,2)-sequence by hash-based nested uniform scrambling (Burley 2020),
 //!   scrambled per `(seed, stream, dim)`, with the index also shuffled per `(seed, stream, dim)`. The
 //!   first `2^m` points of any sequence are a (0,m,2)-net; best with `n` a power of two, but any `n`
@@ -28,9 +29,9 @@
 //! `ny = n / nx` ([`grid_shape`]), so there are always exactly `n` strata (a prime `n` gives `1 x n`
 //! strips, `n = 8` gives `2 x 4`). Jittered sets whose factorisation is such strips (more than 4 times
 //! longer than wide) use the smallest near-square grid of `m >= n` strata instead ([`jitter_shape`]:
-//! 7 -> 2 x 4, 17 -> 4 x 5) and take `n` distinct strata of it, always through the permutation
-//! (unbiased: each sample's stratum is uniform over the `m`). The stratum of sample `index` is
-//! `permute(index, m, key)` (`m = n` but for those jittered sets)
+//! 7 -> 2 x 4, 17 -> 4 x 5) and take `n` distinct strata of it, always through the permutation and
+//! an independent rotation (unbiased: each stratum's chance is exactly `n / m`). The stratum of sample
+//! `index` is `permute(index, m, key)` (`m = n` but for those jittered sets)
 //! ([`permute`], after Kensler 2013), with `key` from `(seed, stream, dim)`: the pixel-area, lens and
 //! time samples of one pixel sample land in unrelated strata. Stratum `s` is column `s % nx`, row
 //! `s / nx`.

@@ -2,7 +2,7 @@
 //! semantics and conventions).
 
 use super::hash::{
-    permute, permute_pow2, permute_x8, random_2d_keyed, random_bits, random_f32_keyed, stream_key, PermutePow2, PermuteShape,
+    mix64, permute, permute_pow2, permute_x8, random_2d_keyed, random_bits, random_f32_keyed, stream_key, PermutePow2, PermuteShape,
     ONE_MINUS_EPSILON,
 };
 use super::sobol::{sobol_owen_1d, sobol_owen_2d};
@@ -20,7 +20,8 @@ pub enum Strategy {
     Grid,
     /// Independent uniform points.
     Random,
-    /// One uniform point in each of the `nx x ny` strata.
+    /// One uniform point in each of the `nx x ny` strata (in `n` distinct strata of a covering grid for
+    /// counts without near-square factors: [`jitter_shape`]).
     Jittered,
     /// Owen-scrambled, index-shuffled Sobol (0,2)-sequence.
     Sobol,
@@ -101,16 +102,22 @@ pub fn jitter_shape(n: u32) -> [u32; 2] {
     if b <= 4 * a {
         return [a, b];
     }
+    // (r x ceil(n / r) < n + r: at most 65535 x 65537 = 2^32 - 1 strata.)
     let r = n.isqrt();
-    let (c1, c2) = ([r, n.div_ceil(r)], [r + 1, n.div_ceil(r + 1)]);
-    let size = |c: [u32; 2]| c[0] as u64 * c[1] as u64;
-    let best = if size(c1) <= size(c2) { c1 } else { c2 };
-    // (Counts within 2^16 of 2^32 keep their strips rather than overflow the strata count.)
-    if size(best) > u32::MAX as u64 {
-        [a, b]
-    } else {
-        best
-    }
+    [r, n.div_ceil(r)]
+}
+
+/// The stratum of a jittered set that takes `n` of `m > n` strata ([`jitter_shape`]): its permuted
+/// index `s` rotated by an offset from key bits the permutation does not use. The permutation alone
+/// leaves which `n` strata a set takes slightly uneven over keys for `m` not a power of two (its own
+/// rotation shares the scramble's key: a chi-squared of 3752 on 19 degrees of freedom at n = 17 over 1e8
+/// keys, each stratum's share off by up to 1.2e-3); an independent uniform rotation makes every
+/// stratum's chance exactly `n / m`, so each sample is uniform over the square and the estimate
+/// unbiased.
+#[inline(always)]
+fn cover_stratum(s: u32, key: u64, m: u32) -> u32 {
+    let offset = (mix64(key ^ 0x5851_f42d_4c95_7f2d) as u32 as u64 * m as u64) >> 32;
+    ((s as u64 + offset) % m as u64) as u32
 }
 
 /// The strata of `strategy`'s sets of `n` samples: [`jitter_shape`] for jittered, [`grid_shape`] else.
@@ -212,6 +219,7 @@ pub fn sample_2d_keyed(strategy: Strategy, key: u64, index: u32, n: u32) -> [f32
         Strategy::Grid | Strategy::Jittered => {
             let [nx, ny] = strata_shape(strategy, n);
             let s = permute(index, nx * ny, perm_key(key));
+            let s = if nx * ny != n.max(1) { cover_stratum(s, key, nx * ny) } else { s };
             let (sx, sy) = (s % nx, s / nx);
             if strategy == Strategy::Grid {
                 [cell_centre(sx, nx), cell_centre(sy, ny)]
@@ -258,8 +266,9 @@ impl Sampler2d {
     }
 
     /// Sample `index` of a set that one estimate uses whole (e.g. the light samples of one shading point):
-    /// no other dimension shares `index`, so the stratum needs no permutation and is `index` itself.
-    /// Same strata and same distribution as [`Sampler2d::sample`], less hashing.
+    /// no other dimension shares `index`, so the stratum needs no permutation and is `index` itself
+    /// (but for a jittered set that takes `n` of more strata, which is always permuted: see
+    /// [`jitter_shape`]). Same strata and same distribution as [`Sampler2d::sample`], less hashing.
     #[inline]
     pub fn sample_unpermuted(&self, key: u64, index: u32) -> [f32; 2] {
         self.sample_impl(key, index, false)
@@ -344,8 +353,13 @@ impl Sampler2d {
             // Other counts (48, 100, 1000 spp): the same strata and jitter as `sample_impl`, with the
             // cycle-walking permutation in 8 lanes and the integer divisions as f64 ones (exact here,
             // see `jitter_in_cell_div`), which vectorise where the integer ones do not.
-            let permuted = permuted || self.strata() != self.n;
-            let s = if permuted { permute_x8(index, &PermuteShape::new(self.strata()), &keys.map(perm_key)) } else { *index };
+            let cover = self.strata() != self.n;
+            let mut s = if permuted || cover { permute_x8(index, &PermuteShape::new(self.strata()), &keys.map(perm_key)) } else { *index };
+            if cover {
+                for l in 0..LANES {
+                    s[l] = cover_stratum(s[l], keys[l], self.strata());
+                }
+            }
             let (nx, ny) = (self.nx as f64, self.ny as f64);
             for l in 0..LANES {
                 let sl = s[l] as f64;
@@ -388,7 +402,13 @@ impl Sampler2d {
             Strategy::Sobol => sobol_owen_2d(key, index),
             Strategy::Grid | Strategy::Jittered => {
                 let (nx, ny) = (self.nx, self.ny);
-                let s = if permuted || self.strata() != self.n { permute(index, nx * ny, perm_key(key)) } else { index % (nx * ny) };
+                let s = if self.strata() != self.n {
+                    cover_stratum(permute(index, nx * ny, perm_key(key)), key, nx * ny)
+                } else if permuted {
+                    permute(index, nx * ny, perm_key(key))
+                } else {
+                    index % (nx * ny)
+                };
                 let (sx, sy) = if nx.is_power_of_two() { (s & (nx - 1), s >> nx.trailing_zeros()) } else { (s % nx, s / nx) };
                 if self.strategy == Strategy::Grid {
                     [cell_centre(sx, nx), cell_centre(sy, ny)]

@@ -95,8 +95,24 @@ impl Source<'_> {
             let name = self.key_at(span.start);
             let at = span.start.min(self.text.len());
             let line_start = self.text[..at].rfind('\n').map_or(0, |i| i + 1);
+            // A header whose name was given earlier as a value (`shapes = 3`, then `[[shapes]]`).
+            let last = name.rsplit('.').next().unwrap_or(&name);
+            let before = &self.text[..line_start];
+            let as_value = before.lines().position(|l| {
+                l.trim_start()
+                    .strip_prefix(last)
+                    .is_some_and(|r| r.trim_start().starts_with('=') && !r.starts_with(|c: char| c.is_alphanumeric() || c == '_'))
+            });
+            let as_header = before.lines().any(|l| {
+                let t = l.trim();
+                t.trim_start_matches('[').trim_end_matches(']').trim() == name && t.starts_with('[')
+            });
             let msg = if !self.text[line_start..].trim_start().starts_with('[') {
                 format!("`{name}` is given twice in one table")
+            } else if let (Some(at), false) = (as_value, as_header) {
+                let header =
+                    if self.text[line_start..].trim_start().starts_with("[[") { format!("[[{name}]]") } else { format!("[{name}]") };
+                format!("`{last}` is already given a value at line {}; it cannot also be a table `{header}`", at + 1)
             } else if name == "shapes" || name == "lights" {
                 format!("`[{name}]` appears twice; `{name}` is a list: write `[[{name}]]` before each entry")
             } else {

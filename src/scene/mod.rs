@@ -307,6 +307,16 @@ pub struct Scene {
     pub hash: u64,
 }
 
+impl Scene {
+    /// Whether anything in the scene gives light: a light, an emissive material or a background that
+    /// is not black (what [`crate::film::warn_dim`] needs to tell a dim image from an unlit one).
+    pub fn has_light(&self) -> bool {
+        !self.lights.is_empty()
+            || self.background != Vec3::ZERO
+            || self.materials.iter().any(|m| matches!(m, Material::Emissive { radiance } if *radiance != Vec3::ZERO))
+    }
+}
+
 /// Limits that protect the machine; exceeding one is an input error.
 pub const MAX_IMAGE_SIDE: i64 = 16384;
 /// Largest image, in pixels (2^25: 8192 x 4096; 8K UHD fits). The film keeps

@@ -113,14 +113,16 @@ pub fn cache_key_text(scene: &Scene, reference_profile: &Profile) -> String {
     )
 }
 
-/// The running executable's FNV-1a hash, as the cache key's `renderer` line: a reference rendered by
+/// The running executable's hash (xxh64), as the cache key's `renderer` line: a reference rendered by
 /// another build (pulled changes, a local edit) is not reused, which the crate version (0.1.0 at every
 /// commit) could not tell. An executable that cannot be read gives a line that matches no other run.
 fn renderer_id() -> String {
     static ID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
     ID.get_or_init(|| match std::env::current_exe().and_then(std::fs::read) {
-        Ok(bytes) => format!("{:016x}", crate::sample::hash::fnv1a(bytes)),
+        // (xxh64: ~10 ms for a 46 MB executable, where byte-wise FNV-1a took ~90.)
+        Ok(bytes) => format!("{:016x}", crate::film::checksum::xxh64(&bytes)),
         Err(e) => {
+            errln!("note: cannot read the strata executable to key the reference cache ({e}): the reference is rendered afresh");
             let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
             format!("unreadable ({e}): process {} at {now}", std::process::id())
         }

@@ -166,7 +166,11 @@ pub fn render_cancellable(
     // (Discarded samples would bias every error measured from this image.)
     crate::film::warn_discarded(stats.nonfinite_samples);
     crate::film::warn_lost_media(stats.lost_media);
-    crate::film::warn_dim(&film);
+    // (Once per study: every run of a dim scene is as dim.)
+    static DIM_WARNED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+    if crate::film::dim_warning(&film, scene.has_light()).is_some() && !DIM_WARNED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+        crate::film::warn_dim(&film, scene.has_light());
+    }
     Some((film, stats.seconds, stats.rays.total))
 }
 

@@ -187,9 +187,9 @@ fn light_below_the_films_resolution_is_warned_of() {
         render_into(&job, Film::new(scene.width, scene.height)).0
     };
     let unit = film_at(1.0);
-    assert_eq!(dim_warning(&unit), None);
+    assert_eq!(dim_warning(&unit, true), None);
     let dim = film_at(1e-9);
-    let w = dim_warning(&dim).expect("a warning at 1e-9");
+    let w = dim_warning(&dim, true).expect("a warning at 1e-9");
     assert!(w.starts_with("the brightest pixel is "), "{w}");
     let stated: f64 = w.split("off by up to ").nth(1).and_then(|r| r.split('%').next()).unwrap().parse().unwrap();
     let (mut moved, mut brightest) = (0usize, (0.0f64, 0.0f64));
@@ -208,5 +208,10 @@ fn light_below_the_films_resolution_is_warned_of() {
     assert!(off <= stated + 0.01, "brightest pixel off by {off:.3}%, the warning says up to {stated}%");
     let black = film_at(1e-20);
     assert!(black.to_rgb().iter().all(|p| *p == glam::Vec3::ZERO));
-    assert!(dim_warning(&black).is_some_and(|w| w.starts_with("every pixel of the image is 0")));
+    assert!(dim_warning(&black, true).is_some_and(|w| w.starts_with("every pixel of the image is 0")));
+    // A scene without light is black as it should be: no warning.
+    assert_eq!(dim_warning(&black, false), None);
+    assert!(parse(&floor_scene("type = \"point\"\nposition = [0, 3, 0]\nintensity = [1, 1, 1]", false)).has_light());
+    let unlit = floor_scene("", false).replace("[[lights]]\n", "");
+    assert!(!parse(&unlit).has_light(), "{unlit}");
 }
