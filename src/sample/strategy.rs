@@ -90,11 +90,12 @@ pub fn grid_shape(n: u32) -> [u32; 2] {
 }
 
 /// The strata of a jittered set of `n` samples: [`grid_shape`]`(n)` where that is near square (its
-/// strips at most 4 times longer than wide), else the smallest near-square `nx x ny >= n` grid of the
-/// two around `sqrt(n)` (7 -> 2 x 4, 17 -> 4 x 5, 31 -> 5 x 7), of which a set takes `n` distinct strata
-/// chosen by its permutation. Each sample is then still uniform over the square (its stratum is uniform
-/// over the `nx ny`), so the estimate stays unbiased, and it is stratified along both axes: as `1 x 17`
-/// strips, 17 jittered light samples had 4x the soft-shadow error of 16.
+/// strips at most 4 times longer than wide), else the covering grid `r x ceil(n / r)` with
+/// `r = floor(sqrt(n))` (7 -> 2 x 4, 17 -> 4 x 5, 31 -> 5 x 7; never larger than `(r + 1) x ceil(n / (r + 1))`),
+/// of which a set takes `n` distinct strata, chosen by its permutation and [`cover_stratum`]. Each
+/// sample is then still uniform over the square (its stratum is uniform over the `nx ny`), so the
+/// estimate stays unbiased, and it is stratified along both axes: as `1 x 17` strips, 17 jittered light
+/// samples had 4x the soft-shadow error of 16.
 #[inline]
 pub fn jitter_shape(n: u32) -> [u32; 2] {
     let n = n.max(1);
