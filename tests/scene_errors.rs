@@ -507,3 +507,35 @@ fn first_mistakes_read_as_what_they_are() {
         assert!(msg.contains(says), "{msg}");
     }
 }
+
+/// Separate glass solids whose sphere surfaces coincide (a water sphere filling a glass block's
+/// spherical hole exactly, two equal glass spheres) are warned of at the later shape, naming the other;
+/// an overlapping water sphere (the documented way), and a glass sphere equal to an opaque one, are not.
+#[test]
+fn coincident_glass_sphere_surfaces_are_warned_of() {
+    let mats = "[materials.glass]\ntype = \"dielectric\"\nior = 1.5\n[materials.water]\ntype = \"dielectric\"\nior = 1.33\n";
+    let block =
+        "[[shapes]]\ntype = \"group\"\nmaterial = \"glass\"\nchildren = [ { type = \"box\", min = [-1, -1, -1], max = [1, 1, 1] }, \
+                 { type = \"sphere\", center = [0, 0, 0], radius = 0.5, hole = true } ]\n";
+    let sphere = |c: &str, r: &str, m: &str| format!("[[shapes]]\ntype = \"sphere\"\ncenter = [{c}]\nradius = {r}\nmaterial = \"{m}\"\n");
+    let cases = [
+        (format!("{block}{}", sphere("0, 0, 0", "0.5", "water")), Some(("shapes[1]", "shapes[0]"))),
+        (format!("{block}{}", sphere("0, 0, 0", "0.52", "water")), None),
+        (format!("{}{}", sphere("3, 0, 0", "0.5", "glass"), sphere("3, 0, 0", "0.5", "water")), Some(("shapes[1]", "shapes[0]"))),
+        (format!("{}{}", sphere("3, 0, 0", "0.5", "glass"), sphere("3, 0, 0", "0.5", "m")), None),
+    ];
+    for (shapes, want) in cases {
+        let text = format!("{BASE}{mats}{shapes}");
+        let s = parse_scene(Path::new("g.toml"), &text).unwrap();
+        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("coincides with one of")).collect();
+        match want {
+            None => assert!(w.is_empty(), "{shapes}: {w:?}"),
+            Some((at, other)) => {
+                assert_eq!(w.len(), 1, "{shapes}: {:?}", s.warnings);
+                let line = text.lines().enumerate().filter(|(_, l)| *l == "[[shapes]]").nth(1).unwrap().0 + 1;
+                assert!(w[0].starts_with(&format!("g.toml:{line}:")), "{}", w[0]);
+                assert!(w[0].contains(&format!("`{at}`")) && w[0].contains(&format!("`{other}`")), "{}", w[0]);
+            }
+        }
+    }
+}

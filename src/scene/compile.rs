@@ -71,6 +71,7 @@ pub fn parse_scene_sized(path: &Path, text: &str, size: Option<(u32, u32)>) -> R
         unbounded_by: None,
         warnings: Vec::new(),
         checkers: Default::default(),
+        prim_at: Vec::new(),
     };
     c.compile(hash_text(text))
 }
@@ -101,6 +102,8 @@ struct Compiler<'a> {
     warnings: Vec<String>,
     /// Checker textures' scales and where they were given, checked against the scene's extent at the end.
     checkers: std::cell::RefCell<Vec<(Range<usize>, String, f32)>>,
+    /// Where each prim was given (its definition's span and field), by prim id: for warnings that name a prim.
+    prim_at: Vec<(Range<usize>, String)>,
 }
 
 impl Compiler<'_> {
@@ -341,6 +344,9 @@ impl Compiler<'_> {
             Default::default()
         };
         let camera_media = if features.dielectric { self.camera_media(&camera, &file.camera) } else { Vec::new() };
+        if features.dielectric {
+            self.coincident_glass_spheres();
+        }
         Ok(Scene {
             camera_media,
             width,
@@ -367,6 +373,74 @@ impl Compiler<'_> {
             warnings: std::mem::take(&mut self.warnings),
             hash,
         })
+    }
+
+    /// Warn of separate solids whose glass sphere surfaces coincide: a glass sphere that fills a
+    /// spherical hole of another glass solid exactly, or two equal glass spheres. A ray meets the two
+    /// surfaces in an order that rounding decides pixel by pixel, so the media it enters and leaves (and
+    /// its refraction) speckle. Sphere prims and CSG sphere leaves placed by a uniform scale (and a
+    /// rotation) are compared by the exact bits of their centre and radius, as the file gives them; a
+    /// pair that only rounds apart under different transforms is not caught. At the later shape of each
+    /// pair, once per shape.
+    fn coincident_glass_spheres(&mut self) {
+        debug_assert_eq!(self.prim_at.len(), self.prims.len());
+        if self.prim_at.len() != self.prims.len() {
+            return;
+        }
+        let glass = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
+        let mut first: std::collections::HashMap<[u32; 4], usize> = std::collections::HashMap::new();
+        let mut pairs: Vec<(usize, usize)> = Vec::new();
+        for (i, p) in self.prims.iter().enumerate() {
+            if p.motion != Vec3::ZERO {
+                continue;
+            }
+            let mut spheres: Vec<(Vec3, f32)> = Vec::new();
+            match p.shape {
+                Shape::Sphere { center, radius } if glass(p.material) => spheres.push((center, radius)),
+                Shape::Csg { solid } => {
+                    for k in self.csg.solid_leaves(solid) {
+                        let leaf = self.csg.leaf(k);
+                        if !matches!(leaf.shape, csg::solid::Shape::Sphere) || !glass(leaf.material) {
+                            continue;
+                        }
+                        let m = leaf.object_to_world.matrix3;
+                        let r = m.x_axis.length();
+                        let conformal = m.y_axis.length() == r
+                            && m.z_axis.length() == r
+                            && [m.x_axis.dot(m.y_axis), m.y_axis.dot(m.z_axis), m.z_axis.dot(m.x_axis)]
+                                .iter()
+                                .all(|d| d.abs() <= 1e-6 * r * r);
+                        if conformal {
+                            spheres.push((Vec3::from(leaf.object_to_world.translation), r));
+                        }
+                    }
+                }
+                _ => {}
+            }
+            for (c, r) in spheres {
+                let key = [c.x.to_bits(), c.y.to_bits(), c.z.to_bits(), r.to_bits()];
+                match first.get(&key) {
+                    Some(&j) if j != i && !pairs.iter().any(|&(a, _)| a == i) => pairs.push((i, j)),
+                    Some(_) => {}
+                    None => {
+                        first.insert(key, i);
+                    }
+                }
+            }
+        }
+        for (i, j) in pairs {
+            let ((span, field), other) = (self.prim_at[i].clone(), self.prim_at[j].1.clone());
+            self.warn(
+                span,
+                field,
+                format!(
+                    "a glass sphere surface of this shape coincides with one of `{other}`: a ray meets the two in an order that \
+                     rounding decides pixel by pixel, so the media it enters and leaves speckle; make the inner medium slightly \
+                     larger than the space it fills and give the container the higher `priority` (README, \"How to model a glass \
+                     of water\")"
+                ),
+            );
+        }
     }
 
     /// The media the camera starts in ([`Scene::camera_media`]): every solid prim (sphere, ellipsoid, box,
@@ -822,6 +896,7 @@ impl Compiler<'_> {
             }
             self.within_range(&shape, def, field)?;
             self.prims.push(Prim { shape, material, motion, is_light: false });
+            self.prim_at.push((def.span(), field.to_string()));
             return Ok(());
         }
         let material = match &s.material {
@@ -886,6 +961,7 @@ impl Compiler<'_> {
         let shape = Shape::Csg { solid };
         self.within_range(&shape, def, field)?;
         self.prims.push(Prim { shape, material: material.unwrap_or(0), motion, is_light: false });
+        self.prim_at.push((def.span(), field.to_string()));
         Ok(())
     }
 
@@ -1249,6 +1325,7 @@ impl Compiler<'_> {
         };
         self.lights.push(light);
         self.prims.push(Prim { shape, material, motion: Vec3::ZERO, is_light: true });
+        self.prim_at.push((def.span(), field.to_string()));
         Ok(())
     }
 }
