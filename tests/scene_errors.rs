@@ -538,4 +538,10 @@ fn coincident_glass_sphere_surfaces_are_warned_of() {
             }
         }
     }
+    // Twenty equal glass spheres: 19 shapes coincide with an earlier one; 8 are named, then a count.
+    let text = format!("{BASE}{mats}{}", sphere("3, 0, 0", "0.5", "glass").repeat(20));
+    let s = parse_scene(Path::new("g.toml"), &text).unwrap();
+    let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("coincide")).collect();
+    assert_eq!(w.len(), 9, "{w:?}");
+    assert!(w[8].contains("`shapes[9]`") && w[8].contains("and 11 more shapes from here on"), "{}", w[8]);
 }

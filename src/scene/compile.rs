@@ -420,7 +420,8 @@ impl Compiler<'_> {
             for (c, r) in spheres {
                 let key = [c.x.to_bits(), c.y.to_bits(), c.z.to_bits(), r.to_bits()];
                 match first.get(&key) {
-                    Some(&j) if j != i && !pairs.iter().any(|&(a, _)| a == i) => pairs.push((i, j)),
+                    // (Prims come in order: one pair per prim is a look at the last.)
+                    Some(&j) if j != i && pairs.last().is_none_or(|&(a, _)| a != i) => pairs.push((i, j)),
                     Some(_) => {}
                     None => {
                         first.insert(key, i);
@@ -428,7 +429,9 @@ impl Compiler<'_> {
                 }
             }
         }
-        for (i, j) in pairs {
+        // At most 8, then a count (a scene of thousands of equal glass spheres is one mistake).
+        const SHOWN: usize = 8;
+        for &(i, j) in pairs.iter().take(SHOWN) {
             let ((span, field), other) = (self.prim_at[i].clone(), self.prim_at[j].1.clone());
             self.warn(
                 span,
@@ -440,6 +443,11 @@ impl Compiler<'_> {
                      of water\")"
                 ),
             );
+        }
+        if pairs.len() > SHOWN {
+            let (span, field) = self.prim_at[pairs[SHOWN].0].clone();
+            let more = pairs.len() - SHOWN;
+            self.warn(span, field, format!("and {more} more shapes from here on have glass sphere surfaces that coincide with another's"));
         }
     }
 
