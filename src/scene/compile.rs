@@ -390,11 +390,12 @@ impl Compiler<'_> {
         let glass = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
         let mut first: std::collections::HashMap<[u32; 4], usize> = std::collections::HashMap::new();
         let mut pairs: Vec<(usize, usize)> = Vec::new();
+        let mut spheres: Vec<(Vec3, f32)> = Vec::new();
         for (i, p) in self.prims.iter().enumerate() {
             if p.motion != Vec3::ZERO {
                 continue;
             }
-            let mut spheres: Vec<(Vec3, f32)> = Vec::new();
+            spheres.clear();
             match p.shape {
                 Shape::Sphere { center, radius } if glass(p.material) => spheres.push((center, radius)),
                 Shape::Csg { solid } => {
@@ -403,21 +404,14 @@ impl Compiler<'_> {
                         if !matches!(leaf.shape, csg::solid::Shape::Sphere) || !glass(leaf.material) {
                             continue;
                         }
-                        let m = leaf.object_to_world.matrix3;
-                        let r = m.x_axis.length();
-                        let conformal = m.y_axis.length() == r
-                            && m.z_axis.length() == r
-                            && [m.x_axis.dot(m.y_axis), m.y_axis.dot(m.z_axis), m.z_axis.dot(m.x_axis)]
-                                .iter()
-                                .all(|d| d.abs() <= 1e-6 * r * r);
-                        if conformal {
+                        if let Some(r) = similarity_scale(&leaf.object_to_world) {
                             spheres.push((Vec3::from(leaf.object_to_world.translation), r));
                         }
                     }
                 }
                 _ => {}
             }
-            for (c, r) in spheres {
+            for &(c, r) in &spheres {
                 let key = [c.x.to_bits(), c.y.to_bits(), c.z.to_bits(), r.to_bits()];
                 match first.get(&key) {
                     // (Prims come in order: one pair per prim is a look at the last.)

@@ -168,8 +168,10 @@ pub fn render_cancellable(
     crate::film::warn_lost_media(stats.lost_media);
     // (Once per study: every run of a dim scene is as dim.)
     static DIM_WARNED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-    if crate::film::dim_warning(&film, scene.has_light()).is_some() && !DIM_WARNED.swap(true, std::sync::atomic::Ordering::Relaxed) {
-        crate::film::warn_dim(&film, scene.has_light());
+    if let Some(w) = crate::film::dim_warning(&film, scene.has_light()) {
+        if !DIM_WARNED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+            errln!("warning: {w}");
+        }
     }
     Some((film, stats.seconds, stats.rays.total))
 }
