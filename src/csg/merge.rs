@@ -165,8 +165,11 @@ pub struct CsgArena {
     pub(crate) evs: Vec<Ev>,
     pub(crate) tmp: Vec<Ev>,
     pub(crate) starts: Vec<usize>,
-    /// Per leaf of the solid: `[a0, b0, a1, b1]`, each over the 8 lanes.
+    /// Per leaf of the solid (or of a packet's compacted program): `[a0, b0, a1, b1]`, each over the 8
+    /// lanes.
     pub(crate) cross: Vec<[[f32; 8]; 4]>,
+    /// The packet's compacted program, for solids with a cull program (`cull.rs`).
+    pub(crate) compact: super::cull::Compacted,
 }
 
 impl CsgArena {
@@ -176,7 +179,7 @@ impl CsgArena {
 
     /// Total capacity (elements over all buffers): stops changing once warmed up.
     pub fn capacity(&self) -> usize {
-        self.evs.capacity() + self.tmp.capacity() + self.starts.capacity() + self.cross.capacity()
+        self.evs.capacity() + self.tmp.capacity() + self.starts.capacity() + self.cross.capacity() + self.compact.capacity()
     }
 }
 
@@ -306,7 +309,7 @@ pub(crate) fn lanes_with_boundaries_x8(prog: &[Instr], cross: &[[[f32; 8]; 4]], 
 #[inline(always)]
 fn merge_lane(job: &LaneJob, arena: &mut CsgArena) -> bool {
     let LaneJob { prog, leaf_start, lane, tmin, tmax, base } = *job;
-    let CsgArena { evs, tmp, starts, cross } = arena;
+    let CsgArena { evs, tmp, starts, cross, .. } = arena;
     evs.clear();
     starts.clear();
     let lo_cut = tmin - 2.0 * tol_at(tmin, base);

@@ -43,6 +43,7 @@
 //! `Csg::bounds`, `Csg::leaf` and `Csg::inside` index by id and panic on an id that `add_solid` (or the
 //! hit) did not return; `first_hit`, `first_hit_x8` and `intervals_f64` return nothing for an unknown solid.
 
+pub(crate) mod cull;
 pub(crate) mod fast_x8;
 pub mod hit;
 pub mod interval_x8;

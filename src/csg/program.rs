@@ -8,6 +8,7 @@
 //! are rejected. With the left fold the evaluation stack of a program never holds more than
 //! `depth + 1 <= MAX_DEPTH + 1` interval lists.
 
+use super::cull::{cull_program, CullInstr, CULL_LEAVES};
 use super::solid::Leaf;
 use glam::Vec3;
 
@@ -91,6 +92,9 @@ pub(crate) struct Solid {
     /// Per leaf, bit `k`: its surfaces bound the solid flipped (`fast_x8::flip_bits`); `None` when the
     /// program is beyond the 8-lane boundary path (every lane then takes the merge).
     pub flips: Option<u32>,
+    /// Solids of more than [`super::cull::CULL_LEAVES`] leaves: their cull program, a range of
+    /// [`Csg`]'s `culls` (`cull.rs`).
+    pub cull: Option<(u32, u32)>,
 }
 
 /// All leaves of all solids in one array, and one postfix program per solid.
@@ -99,6 +103,7 @@ pub struct Csg {
     pub(crate) leaves: Vec<Leaf>,
     pub(crate) instrs: Vec<Instr>,
     pub(crate) solids: Vec<Solid>,
+    pub(crate) culls: Vec<CullInstr>,
 }
 
 impl Csg {
@@ -125,14 +130,21 @@ impl Csg {
         let scale = placed.fold(bounds.0.abs().max(bounds.1.abs()).max_element(), f32::max);
         // An empty solid has infinite bounds; it has no crossings either, so any finite floor will do.
         let scale = if scale.is_finite() { scale } else { 0.0 };
+        let leaf_count = self.leaves.len() - leaf_start;
+        let cull = (leaf_count > CULL_LEAVES).then(|| {
+            let start = self.culls.len();
+            self.culls.extend(cull_program(tree, &self.leaves[leaf_start..], scale));
+            (start as u32, (self.culls.len() - start) as u32)
+        });
         self.solids.push(Solid {
             leaf_start: leaf_start as u32,
-            leaf_count: (self.leaves.len() - leaf_start) as u32,
+            leaf_count: leaf_count as u32,
             instr_start: instr_start as u32,
             instr_count: (self.instrs.len() - instr_start) as u32,
             bounds,
             scale,
             flips: super::fast_x8::flip_bits(&self.instrs[instr_start..]),
+            cull,
         });
         Ok(self.solids.len() as u32 - 1)
     }
@@ -189,6 +201,12 @@ impl Csg {
     #[inline]
     pub(crate) fn program(&self, s: &Solid) -> &[Instr] {
         &self.instrs[s.instr_start as usize..(s.instr_start + s.instr_count) as usize]
+    }
+
+    /// A solid's cull program (`cull.rs`), if it has one.
+    #[inline]
+    pub(crate) fn cull_program(&self, s: &Solid) -> Option<&[CullInstr]> {
+        s.cull.map(|(start, len)| &self.culls[start as usize..(start + len) as usize])
     }
 }
 
@@ -254,7 +272,7 @@ fn check(tree: &CsgTree, depth: usize) -> Result<(), CsgError> {
 
 /// World bound of a subtree: a box (possibly empty), or infinite with the plane of a bare half-space.
 #[derive(Clone, Copy, Debug)]
-enum Bound {
+pub(super) enum Bound {
     Finite(Vec3, Vec3),
     Infinite(Option<(Vec3, f32)>),
 }
@@ -288,7 +306,7 @@ fn compile(tree: &CsgTree, leaf_start: usize, leaves: &mut Vec<Leaf>, instrs: &m
     }
 }
 
-fn union(a: Bound, b: Bound) -> Bound {
+pub(super) fn union(a: Bound, b: Bound) -> Bound {
     match (a, b) {
         (Bound::Finite(a0, a1), Bound::Finite(b0, b1)) => Bound::Finite(a0.min(b0), a1.max(b1)),
         _ => Bound::Infinite(None),
@@ -297,7 +315,7 @@ fn union(a: Bound, b: Bound) -> Bound {
 
 /// Intersection of the children's bounds: the overlap of the finite ones, clipped (exactly, see [`clip`])
 /// by the plane of every infinite one that has a plane; infinite if no child is finite.
-fn intersect(bounds: &[Bound]) -> Bound {
+pub(super) fn intersect(bounds: &[Bound]) -> Bound {
     let mut acc: Option<(Vec3, Vec3)> = None;
     for b in bounds {
         if let Bound::Finite(lo, hi) = *b {
