@@ -3,7 +3,7 @@
 //! (docs/scaling.md holds a measured copy).
 //!
 //! ```text
-//! cargo run --release --example scaling [-- --reps 2 --spp 16 --max-prims 1000000 --only threads]
+//! cargo run --release --example scaling [-- --reps 2 --spp 16 --max-prims 1000000 --only threads|prims|resolution|leaves]
 //! ```
 //!
 //! Every number is a [`RenderStats`] of one render with the `bench` profile (fixed counts, no adaptive
@@ -32,7 +32,7 @@ struct Opts {
     reps: usize,
     spp: Option<u32>,
     max_prims: u64,
-    /// Tables to print: threads, prims, resolution (default all).
+    /// Tables to print: threads, prims, resolution, leaves (default all).
     only: Option<String>,
 }
 
@@ -53,8 +53,12 @@ fn parse_args() -> Result<Opts, String> {
             "--reps" => o.reps = num(val)?.max(1) as usize,
             "--spp" => o.spp = Some(num(val)? as u32),
             "--max-prims" => o.max_prims = num(val)?,
-            "--only" if ["threads", "prims", "resolution"].contains(&val.as_str()) => o.only = Some(val.clone()),
-            other => return Err(format!("bad option `{other} {val}` (--reps N, --spp N, --max-prims N, --only threads|prims|resolution)")),
+            "--only" if ["threads", "prims", "resolution", "leaves"].contains(&val.as_str()) => o.only = Some(val.clone()),
+            other => {
+                return Err(format!(
+                    "bad option `{other} {val}` (--reps N, --spp N, --max-prims N, --only threads|prims|resolution|leaves)"
+                ))
+            }
         }
         i += 2;
     }
@@ -189,6 +193,9 @@ fn run(o: &Opts) -> Result<(), String> {
     if o.wants("resolution") {
         resolution(o)?;
     }
+    if o.wants("leaves") {
+        leaves(o)?;
+    }
     Ok(())
 }
 
@@ -305,6 +312,43 @@ fn resolution(o: &Opts) -> Result<(), String> {
             m(st.rays_per_second),
             r.per_worker(),
             r.worker_seconds() / (px / 1e6)
+        );
+    }
+    Ok(())
+}
+
+/// One CSG solid of more and more leaves: `gen_perforated.py n`, a plate with n x n holes (the same
+/// picture, finer holes). Per ray and per CSG candidate: with the solid's cull program (`csg::cull`) the
+/// time grows with the depth of its hierarchy, not with its leaves.
+fn leaves(o: &Opts) -> Result<(), String> {
+    println!("\n## Leaves of one CSG solid (scenes/tools/gen_perforated.py N: a plate minus N x N holes; 640x400, 2 threads)\n");
+    println!("| holes | leaves | parse s | render s | rays (M) | M rays/s | CSG candidates (M) | csg_merge ns per candidate | shadow ns per shadow ray |");
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let script = root().join("scenes/tools/gen_perforated.py");
+    for n in [2u64, 4, 8, 16, 32, 64] {
+        let out = Command::new("python3")
+            .arg(&script)
+            .arg(n.to_string())
+            .output()
+            .map_err(|e| format!("cannot run python3 {}: {e}", script.display()))?;
+        if !out.status.success() {
+            return Err(format!("{} failed: {}", script.display(), String::from_utf8_lossy(&out.stderr)));
+        }
+        let text = String::from_utf8(out.stdout).map_err(|e| e.to_string())?;
+        let (scene, load_s) = load(&format!("<gen_perforated.py {n}>"), &text)?;
+        let r = best(&scene, o, 2);
+        let st = &r.stats;
+        let t = &st.stage_seconds;
+        println!(
+            "| {} | {} | {load_s:.3} | {:.3} | {} | {} | {} | {:.1} | {:.1} |",
+            n * n,
+            n * n + 1,
+            st.seconds,
+            m(st.rays.total as f64),
+            m(st.rays_per_second),
+            m(st.csg_candidates as f64),
+            t.csg_merge * 1e9 / st.csg_candidates.max(1) as f64,
+            t.shadow * 1e9 / st.rays.shadow.max(1) as f64
         );
     }
     Ok(())

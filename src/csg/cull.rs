@@ -45,7 +45,7 @@ use glam::Vec3;
 
 /// Solids with more leaves than this get a cull program. Smaller ones are evaluated as written (their
 /// images unchanged, their `FLIP` bits made once).
-pub(crate) const CULL_LEAVES: usize = 32;
+pub(crate) const CULL_LEAVES: usize = 8;
 
 /// One instruction of a cull program.
 #[derive(Clone, Copy, Debug, PartialEq)]
