@@ -9,7 +9,10 @@
 //! boundary after `tmin`; [`intervals_f64`] is the f64 reference for the whole list (`reference.rs`).
 //! Packets skip the merge on lanes whose crossings are all farther apart than the coincidence tolerance:
 //! there the boundaries are the crossings where the program's value flips, found 8 lanes at once
-//! (`fast_x8.rs`), the same results bit for bit.
+//! (`fast_x8.rs`), the same results bit for bit. A solid of more than 8 leaves also has a cull program
+//! (`cull.rs`: its tree balanced, each operand with its bounds): a packet computes the crossings of the
+//! leaves its rays can meet and runs a program over those alone, the same results bit for bit as the
+//! whole balanced program.
 //!
 //! # Conventions a caller must know
 //!
