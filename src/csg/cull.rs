@@ -8,13 +8,15 @@
 //!
 //! So a solid of more than [`CULL_LEAVES`] leaves also gets a *cull program*, compiled once:
 //!
-//! - The tree is made binary and balanced. An n-ary union is split recursively at the median of its
-//!   children's centres along their widest axis (a BVH build over the operands; union is associative
-//!   and commutative); an n-ary intersection is split in halves in order; a difference `a - b - c ...`
-//!   becomes `a - (b ∪ c ∪ ...)`, the union balanced (the same set, and the same `FLIP` parity for every
-//!   leaf: each subtracted leaf passes through one difference's right operand either way).
-//! - In postfix order, every operand whose world bounds are finite is preceded by a [`CullInstr::Span`]:
-//!   its bounds, widened (see [`margin`]), and the length of its instructions.
+//! - The tree is made binary and balanced, its operands in the order written: an n-ary union or
+//!   intersection is split in halves recursively; a difference `a - b - c ...` becomes
+//!   `a - (b ∪ c ∪ ...)`, the union balanced (the same set, and the same `FLIP` parity for every leaf:
+//!   each subtracted leaf passes through one difference's right operand either way). The order is kept
+//!   so that the face two overlapping operands share stays the first one's (a spatial sort handed it to
+//!   another: session 33's user trial).
+//! - In postfix order, every union operand and subtracted operand whose leaves' hull (the union of
+//!   their world boxes) is finite is preceded by a [`CullInstr::Span`]: the hull, widened (see
+//!   [`margin`]), and the length of its instructions.
 //!
 //! Per packet, [`compact_x8`] walks the cull program: an operand whose widened bounds no active lane's
 //! segment `(lo_cut, hi_cut)` meets is skipped whole, a leaf is computed (`leaf_x8`) and dropped when no
@@ -27,25 +29,31 @@
 //! **Exact.** Every lane's merge over the compacted program equals its merge over the whole balanced
 //! program, bit for bit: a leaf left out has no interval that the merge would keep in that lane. The
 //! merge drops the intervals that end before `lo_cut = tmin - 2 tol(tmin)` or start after
-//! `hi_cut = tmax + 2 tol(tmax)`; [`compact_x8`] uses the cuts of `3 tol`, and bounds widened far
-//! beyond the kernels' rounding, so the lanes it drops are a subset of the ones the merge would. An
-//! operand none of whose leaves remains is an empty list for the merge, and the merge's shortcuts for
-//! empty operands return exactly what the fold gives. The test `culled_solids_merge_as_whole_programs`
-//! holds the two to each other on random solids of up to 300 leaves.
+//! `hi_cut = tmax + 2 tol(tmax)`; [`compact_x8`] uses the cuts of `3 tol`, and boxes widened far
+//! beyond the kernels' rounding, so the lanes it drops are a subset of the ones the merge would. A span
+//! bounds all of its operand's *leaves*, not the operand's set: an intersection's merged list can hold
+//! an interval where the overlap of its operands' boxes is empty (crossings within the tolerance are one
+//! event), but every event is a copy of a leaf crossing. An operand none of whose leaves remains is an
+//! empty list for the merge, and the merge's shortcuts for empty operands return exactly what the fold
+//! gives. The test `culled_solids_merge_as_whole_programs` holds the two to each other on random solids
+//! of up to 300 leaves (and on the review's case of an intersection of empty box overlap). This holds
+//! for rays that start near the solid (the renderer re-bases the others); from a far origin, crossings
+//! carry the origin's rounding, beyond the margin.
 //!
 //! The balanced program may group crossings that coincide (within the tolerance) differently from the
-//! tree as written, as any regrouping of the operands may: the difference is within the coincidence
-//! rule's own tolerance, and `tests/csg.rs` holds the solids of many leaves to the f64 reference.
+//! tree as written, as any regrouping of the operands may: a pixel or two at seams of coincident
+//! surfaces can change, within the coincidence rule's own tolerance; `tests/csg_cases/volumes.rs` holds
+//! a plate of many holes to its closed-form volume.
 
-use super::program::{intersect, union, Bound, Instr, Op};
+use super::program::{union, Bound, Instr, Op};
 use super::solid::Leaf;
 use super::CsgTree;
 use crate::simd::{f32x8, Ray8};
 use glam::Vec3;
 
 /// Solids with more leaves than this get a cull program. Smaller ones are evaluated as written (their
-/// `FLIP` bits made once). Measured (paired rounds, `bench` profile, images identical at every
-/// threshold): with 4, peer (a)'s `csg_merge` was 8% slower (its small solids' packets meet most of
+/// `FLIP` bits made once). Measured (paired rounds, `bench` profile, the shipped scenes' images
+/// identical at every threshold): with 4, peer (a)'s `csg_merge` was 8% slower (its small solids' packets meet most of
 /// their leaves, and pay the spans); with 8 or 16 it was even, `scenes/csg.toml` 3% faster (its die of 23
 /// leaves), and a plate of 16 holes 2.5x faster in `csg_merge`.
 pub(crate) const CULL_LEAVES: usize = 8;
@@ -63,10 +71,11 @@ pub(crate) enum CullInstr {
     },
 }
 
-/// A binary operand: a leaf (solid-leaf index) or an operator, with its world bounds.
+/// A binary operand: a leaf (solid-leaf index) or an operator, with the hull of its leaves' world
+/// bounds (infinite if a leaf is a half-space).
 struct Node {
     kind: Kind,
-    bound: Bound,
+    hull: Bound,
 }
 
 enum Kind {
@@ -81,31 +90,28 @@ pub(crate) fn cull_program(tree: &CsgTree, leaves: &[Leaf], scale: f32) -> Vec<C
     let root = binary(tree, leaves, &mut next);
     debug_assert_eq!(next as usize, leaves.len());
     let mut out = Vec::new();
-    emit(&root, true, scale, &mut out);
+    emit(&root, false, scale, &mut out);
     out
 }
 
-/// The tree as a balanced binary one (leaves numbered as `compile` numbers them).
+/// The tree as a balanced binary one (leaves numbered as `compile` numbers them; operands kept in the
+/// order written).
 fn binary(tree: &CsgTree, leaves: &[Leaf], next: &mut u32) -> Node {
     match tree {
         CsgTree::Leaf(_) => {
             let k = *next;
             *next += 1;
-            let bound = match leaves[k as usize].bounds() {
-                Some((lo, hi)) => Bound::Finite(lo, hi),
-                None => Bound::Infinite(leaves[k as usize].plane()),
-            };
-            Node { kind: Kind::Leaf(k), bound }
+            let hull = leaves[k as usize].bounds().map_or(Bound::Infinite(None), |(lo, hi)| Bound::Finite(lo, hi));
+            Node { kind: Kind::Leaf(k), hull }
         }
         CsgTree::Node { op, children } => {
-            // (Children numbered in order before they are rearranged.)
             let mut kids: Vec<Node> = children.iter().map(|c| binary(c, leaves, next)).collect();
             match op {
                 Op::Difference if kids.len() > 1 => {
                     let rest = balance(Op::Union, kids.split_off(1));
                     let first = kids.pop().expect("a difference has a first operand");
-                    let bound = first.bound;
-                    Node { kind: Kind::Op(Op::Difference, Box::new(first), Box::new(rest)), bound }
+                    let hull = union(first.hull, rest.hull);
+                    Node { kind: Kind::Op(Op::Difference, Box::new(first), Box::new(rest)), hull }
                 }
                 _ => balance(*op, kids),
             }
@@ -113,55 +119,36 @@ fn binary(tree: &CsgTree, leaves: &[Leaf], next: &mut u32) -> Node {
     }
 }
 
-/// `op` over `kids` as a balanced binary tree: unions split at the median centre along the widest axis
-/// of the centres (operands of infinite bounds last), intersections in halves, in order.
+/// `op` over `kids` as a balanced binary tree, split in halves in the order written. (Not sorted in
+/// space: where operands share a face, the one written first owns it, and a reordered union would hand
+/// the face to another: a user trial saw the top of two overlapping boxes change colour once the solid
+/// passed 8 leaves. Parts are usually written in the order they are laid out, so halves stay compact.)
 fn balance(op: Op, mut kids: Vec<Node>) -> Node {
     if kids.len() == 1 {
         return kids.pop().expect("one operand");
     }
-    if op == Op::Union {
-        let centre = |n: &Node| match n.bound {
-            Bound::Finite(lo, hi) if lo.cmple(hi).all() => Some((lo + hi) * 0.5),
-            _ => None,
-        };
-        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        for c in kids.iter().filter_map(centre) {
-            (lo, hi) = (lo.min(c), hi.max(c));
-        }
-        let ext = hi - lo;
-        let axis = if ext.x >= ext.y && ext.x >= ext.z {
-            0
-        } else if ext.y >= ext.z {
-            1
-        } else {
-            2
-        };
-        kids.sort_by(|a, b| {
-            let key = |n: &Node| centre(n).map_or(f32::INFINITY, |c| c[axis]);
-            key(a).total_cmp(&key(b))
-        });
-    }
     let right = kids.split_off(kids.len() / 2);
     let (a, b) = (balance(op, kids), balance(op, right));
-    let bound = match op {
-        Op::Union => union(a.bound, b.bound),
-        _ => intersect(&[a.bound, b.bound]),
-    };
-    Node { kind: Kind::Op(op, Box::new(a), Box::new(b)), bound }
+    let hull = union(a.hull, b.hull);
+    Node { kind: Kind::Op(op, Box::new(a), Box::new(b)), hull }
 }
 
 /// How far a span's box is widened: far beyond the rounding of any crossing computed inside the solid
-/// (f32 crossings are accurate to a few ULPs of the coordinates, `1e-7 x scale`), so that a ray that
-/// misses the widened box has no crossing of the operand's leaves.
+/// (f32 crossings are accurate to a few ULPs of the coordinates, `1e-7 x scale`, for rays that start
+/// near the solid, as the renderer's re-based rays do), so that a ray that misses the widened box has no
+/// crossing of the operand's leaves.
 fn margin(scale: f32, lo: Vec3, hi: Vec3) -> f32 {
     1e-4 * scale.max((hi - lo).max_element())
 }
 
-/// The node in postfix order, a span before it unless it is the root or unbounded.
-fn emit(node: &Node, root: bool, scale: f32, out: &mut Vec<CullInstr>) {
+/// The node in postfix order, preceded by a span (its leaves' hull) when `span` and the hull is finite.
+/// Spans go on union operands and on the subtracted operand of a difference only: an intersection's
+/// operands and a difference's first operand are met wherever their parent is (their hulls contain the
+/// parent's region of events), and their tests were measured to cost 25-30% of `csg_merge` for nothing.
+fn emit(node: &Node, span: bool, scale: f32, out: &mut Vec<CullInstr>) {
     let start = out.len();
-    let span = match node.bound {
-        Bound::Finite(lo, hi) if !root && lo.is_finite() && hi.is_finite() && lo.cmple(hi).all() => {
+    let span = match node.hull {
+        Bound::Finite(lo, hi) if span && lo.is_finite() && hi.is_finite() && lo.cmple(hi).all() => {
             let m = Vec3::splat(margin(scale, lo, hi));
             out.push(CullInstr::Span { lo: lo - m, hi: hi + m, len: 0 });
             true
@@ -171,8 +158,8 @@ fn emit(node: &Node, root: bool, scale: f32, out: &mut Vec<CullInstr>) {
     match &node.kind {
         Kind::Leaf(k) => out.push(CullInstr::Leaf(*k)),
         Kind::Op(op, a, b) => {
-            emit(a, false, scale, out);
-            emit(b, false, scale, out);
+            emit(a, *op == Op::Union, scale, out);
+            emit(b, *op != Op::Intersection, scale, out);
             out.push(CullInstr::Op(*op));
         }
     }

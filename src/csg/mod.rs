@@ -29,7 +29,8 @@
 //!   intersected) are rejected with [`CsgError`].
 //! - Bounds ([`Csg::bounds`]): union = union of the children's, intersection = their overlap (half-spaces
 //!   clip exactly), difference = the first child's. An empty solid has `min = +inf, max = -inf`.
-//! - [`CsgArena`]: one per thread; grows to the largest solid seen, then never allocates.
+//! - [`CsgArena`]: one per thread; grows to the largest solid seen (for a solid with a cull program, the
+//!   most leaves a packet meets), then rarely allocates.
 //!
 //! # Coincident surfaces (the one rule, details in `merge.rs`)
 //!

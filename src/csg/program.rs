@@ -315,7 +315,7 @@ pub(super) fn union(a: Bound, b: Bound) -> Bound {
 
 /// Intersection of the children's bounds: the overlap of the finite ones, clipped (exactly, see [`clip`])
 /// by the plane of every infinite one that has a plane; infinite if no child is finite.
-pub(super) fn intersect(bounds: &[Bound]) -> Bound {
+fn intersect(bounds: &[Bound]) -> Bound {
     let mut acc: Option<(Vec3, Vec3)> = None;
     for b in bounds {
         if let Bound::Finite(lo, hi) = *b {
