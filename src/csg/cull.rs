@@ -261,6 +261,7 @@ pub(crate) fn compact_x8(
                 let (Some(b), Some(a)) = (stack.pop(), stack.pop()) else {
                     // (A malformed program: nothing is pushed, and the caller finds no boundary.)
                     prog.clear();
+                    map.clear();
                     return;
                 };
                 let empty = match op {

@@ -11,8 +11,17 @@ use strata::csg::*;
 // ---------------------------------------------------------------------------------------------------------
 
 /// Volume of a solid: `n × n` stratified jittered parallel rays along `dir` over the projection of its
-/// bounds; each ray contributes its total inside length times the cell area.
+/// bounds; each ray contributes its total inside length times the cell area (intervals by `intervals_f64`).
 fn ray_volume(csg: &Csg, solid: u32, dir: DVec3, n: usize, seed: u64) -> f64 {
+    let mut iv = Vec::new();
+    ray_volume_by(csg, solid, dir, n, seed, |o, d| {
+        intervals_f64(csg, solid, o, d, &mut iv);
+        measure(&iv)
+    })
+}
+
+/// The same integral with each ray's inside length from `length(o, d)`.
+fn ray_volume_by(csg: &Csg, solid: u32, dir: DVec3, n: usize, seed: u64, mut length: impl FnMut(DVec3, DVec3) -> f64) -> f64 {
     let (lo, hi) = csg.bounds(solid);
     let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
     let w = dir.normalize();
@@ -28,15 +37,12 @@ fn ray_volume(csg: &Csg, solid: u32, dir: DVec3, n: usize, seed: u64) -> f64 {
     }
     let (du, dv) = ((umax - umin) / n as f64, (vmax - vmin) / n as f64);
     let mut r = R::new(seed);
-    let mut iv = Vec::new();
     let mut sum = 0.0;
     for i in 0..n {
         for j in 0..n {
             let a = umin + (i as f64 + r.f()) * du;
             let b = vmin + (j as f64 + r.f()) * dv;
-            let o = u * a + v * b + w * (wmin - 1.0);
-            intervals_f64(csg, solid, o, w, &mut iv);
-            sum += measure(&iv);
+            sum += length(u * a + v * b + w * (wmin - 1.0), w);
         }
     }
     sum * du * dv
@@ -46,35 +52,14 @@ fn ray_volume(csg: &Csg, solid: u32, dir: DVec3, n: usize, seed: u64) -> f64 {
 /// kernels, the merge, and for solids of many leaves the culled programs of `csg::cull`), each ray's
 /// list also held to the f64 reference's within `2e-3` in length.
 fn ray_volume_fast(csg: &Csg, solid: u32, dir: DVec3, n: usize, seed: u64) -> f64 {
-    let (lo, hi) = csg.bounds(solid);
-    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-    let w = dir.normalize();
-    let u = w.any_orthonormal_vector();
-    let v = w.cross(u);
-    let corners = (0..8).map(|i| {
-        DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z })
-    });
-    let (mut umin, mut umax, mut vmin, mut vmax, mut wmin) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN, f64::MAX);
-    for c in corners {
-        (umin, umax) = (umin.min(c.dot(u)), umax.max(c.dot(u)));
-        (vmin, vmax) = (vmin.min(c.dot(v)), vmax.max(c.dot(v)));
-        wmin = wmin.min(c.dot(w));
-    }
-    let (du, dv) = ((umax - umin) / n as f64, (vmax - vmin) / n as f64);
-    let mut r = R::new(seed);
     let (mut arena, mut iv) = (CsgArena::new(), Vec::new());
-    let mut sum = 0.0;
-    for i in 0..n {
-        for j in 0..n {
-            let o = u * (umin + (i as f64 + r.f()) * du) + v * (vmin + (j as f64 + r.f()) * dv) + w * (wmin - 1.0);
-            let (o32, w32) = (o.as_vec3(), w.as_vec3());
-            let fast = fast_intervals(csg, solid, o32, w32, &mut arena).expect("unpaired boundaries");
-            intervals_f64(csg, solid, o32.as_dvec3(), w32.as_dvec3(), &mut iv);
-            assert!(sym_diff(&fast, &iv) <= 2e-3, "o={o32} d={w32}: fast {fast:?} vs reference {iv:?}");
-            sum += measure(&fast);
-        }
-    }
-    sum * du * dv
+    ray_volume_by(csg, solid, dir, n, seed, |o, w| {
+        let (o32, w32) = (o.as_vec3(), w.as_vec3());
+        let fast = fast_intervals(csg, solid, o32, w32, &mut arena).expect("unpaired boundaries");
+        intervals_f64(csg, solid, o32.as_dvec3(), w32.as_dvec3(), &mut iv);
+        assert!(sym_diff(&fast, &iv) <= 2e-3, "o={o32} d={w32}: fast {fast:?} vs reference {iv:?}");
+        measure(&fast)
+    })
 }
 
 /// A plate with a 16 x 16 grid of through holes whose caps are flush with its faces (257 leaves: the
