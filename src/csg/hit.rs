@@ -1,5 +1,5 @@
 //! Boundaries of a solid along rays: leaf crossings by the 8-lane kernels (one call per leaf per
-//! packet), then the boundaries 8 lanes at once where point classification gives the merge's result
+//! packet; for a solid with a cull program, per leaf the packet can meet: `cull.rs`), then the boundaries 8 lanes at once where point classification gives the merge's result
 //! (`fast_x8.rs`), and Roth's merge per lane elsewhere (`merge.rs`).
 
 use super::cull::compact_x8;
@@ -201,7 +201,8 @@ fn rebase_x8(s: &Solid, ray: &Ray8, tmin: f32x8) -> (Ray8, f32x8, f32x8) {
     (moved, tmin, shift)
 }
 
-/// 8 rays against one solid: leaf crossings by the 8-lane kernels (one call per leaf per packet), then the
+/// 8 rays against one solid: leaf crossings by the 8-lane kernels (one call per leaf, or per leaf of the
+/// packet's compacted program, per packet), then the
 /// merge per active lane. Inactive lanes (`tmax <= tmin`) get `None`.
 ///
 /// Lanes whose crossings near `(tmin, tmax)` are all farther apart than the coincidence tolerance are
