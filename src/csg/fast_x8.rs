@@ -52,7 +52,7 @@ pub(crate) struct FastHits {
     /// Decided lanes that have a boundary in `(tmin, tmax)`.
     pub found: u32,
     pub t: [f32; 8],
-    /// The leaf's index within the solid (add the solid's `leaf_start` for its global id).
+    /// The leaf's index within the program (for the solid's own program, its index within the solid).
     pub leaf: [u32; 8],
     pub flip: u32,
     pub entering: u32,
@@ -424,7 +424,7 @@ mod tests {
                 }
                 decided += 1;
                 decided_many += many as usize;
-                let job = LaneJob { prog: &prog, leaf_start: 0, lane: l, tmin: tmin[l], tmax: tmax[l], base: base[l] };
+                let job = LaneJob { prog: &prog, lane: l, tmin: tmin[l], tmax: tmax[l], base: base[l] };
                 let want = eval_lane(&job, &mut arena);
                 let have = (got.found & (1 << l) != 0)
                     .then(|| (got.t[l].to_bits(), got.leaf[l], got.flip & (1 << l) != 0, got.entering & (1 << l) != 0));

@@ -5,7 +5,7 @@
 use super::cull::compact_x8;
 use super::fast_x8::{first_boundary_x8, flip_bits, for_each_boundary_x8, Query};
 use super::interval_x8::leaf_x8;
-use super::merge::{eval_lane, for_each_boundary, lanes_with_boundaries_x8, tol_base, CsgArena, LaneJob, COINCIDENT_EPS};
+use super::merge::{eval_lane, for_each_boundary, lanes_with_boundaries_x8, tol_at_x8, tol_base, CsgArena, LaneJob, COINCIDENT_EPS};
 use super::program::{Csg, Instr, Solid};
 use crate::simd::{f32x8, Ray8, Vec3x8};
 use glam::Vec3;
@@ -82,22 +82,9 @@ impl Program {
         }
     }
 
-    /// The leaf ids of the merge's events (global for the solid's own program; program indices for a
-    /// compacted one, mapped by [`Program::leaf_id`]).
-    fn merge_leaf_start(&self, s: &Solid) -> u32 {
-        if self.culled {
-            0
-        } else {
-            s.leaf_start
-        }
-    }
-
+    /// The hit with its leaf id (the merge tags events with their program's leaf index).
     fn hit(&self, s: &Solid, h: CsgHit) -> CsgHit {
-        if self.culled {
-            CsgHit { leaf: self.leaf_id(s, h.leaf), ..h }
-        } else {
-            h
-        }
+        CsgHit { leaf: self.leaf_id(s, h.leaf), ..h }
     }
 
     fn done(self, arena: &mut CsgArena) {
@@ -125,8 +112,7 @@ fn packet_program(csg: &Csg, s: &Solid, ray: &Ray8, tmin: f32x8, lanes: u32, bas
     // The segment outside which the merge keeps no interval (`merge_lane`'s cuts, at 3 tolerances
     // instead of 2); inactive lanes meet nothing.
     let (base, three) = (f32x8::from(*base), f32x8::splat(3.0));
-    let eps = f32x8::splat(COINCIDENT_EPS);
-    let tol = |t: f32x8| base + eps * t.abs().min(f32x8::splat(1e30));
+    let tol = |t: f32x8| tol_at_x8(t, base);
     let active = crate::simd::mask_from_bits(lanes);
     let lo_cut = active.select(tmin - three * tol(tmin), f32x8::splat(f32::INFINITY));
     let hi_cut = active.select(ray.tmax + three * tol(ray.tmax), f32x8::splat(f32::NEG_INFINITY));
@@ -153,7 +139,7 @@ pub fn first_hit(csg: &Csg, solid: u32, o: Vec3, d: Vec3, tmin: f32, tmax: f32, 
     let base = tol_base(if shift > 0.0 { o2.abs().max_element() } else { o2.length() }, d.length(), s.scale);
     let prog = packet_program(csg, s, &ray, tmin8, 1, &[base; 8], arena);
     let (tmin, tmax) = (tmin8.to_array()[0], ray.tmax.to_array()[0]);
-    let job = LaneJob { prog: prog.get(csg, s), leaf_start: prog.merge_leaf_start(s), lane: 0, tmin, tmax, base };
+    let job = LaneJob { prog: prog.get(csg, s), lane: 0, tmin, tmax, base };
     let hit = eval_lane(&job, arena).map(|h| unshift(prog.hit(s, h), shift));
     prog.done(arena);
     hit
@@ -233,7 +219,7 @@ pub fn first_hit_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
         }
         rest &= !fast.decided;
     }
-    each_lane(code, prog.merge_leaf_start(s), &base, tmin, ray.tmax, rest, arena, |job, arena| {
+    each_lane(code, &base, tmin, ray.tmax, rest, arena, |job, arena| {
         out[job.lane] = eval_lane(job, arena).map(|h| unshift(prog.hit(s, h), shift[job.lane]))
     });
     prog.done(arena);
@@ -259,7 +245,7 @@ pub fn crossings_x8(csg: &Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena: &mut 
             visit(l, CsgHit { t: t + shift[l], leaf: prog.leaf_id(s, k), flip, entering })
         });
     }
-    each_lane(code, prog.merge_leaf_start(s), &base, tmin, ray.tmax, rest, arena, |job, arena| {
+    each_lane(code, &base, tmin, ray.tmax, rest, arena, |job, arena| {
         for_each_boundary(job, arena, |h| visit(job.lane, unshift(prog.hit(s, h), shift[job.lane])))
     });
     prog.done(arena);
@@ -318,7 +304,6 @@ fn prepare_lanes_x8<'a>(csg: &'a Csg, solid: u32, ray: &Ray8, tmin: f32x8, arena
 #[inline(always)]
 fn each_lane(
     prog: &[Instr],
-    leaf_start: u32,
     base: &[f32; 8],
     tmin: f32x8,
     tmax: f32x8,
@@ -330,7 +315,7 @@ fn each_lane(
     while lanes != 0 {
         let lane = lanes.trailing_zeros() as usize;
         lanes &= lanes - 1;
-        f(&LaneJob { prog, leaf_start, lane, tmin: t0[lane], tmax: t1[lane], base: base[lane] }, arena);
+        f(&LaneJob { prog, lane, tmin: t0[lane], tmax: t1[lane], base: base[lane] }, arena);
     }
 }
 

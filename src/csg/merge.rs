@@ -62,6 +62,12 @@ pub(crate) fn tol_at(t: f32, base: f32) -> f32 {
     base + COINCIDENT_EPS * t.abs().min(1e30)
 }
 
+/// [`tol_at`] in 8 lanes (the same operations: the same values).
+#[inline(always)]
+pub(crate) fn tol_at_x8(t: f32x8, base: f32x8) -> f32x8 {
+    base + f32x8::splat(COINCIDENT_EPS) * t.abs().min(f32x8::splat(1e30))
+}
+
 /// An upper bound of `tol_at(t, base)` over 8 lanes for every `|t| <= big`, widened by 1% against
 /// rounding: the longest group the merge can form among crossings no larger than `big`.
 #[inline(always)]
@@ -187,7 +193,6 @@ impl CsgArena {
 /// `tmin < tmax`) and its coincidence tolerance base.
 pub(crate) struct LaneJob<'a> {
     pub(crate) prog: &'a [Instr],
-    pub(crate) leaf_start: u32,
     pub(crate) lane: usize,
     pub(crate) tmin: f32,
     pub(crate) tmax: f32,
@@ -308,10 +313,11 @@ pub(crate) fn lanes_with_boundaries_x8(prog: &[Instr], cross: &[[[f32; 8]; 4]], 
 /// a malformed program.
 #[inline(always)]
 fn merge_lane(job: &LaneJob, arena: &mut CsgArena) -> bool {
-    let LaneJob { prog, leaf_start, lane, tmin, tmax, base } = *job;
+    let LaneJob { prog, lane, tmin, tmax, base } = *job;
     let CsgArena { evs, tmp, starts, cross, .. } = arena;
     evs.clear();
     starts.clear();
+    // (`cull::compact_x8` drops leaves by these cuts taken at 3 tolerances: keep them the wider.)
     let lo_cut = tmin - 2.0 * tol_at(tmin, base);
     let hi_cut = tmax + 2.0 * tol_at(tmax, base);
     for ins in prog {
@@ -319,7 +325,7 @@ fn merge_lane(job: &LaneJob, arena: &mut CsgArena) -> bool {
             Instr::Leaf(k) => {
                 starts.push(evs.len());
                 let c = &cross[k as usize];
-                let tag = leaf_start + k;
+                let tag = k;
                 for iv in 0..2 {
                     let (t0, t1) = (c[2 * iv][lane], c[2 * iv + 1][lane]);
                     if t0 < t1 && t1 >= lo_cut && t0 <= hi_cut {
@@ -384,7 +390,7 @@ mod tests {
                 if !(tmax[lane] > tmin[lane]) {
                     continue;
                 }
-                let job = LaneJob { prog: &prog, leaf_start: 0, lane, tmin: tmin[lane], tmax: tmax[lane], base: base[lane] };
+                let job = LaneJob { prog: &prog, lane, tmin: tmin[lane], tmax: tmax[lane], base: base[lane] };
                 let first = eval_lane(&job, &mut arena);
                 let mut all = 0;
                 for_each_boundary(&job, &mut arena, |_| all += 1);
