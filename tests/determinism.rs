@@ -3,7 +3,7 @@
 use std::path::Path;
 use strata::film::Film;
 use strata::render::{render_into, RenderJob};
-use strata::scene::{parse_scene, Profile};
+use strata::scene::{parse_scene, LightSelection, Profile};
 use strata::wavefront::Settings;
 
 fn scene_text() -> String {
@@ -294,20 +294,24 @@ fn light_keys_do_not_depend_on_how_requests_share_a_chunk() {
     }
     let scene = parse_scene(Path::new("lights.toml"), &text).unwrap();
     assert_eq!(scene.lights.len(), 12);
-    let mut profile = Profile::builtin("final");
-    (profile.spp, profile.light_samples) = (12, 2);
-    let run = |threads: usize, tile: u32, samples: std::ops::Range<u32>| {
-        let mut job = RenderJob::new(&scene, Settings { profile: profile.clone(), seed: 3 });
-        (job.threads, job.tile, job.samples) = (threads, tile, samples);
-        render_into(&job, Film::new(scene.width, scene.height)).0
-    };
-    let reference = run(1, 16, 0..12);
-    let mut split = run(2, 5, 0..5);
-    split.merge(&run(1, 7, 5..12));
-    assert!(split == reference, "sample ranges 0..5 + 5..12 differ from 0..12");
-    assert!(run(2, 3, 0..12) == reference, "tile 3 differs");
-    let lum: Vec<f32> = reference.to_rgb().iter().map(|c| c.x + c.y + c.z).collect();
-    assert!(lum.iter().all(|&l| l.is_finite()) && lum.iter().any(|&l| l > 0.0), "the image is black");
+    // Every light selection: picked lights sort a queue's requests by light, which must not depend on
+    // the tile either.
+    for mode in LightSelection::ALL {
+        let mut profile = Profile::builtin("final");
+        (profile.spp, profile.light_samples, profile.light_selection) = (12, 2, mode);
+        let run = |threads: usize, tile: u32, samples: std::ops::Range<u32>| {
+            let mut job = RenderJob::new(&scene, Settings { profile: profile.clone(), seed: 3 });
+            (job.threads, job.tile, job.samples) = (threads, tile, samples);
+            render_into(&job, Film::new(scene.width, scene.height)).0
+        };
+        let reference = run(1, 16, 0..12);
+        let mut split = run(2, 5, 0..5);
+        split.merge(&run(1, 7, 5..12));
+        assert!(split == reference, "{}: sample ranges 0..5 + 5..12 differ from 0..12", mode.name());
+        assert!(run(2, 3, 0..12) == reference, "{}: tile 3 differs", mode.name());
+        let lum: Vec<f32> = reference.to_rgb().iter().map(|c| c.x + c.y + c.z).collect();
+        assert!(lum.iter().all(|&l| l.is_finite()) && lum.iter().any(|&l| l > 0.0), "{}: the image is black", mode.name());
+    }
 }
 
 /// With 16 light samples the shadow stage's light-cone test credits the shading points that see a

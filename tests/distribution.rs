@@ -18,6 +18,8 @@ mod glossy;
 mod irradiance;
 #[path = "distribution/lens_time.rs"]
 mod lens_time;
+#[path = "distribution/light_selection.rs"]
+mod light_selection;
 #[path = "distribution/pixel.rs"]
 mod pixel;
 #[path = "distribution/scenes.rs"]

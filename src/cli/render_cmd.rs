@@ -6,7 +6,7 @@ use crate::film::output::{check_file_writable, check_writable, write_image};
 use crate::film::Film;
 use crate::render::{check_render_size, render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
 use crate::sample::Strategy;
-use crate::scene::{load_scene_sized, Profile, Scene};
+use crate::scene::{load_scene_sized, LightSelection, Profile, Scene};
 use crate::wavefront::Settings;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -444,6 +444,13 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
              motion blur"
         ));
     }
+    if p.light_selection != LightSelection::All && scene.lights.len() <= 1 {
+        out.push(format!(
+            "light_selection `{}` with {} light: there is nothing to pick from, every shading point samples every light",
+            p.light_selection.name(),
+            scene.lights.len()
+        ));
+    }
     if p.light_strategy == Strategy::Grid && scene.features.area_lights && p.light_samples == 1 && p.spp > 1 {
         out.push(
             "light_strategy `grid` with 1 light sample puts it at the light's centre for every camera sample: hard shadows at any \
@@ -609,6 +616,12 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
         (false, _) => "no area lights".to_string(),
         (true, 1) => "1 light sample".to_string(),
         (true, n) => format!("{n} light samples"),
+    };
+    // One light picked per shading point (`light_selection`), where there are lights to pick from.
+    let light_samples = match p.light_selection {
+        LightSelection::All => light_samples,
+        _ if scene.lights.len() <= 1 => light_samples,
+        sel => format!("{light_samples}, 1 of {} lights picked per point ({})", scene.lights.len(), sel.name()),
     };
     wl!(
         "  sampling: {} spp, {light_samples}, max depth {}, diffuse depth {}, branching {branching}, filter {}; strategies: {}",

@@ -27,6 +27,45 @@ impl Branching {
     }
 }
 
+/// Which lights a shading point samples (next-event estimation): every light, or one light picked per
+/// shading point with a probability, its contribution divided by that probability (unbiased). See
+/// `wavefront/pick.rs`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LightSelection {
+    /// Every light at every shading point (Cook 1984; the cost grows with the number of lights).
+    All,
+    /// One light, each with the same probability.
+    Uniform,
+    /// One light, with probability proportional to its emitted power.
+    Power,
+    /// One light, with probability proportional to its power over its squared distance from the point
+    /// (zero behind a one-sided light): near lights are picked more often.
+    Local,
+}
+
+impl LightSelection {
+    pub const ALL: [LightSelection; 4] = [LightSelection::All, LightSelection::Uniform, LightSelection::Power, LightSelection::Local];
+
+    /// The name profile files use.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightSelection::All => "all",
+            LightSelection::Uniform => "uniform",
+            LightSelection::Power => "power",
+            LightSelection::Local => "local",
+        }
+    }
+}
+
+fn default_selection() -> LightSelection {
+    LightSelection::All
+}
+
+fn is_all(s: &LightSelection) -> bool {
+    *s == LightSelection::All
+}
+
 /// Hard limits that protect the machine; exceeding one is an input error, not an out-of-memory crash.
 pub const MAX_SPP: u32 = 1 << 20;
 pub const MAX_LIGHT_SAMPLES: u32 = 4096;
@@ -45,6 +84,10 @@ pub struct Profile {
     /// Samples per area light per shading point.
     pub light_samples: u32,
     pub light_strategy: Strategy,
+    /// Every light per shading point, or one picked light (`uniform`, `power`, `local`). Left out of the
+    /// film's profile record when `all`, so that films of renders before it existed still resume.
+    #[serde(default = "default_selection", skip_serializing_if = "is_all")]
+    pub light_selection: LightSelection,
     #[serde(default = "default_strategy")]
     pub lens_strategy: Strategy,
     #[serde(default = "default_strategy")]
@@ -273,6 +316,13 @@ impl Profile {
                     t => return Err(format!("{key}: expected split or roulette, got `{value}`{}", lowercase_hint(t))),
                 }
             }
+            "light_selection" => {
+                let t = value.trim();
+                self.light_selection = LightSelection::ALL
+                    .into_iter()
+                    .find(|s| s.name() == t)
+                    .ok_or_else(|| format!("{key}: expected all, uniform, power or local, got `{value}`{}", lowercase_hint(t)))?
+            }
             "filter" => {
                 let t = value.trim();
                 self.filter = Filter::ALL
@@ -383,12 +433,35 @@ mod tests {
     #[test]
     fn names_are_exact_and_lowercase() {
         let mut p = Profile::builtin("preview");
-        for (k, v) in [("light_strategy", "GRID"), ("strategy", "Sobol"), ("filter", "TENT"), ("branching", "Split")] {
+        for (k, v) in
+            [("light_strategy", "GRID"), ("strategy", "Sobol"), ("filter", "TENT"), ("branching", "Split"), ("light_selection", "Local")]
+        {
             let e = p.set(k, v).unwrap_err();
             assert!(e.starts_with(k) && e.contains(&format!("`{v}`")) && e.contains("names are lowercase"), "{e}");
         }
         assert!(!p.set("filter", "mitchell").unwrap_err().contains("lowercase"));
         p.set_all([("light_strategy", "centre"), ("filter", "tent"), ("branching", "split")]).unwrap();
         assert_eq!((p.light_strategy, p.filter, p.branching), (Strategy::Center, Filter::Tent, Branching::Split));
+    }
+
+    #[test]
+    fn light_selection_parses_and_leaves_the_film_record_of_all_unchanged() {
+        let mut p = Profile::builtin("final");
+        assert_eq!(p.light_selection, LightSelection::All);
+        let before = serde_json::to_string(&p).unwrap();
+        assert!(!before.contains("light_selection"), "`all` is left out of the record: films of older renders still resume");
+        for mode in LightSelection::ALL {
+            p.set("light_selection", mode.name()).unwrap();
+            assert_eq!(p.light_selection, mode);
+        }
+        assert!(serde_json::to_string(&p).unwrap().contains("\"light_selection\":\"local\""));
+        let e = p.set("light_selection", "nearest").unwrap_err();
+        assert!(e.contains("expected all, uniform, power or local"), "{e}");
+        // In a file: the field and its line.
+        let text = "spp = 4\npixel_strategy = \"jittered\"\nlight_samples = 1\nlight_strategy = \"jittered\"\nmax_depth = 2\nlight_selection = \"near\"\n";
+        let e = Profile::parse(Path::new("p.toml"), text).unwrap_err().to_string();
+        assert!(e.contains("p.toml") && e.contains(":6") && e.contains("light_selection"), "{e}");
+        let ok = text.replace("\"near\"", "\"power\"");
+        assert_eq!(Profile::parse(Path::new("p.toml"), &ok).unwrap().light_selection, LightSelection::Power);
     }
 }

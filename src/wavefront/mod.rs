@@ -11,6 +11,7 @@ pub mod csg_merge;
 pub mod generate;
 pub mod intersect;
 pub mod medium;
+pub mod pick;
 pub mod pipeline;
 pub mod queues;
 pub mod shade;

@@ -477,6 +477,17 @@ impl NeeQueue {
     pub fn is_empty(&self) -> bool {
         self.px.is_empty()
     }
+    /// Make this queue `src`'s requests `order` (lobe columns too, where `src` has them; not its glossy
+    /// queue).
+    pub fn copy_from(&mut self, src: &NeeQueue, order: &[u32]) {
+        macro_rules! copy { ($($f:ident),*) => { $(
+            self.$f.clear();
+            if !src.$f.is_empty() {
+                self.$f.extend(order.iter().map(|&i| src.$f[i as usize]));
+            }
+        )* }; }
+        copy!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time, own, wox, woy, woz, alpha);
+    }
     #[inline]
     #[allow(clippy::too_many_arguments)]
     pub fn push(&mut self, p: Vec3, o: Vec3, n: Vec3, w: Vec3, path: u32, key: u64, sample: u32, time: f32, own: u32) {

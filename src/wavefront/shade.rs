@@ -5,6 +5,7 @@
 
 use super::dims;
 use super::medium;
+use super::pick::LightPick;
 use super::queues::{
     HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, RayRows, FLAG_DIFFUSE, FLAG_GLOSSY, FLAG_SPECULAR, NONE,
 };
@@ -291,6 +292,8 @@ pub struct ShadeOut<'a> {
 #[allow(clippy::too_many_arguments)]
 pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits: &HitQueue, order: &mut Vec<u32>, out: ShadeOut) -> u64 {
     let n = rays.len();
+    // The light selection, made when a glossy lobe ray first finds a light.
+    let pick = std::cell::OnceCell::new();
     // Stable counting sort of ray indices by material kind (misses last).
     let mut counts = [0usize; MaterialKind::COUNT + 2];
     let bucket = |i: usize| -> usize {
@@ -401,7 +404,8 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         // at a glossy one, in part: the lobe ray's share is its MIS weight.
                         if geo.front & (1 << l) != 0 && !(prim.is_light && r.flags & FLAG_DIFFUSE != 0) {
                             if prim.is_light && r.flags & FLAG_GLOSSY != 0 && rays.with_pdf {
-                                let w = lobe_light_weight(scene, profile, prim, &r, hits.t[i]);
+                                let pick = pick.get_or_init(|| LightPick::new(scene, profile));
+                                let w = lobe_light_weight(scene, profile, pick.as_ref(), prim, &r, hits.t[i]);
                                 paths.add(r.path, r.throughput * *radiance * w);
                             } else {
                                 paths.add(r.path, r.throughput * *radiance);
@@ -421,20 +425,24 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
 
 /// The MIS weight (power heuristic) of glossy lobe ray `r` that found light `prim` at `t`: its own density
 /// (`r.pdf`, one sample) against the light's `light_samples` samples, seen from the glossy point the ray
-/// left (`r.travel` back from `r.o`: it may have crossed surfaces unbent since).
-fn lobe_light_weight(scene: &Scene, profile: &Profile, prim: &Prim, r: &RayItem, t: f32) -> f32 {
-    let light = scene.lights.iter().find(|l| match (**l, prim.shape) {
+/// left (`r.travel` back from `r.o`: it may have crossed surfaces unbent since), x the probability that
+/// the point picks this light (`pick`, where the profile picks one light per point).
+fn lobe_light_weight(scene: &Scene, profile: &Profile, pick: Option<&LightPick>, prim: &Prim, r: &RayItem, t: f32) -> f32 {
+    let light = scene.lights.iter().position(|l| match (*l, prim.shape) {
         (Light::Quad { quad, .. }, Shape::Quad(q)) => quad.origin == q.origin && quad.u == q.u && quad.v == q.v,
         (Light::Disk { disk, .. }, Shape::Disk(k)) => disk.center == k.center && disk.normal == k.normal && disk.radius == k.radius,
         (Light::Sphere { center, radius, .. }, Shape::Sphere { center: c, radius: k }) => center == c && radius == k,
         _ => false,
     });
     match light {
-        Some(light) => {
+        Some(li) => {
+            let light = &scene.lights[li];
             // Seen from the glossy point: `travel` back along the (unbent) direction from the origin.
             let ns = samples_for(light, profile.light_samples) as f32;
             let p = r.o - r.d.normalize() * r.travel;
-            power_heuristic(1.0, r.pdf, ns * sample_pdf(light, p, r.o + r.d * t))
+            let pdf = sample_pdf(light, p, r.o + r.d * t);
+            let pdf = pick.map_or(pdf, |pick| pdf * pick.prob(p, li));
+            power_heuristic(1.0, r.pdf, ns * pdf)
         }
         None => 1.0,
     }

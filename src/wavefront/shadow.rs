@@ -13,6 +13,7 @@
 use super::cone::LightCone;
 use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
+use super::pick::LightPick;
 use super::queues::{NeeQueue, PathTable};
 use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, Walk};
 use crate::accel::{intersect_aabb_x8, PacketRay};
@@ -23,7 +24,7 @@ use crate::geometry::{
 };
 use crate::light::{light_points_x8, power_heuristic_x8, sample_light_x8, sample_pdf_x8, samples_for};
 use crate::optics::{eval_ggx_reflect_x8, sample_ggx_reflect_pdf_x8};
-use crate::sample::{hash_combine, stream_key, Sampler2d, Strategy};
+use crate::sample::{hash_combine, sample_1d_keyed, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
 use crate::simd::{
     chunk8, f32x16, f32x8, gather8, i32x16, lane_bits, load8, mask_from_bits, store8, u32x16, u32x8, Lanes, Ray8, Vec3x8, LANES,
@@ -202,16 +203,122 @@ pub fn shadow_with(
     arena: &mut CsgArena,
     mut scattered: Option<&mut WideStack>,
 ) -> (u64, u64) {
-    let (mut traced, mut cleared) = shadow_queue::<false>(scene, profile, seed, nee, paths, arena, scattered.as_deref_mut());
-    if let Some(g) = nee.glossy.as_deref().filter(|g| !g.is_empty()) {
-        let (t, c) = shadow_queue::<true>(scene, profile, seed, g, paths, arena, scattered);
+    let Some(pick) = LightPick::new(scene, profile) else {
+        let (mut traced, mut cleared) = shadow_queue::<false>(scene, profile, seed, nee, paths, arena, scattered.as_deref_mut(), None);
+        if let Some(g) = nee.glossy.as_deref().filter(|g| !g.is_empty()) {
+            let (t, c) = shadow_queue::<true>(scene, profile, seed, g, paths, arena, scattered, None);
+            (traced, cleared) = (traced + t, cleared + c);
+        }
+        return (traced, cleared);
+    };
+    // One light per request: each queue is copied in the order of the lights picked (a chunk's lanes
+    // then share their light, whose samples are computed for 8 lanes at once), weights divided by the
+    // picks' probabilities. A request is credited by its one light, so the order of requests changes
+    // no request's sum.
+    let mut sorted = PICKED.take().unwrap_or_default();
+    let (mut traced, mut cleared) = (0, 0);
+    let queues = [Some(nee), nee.glossy.as_deref()];
+    for (k, q) in queues.into_iter().enumerate() {
+        let Some(q) = q.filter(|q| !q.is_empty()) else { continue };
+        sorted.sort(&pick, profile, seed, q);
+        let picks = Some((&sorted.light[..], &sorted.prob[..]));
+        let (t, c) = if k == 0 {
+            shadow_queue::<false>(scene, profile, seed, &sorted.queue, paths, arena, scattered.as_deref_mut(), picks)
+        } else {
+            shadow_queue::<true>(scene, profile, seed, &sorted.queue, paths, arena, scattered.as_deref_mut(), picks)
+        };
         (traced, cleared) = (traced + t, cleared + c);
     }
+    PICKED.set(Some(sorted));
     (traced, cleared)
+}
+
+/// A NEE queue's requests sorted by the light each picked (see [`shadow_with`]), with their picks.
+#[derive(Default)]
+struct Picked {
+    queue: NeeQueue,
+    /// Per sorted request: its light (ascending) and the probability it was picked with.
+    light: Vec<u32>,
+    prob: Vec<f32>,
+    /// Scratch: per request of the source queue its light and probability, the importances of `local`
+    /// picks, and the sort's order.
+    src_light: Vec<u32>,
+    src_prob: Vec<f32>,
+    scratch: Vec<f32x8>,
+    order: Vec<u32>,
+    counts: Vec<u32>,
+}
+
+impl Picked {
+    /// Pick a light for each request of `q` (its random number: [`LightPick::strategy`], key of the
+    /// request's stream and `dims::LIGHT_PICK`, index its camera sample among `spp`, so a pixel's picks
+    /// are stratified), and copy `q` sorted by light (stably), leaving out requests no light reaches,
+    /// their weights divided by the probabilities.
+    fn sort(&mut self, pick: &LightPick, profile: &Profile, seed: u64, q: &NeeQueue) {
+        let n = q.len();
+        let strategy = LightPick::strategy(profile);
+        self.src_light.clear();
+        self.src_prob.clear();
+        let mut memo = (0u64, 0u64);
+        let mut base = 0;
+        while base < n {
+            let m = (n - base).min(LANES);
+            let p = Vec3x8::new(chunk8(&q.px, base, m), chunk8(&q.py, base, m), chunk8(&q.pz, base, m));
+            let mut u = [0.0f32; LANES];
+            for (l, u) in u.iter_mut().enumerate().take(m) {
+                let i = base + l;
+                // (A pixel's requests are consecutive: their stream key is made once.)
+                if memo.0 != q.key[i] || base + l == 0 {
+                    memo = (q.key[i], stream_key(seed, q.key[i], dims::LIGHT_PICK));
+                }
+                *u = sample_1d_keyed(strategy, memo.1, q.sample[i], profile.spp);
+            }
+            // (Lambert points' picks weigh their horizon: glossy points' must be found again by the MIS
+            // weights of their lobe rays, which know no normal.)
+            let n = (q.alpha.is_empty()).then(|| Vec3x8::new(chunk8(&q.nx, base, m), chunk8(&q.ny, base, m), chunk8(&q.nz, base, m)));
+            let (light, prob) = pick.pick_x8(p, n, f32x8::from(u), &mut self.scratch);
+            self.src_light.extend_from_slice(&light[..m]);
+            self.src_prob.extend_from_slice(&prob[..m]);
+            base += m;
+        }
+        // Counting sort by light (NO_LIGHT requests last, then dropped).
+        let nl = pick.lights();
+        self.counts.clear();
+        self.counts.resize(nl + 1, 0);
+        for &l in &self.src_light {
+            self.counts[(l as usize).min(nl)] += 1;
+        }
+        let mut start = 0;
+        for c in self.counts.iter_mut() {
+            (*c, start) = (start, start + *c);
+        }
+        self.order.clear();
+        self.order.resize(n, 0);
+        for (i, &l) in self.src_light.iter().enumerate() {
+            let slot = &mut self.counts[(l as usize).min(nl)];
+            self.order[*slot as usize] = i as u32;
+            *slot += 1;
+        }
+        let kept = self.counts[nl - 1] as usize;
+        self.order.truncate(kept);
+        self.queue.copy_from(q, &self.order);
+        self.light.clear();
+        self.prob.clear();
+        for k in 0..kept {
+            let i = self.order[k] as usize;
+            let inv = 1.0 / self.src_prob[i];
+            self.queue.wr[k] *= inv;
+            self.queue.wg[k] *= inv;
+            self.queue.wb[k] *= inv;
+            self.light.push(self.src_light[i]);
+            self.prob.push(self.src_prob[i]);
+        }
+    }
 }
 
 /// The requests of one queue (see [`shadow_with`]): Lambert ones, or (`LOBES`) glossy ones, with lobe
 /// columns (a separate instance: the Lambert one compiles without the glossy code).
+#[allow(clippy::too_many_arguments)]
 fn shadow_queue<const LOBES: bool>(
     scene: &Scene,
     profile: &Profile,
@@ -220,6 +327,7 @@ fn shadow_queue<const LOBES: bool>(
     paths: &mut PathTable,
     arena: &mut CsgArena,
     scattered: Option<&mut WideStack>,
+    picks: Option<(&[u32], &[f32])>,
 ) -> (u64, u64) {
     // One batch per light in scenes of a few lights: a batch mixing lights in different directions has
     // directions of both signs on two or three axes, and its group is then traced packet by packet
@@ -303,9 +411,12 @@ fn shadow_queue<const LOBES: bool>(
         // Light samples are taken at the shading point; only the shadow ray starts off the surface.
         let o = Vec3x8::new(chunk8(&nee.ox, base, m), chunk8(&nee.oy, base, m), chunk8(&nee.oz, base, m));
         let time = chunk8(&nee.time, base, m);
-        // A queue of glossy requests: their light samples are weighted by `glossy_samples`, which reads
-        // their lobes.
-        let glossy = if LOBES { live } else { 0 };
+        // Requests sorted by the light they picked (`picks`): the chunk's lights, each lane's, and the
+        // probabilities of their picks.
+        let picked = picks.map(|(light, prob)| {
+            let lanes = gather8(light, m == LANES, base, |l| base + l.min(m - 1));
+            (lanes, chunk8(prob, base, m), light[base] as usize..light[base + m - 1] as usize + 1)
+        });
         // (Plain loops rather than `array::from_fn` in this loop: see `simd::chunk8`.)
         let mut req = [0u32; LANES];
         for (l, r) in req.iter_mut().enumerate() {
@@ -318,10 +429,11 @@ fn shadow_queue<const LOBES: bool>(
         let mut lane_keys = [[0u64; LANES]; KEY_CACHE];
         // Usually the whole chunk is one pixel's samples (one key per light, splat below); lanes written
         // one by one would stall the vector loads of the keys.
-        let one_pixel = keyed && across && nee.key[base..base + m].iter().all(|&k| k == nee.key[base]);
+        // (Requests that picked their light need only that light's keys, made below.)
+        let one_pixel = keyed && across && picks.is_none() && nee.key[base..base + m].iter().all(|&k| k == nee.key[base]);
         if one_pixel {
             keys.refresh(scene, seed, nee, across, base);
-        } else if keyed {
+        } else if keyed && picks.is_none() {
             for l in 0..m {
                 keys.refresh(scene, seed, nee, across, base + l);
                 for (lane_key, &k) in lane_keys.iter_mut().zip(&keys.keys).take(scene.lights.len()) {
@@ -329,14 +441,27 @@ fn shadow_queue<const LOBES: bool>(
                 }
             }
         }
-        for (li, light) in scene.lights.iter().enumerate() {
+        let lights = picked.as_ref().map_or(0..scene.lights.len(), |(_, _, range)| range.clone());
+        for (li, light) in scene.lights.iter().enumerate().take(lights.end).skip(lights.start) {
+            // The lanes that sample this light (all, unless requests picked theirs), and the picks'
+            // probabilities (for the MIS weights of glossy requests).
+            let (live, pick_prob) = match &picked {
+                None => (live, None),
+                Some((light, prob, _)) => (live & lane_bits(|l| light[l] == li as u32), Some(*prob)),
+            };
+            if live == 0 {
+                continue;
+            }
+            // A queue of glossy requests: their light samples are weighted by `glossy_samples`, which reads
+            // their lobes.
+            let glossy = if LOBES { live } else { 0 };
             let ns = samples_for(light, profile.light_samples);
             let point = light.is_point();
             let keys_li: [u64; LANES] = if point {
                 [0; LANES]
             } else if one_pixel && li < KEY_CACHE {
                 [keys.keys[li]; LANES]
-            } else if li < KEY_CACHE {
+            } else if li < KEY_CACHE && picks.is_none() {
                 lane_keys[li]
             } else {
                 let mut k = [0u64; LANES];
@@ -420,7 +545,7 @@ fn shadow_queue<const LOBES: bool>(
                 };
                 let (c, lit) = match glossy & lit.to_bitmask() {
                     0 => (c, lit),
-                    _ => glossy_samples(light, ns, nee, base, m, p, n, y, c, lit),
+                    _ => glossy_samples(light, ns, pick_prob, nee, base, m, p, n, y, c, lit),
                 };
                 let lanes = lit.to_bitmask() & live;
                 if lanes & clear != 0 {
@@ -448,7 +573,8 @@ fn shadow_queue<const LOBES: bool>(
                     // (`BufferJob`).
                     let job = (lanes != 0).then_some(BufferJob { base, lanes, c });
                     lanes = 0;
-                    if PAIR_PACKETS && chunk.is_multiple_of(2) {
+                    // (Requests that picked their light are sorted by it: no pairs across lights.)
+                    if PAIR_PACKETS && picked.is_none() && chunk.is_multiple_of(2) {
                         held[li] = job;
                     } else {
                         traced += resolve_buffered(scene, profile, lb, li, nee, held[li].take().as_ref(), job.as_ref(), &mut credit, arena);
@@ -471,13 +597,16 @@ fn shadow_queue<const LOBES: bool>(
                 if lanes == 0 {
                     continue;
                 }
+                // (A request that picked one light is credited by one batch: no order to keep between
+                // batches, and a full batch goes alone.)
                 let bi = li.min(nb - 1);
+                let lo = if picked.is_some() { bi } else { 0 };
                 if batches[bi].len + LANES > BATCH {
-                    traced += flush_upto(scene, profile, &mut batches[..=bi], &mut credit, arena, walk, single.as_deref_mut());
+                    traced += flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, arena, walk, single.as_deref_mut());
                 }
                 batches[bi].append(&Rays8 { o, d: target - o, tmax: end, time, contrib: c, req }, lanes);
                 if batches[bi].len == BATCH {
-                    traced += flush_upto(scene, profile, &mut batches[..=bi], &mut credit, arena, walk, single.as_deref_mut());
+                    traced += flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, arena, walk, single.as_deref_mut());
                 }
             }
             if clear | glass | opaque != 0 {
@@ -512,6 +641,7 @@ fn shadow_queue<const LOBES: bool>(
 fn glossy_samples(
     light: &Light,
     ns: u32,
+    pick_prob: Option<f32x8>,
     nee: &NeeQueue,
     base: usize,
     m: usize,
@@ -529,7 +659,10 @@ fn glossy_samples(
     let cos = n.dot_unfused(wi);
     let mut k = cos.simd_gt(zero).select(eval_ggx_reflect_x8(wo, n, wi, alpha) / cos, zero);
     if !light.is_point() {
-        let mis = power_heuristic_x8(ns as f32, sample_pdf_x8(light, p, y), sample_ggx_reflect_pdf_x8(wo, n, wi, alpha));
+        // The light strategy's density: ns samples of the light's own, x the pick's probability.
+        let pdf = sample_pdf_x8(light, p, y);
+        let pdf = pick_prob.map_or(pdf, |q| pdf * q);
+        let mis = power_heuristic_x8(ns as f32, pdf, sample_ggx_reflect_pdf_x8(wo, n, wi, alpha));
         k = a.simd_gt(zero).select(k * mis, k);
     }
     let ok = k.simd_gt(zero) & k.is_finite();
@@ -733,6 +866,8 @@ pub fn occlusion_refused(scene: &Scene, profile: &Profile, ray: &Ray8, refused: 
 thread_local! {
     /// Each thread's shadow batches, kept between calls of [`shadow_with`].
     static BATCHES: std::cell::Cell<Vec<Box<Batch>>> = const { std::cell::Cell::new(Vec::new()) };
+    /// Each thread's sorted copies of its NEE queues where requests pick their light.
+    static PICKED: std::cell::Cell<Option<Box<Picked>>> = const { std::cell::Cell::new(None) };
 }
 
 /// Lights up to which the shadow stage keeps one batch per light (more share one batch).

@@ -4,15 +4,15 @@
 use super::*;
 use std::f64::consts::PI;
 
-const ALBEDO: [f64; 3] = [0.5, 0.6, 0.7];
+pub const ALBEDO: [f64; 3] = [0.5, 0.6, 0.7];
 const RADIANCE: [f64; 3] = [1.0, 2.0, 3.0];
-const SIZE: u32 = 32;
+pub const SIZE: u32 = 32;
 
 /// Irradiance at `p` (surface normal `n`) from a uniform Lambertian polygon of radiance 1 that is
 /// wholly above the tangent plane of `p`: Lambert's formula `E = 1/2 |sum_i theta_i (g_i . n)|`, where
 /// `theta_i` is the angle edge i subtends at `p` and `g_i` the unit normal of the plane through `p` and
 /// edge i.
-fn polygon_irradiance(p: DVec3, n: DVec3, verts: &[DVec3]) -> f64 {
+pub fn polygon_irradiance(p: DVec3, n: DVec3, verts: &[DVec3]) -> f64 {
     let k = verts.len();
     let mut sum = 0.0;
     for i in 0..k {
@@ -26,14 +26,14 @@ fn polygon_irradiance(p: DVec3, n: DVec3, verts: &[DVec3]) -> f64 {
 }
 
 /// The receiver: an infinite Lambert plane seen by a pinhole camera.
-struct Receiver {
-    cam: PinholeF64,
-    point: DVec3,
-    normal: DVec3,
+pub struct Receiver {
+    pub cam: PinholeF64,
+    pub point: DVec3,
+    pub normal: DVec3,
 }
 
 /// Camera straight down from height 1 over the plane y = 0 (90 degree field of view: it sees [-1, 1]^2).
-fn floor() -> Receiver {
+pub fn floor() -> Receiver {
     let cam = PinholeF64::new(DVec3::Y, DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0), 90.0, SIZE, SIZE);
     Receiver { cam, point: DVec3::ZERO, normal: DVec3::Y }
 }
@@ -106,7 +106,7 @@ fn mean(img: impl Iterator<Item = DVec3>) -> DVec3 {
 }
 
 /// Largest relative difference of the per-channel image means.
-fn mean_rel_error(img: &[Vec3], truth: &[DVec3]) -> f64 {
+pub fn mean_rel_error(img: &[Vec3], truth: &[DVec3]) -> f64 {
     let m = mean(img.iter().map(|v| v.as_dvec3()));
     let t = mean(truth.iter().copied());
     ((m - t) / t).abs().max_element()

@@ -1,0 +1,493 @@
+//! Light selection (the profile's `light_selection`). With `all` (the default) every shading point samples
+//! every light, and the shadow stage's cost grows with the number of lights. The other modes pick one
+//! light per shading point with probability `P(l)` and divide its contribution by `P(l)`: unbiased, one
+//! light's `light_samples` per point whatever the number of lights, and more noise where a point's light
+//! comes from several lights.
+//!
+//! - `uniform`: `P(l) = 1 / L`.
+//! - `power`: `P(l)` proportional to the light's emitted power `Phi` (mean over channels).
+//! - `local`: proportional to `Phi / max(d^2, r^2)` at the shading point, with `d` the distance to the
+//!   light's centre and `r` its bounding radius, and 0 where the point lies behind a one-sided (quad or
+//!   disk) light, which gives it nothing. A point weighs every light: O(L) arithmetic per point (8 points
+//!   per vector), no traversal. A light tree would make it O(log L); not built.
+//!
+//! The pick's random number is one more dimension (`dims::LIGHT_PICK`), stratified across a pixel's
+//! camera samples (index = camera sample) like the light samples: with 16 spp and 4 equal lights each
+//! light takes 4 of a pixel's 16 picks. Glossy points' MIS weights count the light strategy's density as
+//! `P(l)` x `light_samples` x the light's own density ([`LightPick::prob`] in the shade stage).
+
+use crate::sample::Strategy;
+use crate::scene::{Light, LightSelection, Profile, Scene};
+use crate::simd::{f32x8, Vec3x8, LANES};
+use glam::Vec3;
+
+/// A lane's pick when no light can give its point anything (every importance 0).
+pub const NO_LIGHT: u32 = u32::MAX;
+
+/// Smallest squared distance in `local` importances (keeps them finite: at most 1e30 per light).
+const D2_FLOOR: f32 = 1e-30;
+
+/// Smallest cosine factor of a point in front of a one-sided light, and the tolerance of the receiver's
+/// horizon test (`local`): a light that may give a point something keeps a chance.
+const COS_FLOOR: f32 = 1e-3;
+
+/// The selection of one render (built per shadow call: O(L)).
+pub struct LightPick {
+    mode: LightSelection,
+    /// Per light: its power, scaled so that the largest is 1 (`uniform`: all 1).
+    phi: Vec<f32>,
+    /// Per light (`local`): bounding-sphere centre, squared radius (at least [`D2_FLOOR`]), and the
+    /// emitting side's normal (zero: emits all round) with a tolerance on the side test.
+    centre: Vec<Vec3>,
+    radius: Vec<f32>,
+    r2: Vec<f32>,
+    normal: Vec<Vec3>,
+    one_sided: Vec<bool>,
+    side_tol: Vec<f32>,
+    /// `uniform` and `power`: per light its probability, and the running sum (the last exactly 1).
+    prob: Vec<f32>,
+    cdf: Vec<f32>,
+}
+
+/// Mean radiant power over the channels (W), from the light's geometry.
+fn power(light: &Light) -> f64 {
+    use std::f64::consts::PI;
+    let mean = |c: Vec3| (c.x as f64 + c.y as f64 + c.z as f64) / 3.0;
+    match *light {
+        Light::Point { intensity, .. } => 4.0 * PI * mean(intensity),
+        Light::Quad { quad, radiance } => PI * quad.area() as f64 * mean(radiance),
+        Light::Disk { disk, radiance } => PI * PI * (disk.radius as f64).powi(2) * mean(radiance),
+        Light::Sphere { radius, radiance, .. } => PI * 4.0 * PI * (radius as f64).powi(2) * mean(radiance),
+    }
+}
+
+/// Bounding-sphere centre and radius, and the emitting side's unit normal (zero if it emits all round).
+fn bounds(light: &Light) -> (Vec3, f32, Vec3) {
+    match *light {
+        Light::Point { position, .. } => (position, 0.0, Vec3::ZERO),
+        Light::Quad { quad, .. } => {
+            let c = quad.origin + (quad.u + quad.v) * 0.5;
+            let r = 0.5 * (quad.u + quad.v).length().max((quad.u - quad.v).length());
+            (c, r, quad.normal())
+        }
+        Light::Disk { disk, .. } => (disk.center, disk.radius, disk.normal),
+        Light::Sphere { center, radius, .. } => (center, radius, Vec3::ZERO),
+    }
+}
+
+impl LightPick {
+    /// The profile's selection for this scene; `None` when every light is sampled at every point (`all`,
+    /// or a scene of at most one light, where a pick would change nothing but the cost).
+    pub fn new(scene: &Scene, profile: &Profile) -> Option<LightPick> {
+        let mode = profile.light_selection;
+        if mode == LightSelection::All || scene.lights.len() <= 1 {
+            return None;
+        }
+        // (A light of no power gives nothing: never picked, in `uniform` too.)
+        let raw: Vec<f64> = scene
+            .lights
+            .iter()
+            .map(|l| match power(l) {
+                p if p > 0.0 && mode == LightSelection::Uniform => 1.0,
+                p => p.max(0.0),
+            })
+            .collect();
+        let top = raw.iter().cloned().fold(0.0f64, f64::max);
+        let phi: Vec<f32> = raw.iter().map(|&p| if top > 0.0 { (p / top) as f32 } else { 0.0 }).collect();
+        let (mut centre, mut radius, mut r2, mut normal, mut one_sided, mut side_tol) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for light in &scene.lights {
+            let (c, r, n) = bounds(light);
+            centre.push(c);
+            radius.push(r);
+            r2.push((r * r).max(D2_FLOOR));
+            normal.push(n);
+            one_sided.push(n != Vec3::ZERO);
+            // Conservative: a point on the far side within 1e-4 of the light's size (plus 1e-6 of its
+            // distance from the origin: the rounding of its plane) keeps its chance.
+            side_tol.push(1e-4 * r + 1e-6 * c.abs().max_element());
+        }
+        let total: f64 = phi.iter().map(|&p| p as f64).sum();
+        let mut prob = Vec::with_capacity(phi.len());
+        let mut cdf = Vec::with_capacity(phi.len());
+        let mut run = 0.0f64;
+        for &p in &phi {
+            run += p as f64;
+            prob.push(if total > 0.0 { (p as f64 / total) as f32 } else { 0.0 });
+            cdf.push(if total > 0.0 { (run / total) as f32 } else { 0.0 });
+        }
+        // The last light with any power ends the table at exactly 1 (a pick below 1 always lands).
+        if let Some(last) = phi.iter().rposition(|&p| p > 0.0) {
+            cdf[last..].fill(1.0);
+        }
+        Some(LightPick { mode, phi, centre, radius, r2, normal, one_sided, side_tol, prob, cdf })
+    }
+
+    /// Number of lights.
+    pub fn lights(&self) -> usize {
+        self.phi.len()
+    }
+
+    /// The strategy of the pick's random number: the light samples' own where they are random or Sobol,
+    /// else jittered (a grid or a centre would pick the same light at every point of a pixel: bias).
+    pub fn strategy(profile: &Profile) -> Strategy {
+        match profile.light_strategy {
+            Strategy::Random => Strategy::Random,
+            Strategy::Sobol => Strategy::Sobol,
+            _ => Strategy::Jittered,
+        }
+    }
+
+    /// `local`: light `li`'s importance at `p` (see [`LightPick::pick_x8`]; without a receiver normal).
+    #[inline(always)]
+    fn importance(&self, li: usize, p: Vec3) -> f32 {
+        let v = p - self.centre[li];
+        let d2 = v.dot(v).max(self.r2[li]);
+        let (dn, r) = (self.normal[li].dot(v), self.radius[li]);
+        if self.one_sided[li] {
+            let cos = (dn / d2.sqrt() + r / d2.sqrt()).clamp(COS_FLOOR, 1.0);
+            if dn > -self.side_tol[li] {
+                self.phi[li] * cos / d2
+            } else {
+                0.0
+            }
+        } else {
+            self.phi[li] / d2
+        }
+    }
+
+    /// The probability that a point at `p` picks light `li` (the MIS weights of glossy lobe rays that
+    /// find a light need it). The same operations as [`LightPick::pick_x8`]: bit for bit its lanes'.
+    pub fn prob(&self, p: Vec3, li: usize) -> f32 {
+        match self.mode {
+            LightSelection::Local => {
+                let mut total = 0.0f32;
+                for l in 0..self.phi.len() {
+                    total += self.importance(l, p);
+                }
+                let i = self.importance(li, p);
+                if total > 0.0 {
+                    i / total
+                } else {
+                    0.0
+                }
+            }
+            _ => self.prob[li],
+        }
+    }
+
+    /// Picks for 8 points `p` with uniform numbers `u` in [0, 1): per lane the light (or [`NO_LIGHT`])
+    /// and its probability. `scratch` holds the lanes' importances (`local`). With the points' normals
+    /// `n` (Lambert points), a `local` importance also has the receiver's cosine bound towards the
+    /// light's bounding sphere, 0 when the sphere lies below the point's horizon; without (glossy points,
+    /// whose lobe rays' MIS weights need the probability again, from [`LightPick::prob`]), it has none.
+    ///
+    /// `local` importance of light `l` at `p`: `Phi / max(d^2, r^2)`, x for a one-sided light (quad,
+    /// disk) with normal `m` the bound `min(1, (m.(p - c) + r) / d)` of its cosine (at least
+    /// [`COS_FLOOR`]), or 0 when `p` lies behind its plane; x the receiver's `min(1, (n.(c - p) + r) / d)`
+    /// where it is given (0 when negative).
+    pub fn pick_x8(&self, p: Vec3x8, n: Option<Vec3x8>, u: f32x8, scratch: &mut Vec<f32x8>) -> ([u32; LANES], [f32; LANES]) {
+        let mut light = [NO_LIGHT; LANES];
+        let mut prob = [0.0f32; LANES];
+        if self.mode != LightSelection::Local {
+            let u = u.to_array();
+            for l in 0..LANES {
+                let i = self.cdf.partition_point(|&c| c <= u[l]).min(self.cdf.len() - 1);
+                if self.prob[i] > 0.0 {
+                    (light[l], prob[l]) = (i as u32, self.prob[i]);
+                }
+            }
+            return (light, prob);
+        }
+        scratch.clear();
+        let (zero, one) = (f32x8::ZERO, f32x8::ONE);
+        let mut total = zero;
+        for li in 0..self.phi.len() {
+            let v = p - Vec3x8::splat(self.centre[li]);
+            let d2 = v.dot_unfused(v).max(f32x8::splat(self.r2[li]));
+            let r = f32x8::splat(self.radius[li]);
+            let mut i = if self.one_sided[li] {
+                let dn = Vec3x8::splat(self.normal[li]).dot_unfused(v);
+                let d = d2.sqrt();
+                let cos = (dn / d + r / d).min(one).max(f32x8::splat(COS_FLOOR));
+                dn.simd_gt(f32x8::splat(-self.side_tol[li])).select(f32x8::splat(self.phi[li]) * cos / d2, zero)
+            } else {
+                f32x8::splat(self.phi[li]) / d2
+            };
+            if let Some(n) = n {
+                // Towards the light: -v.
+                let d = d2.sqrt();
+                let c = ((-n.dot_unfused(v)) / d + r / d + f32x8::splat(COS_FLOOR)).min(one).max(zero);
+                i *= c;
+            }
+            scratch.push(i);
+            total += i;
+        }
+        // The first light whose running sum passes u x total; past the end by rounding, the last light
+        // with any importance.
+        let target = u * total;
+        let mut run = zero;
+        let (mut sel, mut last) = (f32x8::splat(-1.0), f32x8::splat(-1.0));
+        let (mut sel_imp, mut last_imp) = (zero, zero);
+        let mut found = zero.simd_gt(zero);
+        for (li, &imp) in scratch.iter().enumerate() {
+            run += imp;
+            let k = f32x8::splat(li as f32);
+            let pos = imp.simd_gt(zero);
+            let now = run.simd_gt(target) & pos & !found;
+            sel = now.select(k, sel);
+            sel_imp = now.select(imp, sel_imp);
+            found |= now;
+            last = pos.select(k, last);
+            last_imp = pos.select(imp, last_imp);
+        }
+        let sel = found.select(sel, last).to_array();
+        let sel_imp = found.select(sel_imp, last_imp).to_array();
+        let totals = total.to_array();
+        for l in 0..LANES {
+            if sel[l] >= 0.0 && totals[l] > 0.0 {
+                (light[l], prob[l]) = (sel[l] as u32, sel_imp[l] / totals[l]);
+            }
+        }
+        (light, prob)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sample::random_f32_keyed;
+    use crate::scene::parse_scene;
+    use std::path::Path;
+
+    /// Lights of every kind, strengths and sizes: quads (one facing up), disks, points, spheres, and
+    /// one quad of zero radiance.
+    fn lights_scene() -> Scene {
+        let text = r#"
+[image]
+width = 8
+height = 8
+[camera]
+position = [0, 2, 9]
+look_at = [0, 0, 0]
+fov = 40
+[materials.m]
+type = "lambert"
+albedo = [0.5, 0.5, 0.5]
+[[shapes]]
+type = "sphere"
+center = [0, 0, 0]
+radius = 1
+material = "m"
+[[lights]]
+type = "quad"
+origin = [-2, 3, -1]
+u = [1, 0, 0]
+v = [0, 0, 1]
+radiance = [4, 4, 4]
+[[lights]]
+type = "quad"
+origin = [1, 2, 2]
+v = [0.5, 0, 0]
+u = [0, 0, 0.3]
+radiance = [9, 1, 1]
+[[lights]]
+type = "quad"
+origin = [3, 0, -3]
+u = [0, 2, 0]
+v = [0, 0, 2]
+radiance = [0, 0, 0]
+[[lights]]
+type = "disk"
+center = [0, 4, 0]
+normal = [0, -1, 0.2]
+radius = 0.7
+radiance = [2, 2, 3]
+[[lights]]
+type = "disk"
+center = [-3, 1, 2]
+normal = [1, 0, 0]
+radius = 0.2
+radiance = [20, 20, 20]
+[[lights]]
+type = "point"
+position = [2, 5, 1]
+intensity = [10, 10, 10]
+[[lights]]
+type = "point"
+position = [-1, -2, -4]
+intensity = [1, 3, 1]
+[[lights]]
+type = "sphere"
+center = [0, 1.5, -3]
+radius = 0.4
+radiance = [3, 3, 3]
+[[lights]]
+type = "sphere"
+center = [4, 4, 4]
+radius = 1.5
+radiance = [0.5, 0.5, 0.5]
+"#;
+        parse_scene(Path::new("lights.toml"), text).unwrap()
+    }
+
+    fn profile(mode: LightSelection) -> Profile {
+        let mut p = Profile::builtin("preview");
+        p.light_selection = mode;
+        p
+    }
+
+    fn rnd(k: &mut u32) -> f32 {
+        *k += 1;
+        random_f32_keyed(0x5eed, *k)
+    }
+
+    /// Points in and around the lights, some on their planes, behind them and inside the spheres.
+    fn points(k: &mut u32) -> Vec<Vec3x8> {
+        (0..64)
+            .map(|_| {
+                let xyz: [[f32; LANES]; 3] = std::array::from_fn(|_| std::array::from_fn(|_| rnd(k) * 12.0 - 6.0));
+                Vec3x8::from_rows(&xyz)
+            })
+            .collect()
+    }
+
+    fn unit(k: &mut u32) -> Vec3 {
+        loop {
+            let v = Vec3::new(rnd(k) * 2.0 - 1.0, rnd(k) * 2.0 - 1.0, rnd(k) * 2.0 - 1.0);
+            if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+
+    #[test]
+    fn probabilities_sum_to_one_and_lanes_match_the_scalar() {
+        let scene = lights_scene();
+        assert!(LightPick::new(&scene, &profile(LightSelection::All)).is_none(), "`all` picks nothing");
+        let mut k = 0;
+        let mut scratch = Vec::new();
+        for mode in [LightSelection::Uniform, LightSelection::Power, LightSelection::Local] {
+            let pick = LightPick::new(&scene, &profile(mode)).unwrap();
+            for p in points(&mut k) {
+                let u = f32x8::from(std::array::from_fn::<f32, LANES, _>(|_| rnd(&mut k)));
+                let (light, prob) = pick.pick_x8(p, None, u, &mut scratch);
+                for l in 0..LANES {
+                    let pl = p.lane(l);
+                    let sum: f64 = (0..pick.lights()).map(|li| pick.prob(pl, li) as f64).sum();
+                    assert!((sum - 1.0).abs() < 1e-5, "{mode:?} at {pl}: probabilities sum to {sum}");
+                    assert!(light[l] != NO_LIGHT, "{mode:?}: some light reaches every point");
+                    assert_eq!(prob[l].to_bits(), pick.prob(pl, light[l] as usize).to_bits(), "{mode:?}: lane and scalar differ");
+                    assert!(prob[l] > 0.0);
+                }
+            }
+            // The light of zero radiance is never picked.
+            assert_eq!(pick.prob(Vec3::ZERO, 2), 0.0, "{mode:?}");
+        }
+        let uniform = LightPick::new(&scene, &profile(LightSelection::Uniform)).unwrap();
+        assert!((0..9).all(|li| li == 2 || (uniform.prob(Vec3::ONE, li) - 1.0 / 8.0).abs() < 1e-6));
+    }
+
+    /// For a fixed point, the picks of many stratified numbers land on each light in proportion to its
+    /// probability (within 1.5 / n: the numbers are evenly spread), with and without normals.
+    #[test]
+    fn picks_follow_their_probabilities() {
+        let scene = lights_scene();
+        let mut k = 7;
+        let mut scratch = Vec::new();
+        for mode in [LightSelection::Power, LightSelection::Local] {
+            let pick = LightPick::new(&scene, &profile(mode)).unwrap();
+            for _ in 0..6 {
+                let p = Vec3::new(rnd(&mut k) * 4.0 - 2.0, rnd(&mut k) * 2.0, rnd(&mut k) * 4.0 - 2.0);
+                let normal = unit(&mut k);
+                for with_n in [false, true] {
+                    let n = with_n.then_some(Vec3x8::splat(normal));
+                    let count = 4096usize;
+                    let mut hits = vec![0usize; pick.lights()];
+                    let mut probs = vec![0.0f32; pick.lights()];
+                    for c in (0..count).step_by(LANES) {
+                        let u = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| ((c + l) as f32 + 0.5) / count as f32));
+                        let (light, prob) = pick.pick_x8(Vec3x8::splat(p), n, u, &mut scratch);
+                        for l in 0..LANES {
+                            if light[l] != NO_LIGHT {
+                                hits[light[l] as usize] += 1;
+                                probs[light[l] as usize] = prob[l];
+                            }
+                        }
+                    }
+                    let local = mode == LightSelection::Local;
+                    let total: f32 = if local { (0..pick.lights()).map(|li| scratch[li].to_array()[0]).sum() } else { 1.0 };
+                    for li in 0..pick.lights() {
+                        let expect = if local { scratch[li].to_array()[0] / total } else { pick.prob(p, li) };
+                        let seen = hits[li] as f32 / count as f32;
+                        assert!(
+                            (seen - expect).abs() <= 1.5 / count as f32,
+                            "{mode:?} light {li} at {p}: picked {seen}, probability {expect}"
+                        );
+                        if hits[li] > 0 {
+                            assert!((probs[li] - expect).abs() <= 1e-6 * expect.max(1e-30) + 1e-9, "{mode:?}: reported probability");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// A light a point never picks (importance 0) gives it nothing: no point of the light lies both in
+    /// front of the light's emitting side and above the receiver's horizon.
+    #[test]
+    fn a_light_never_picked_gives_the_point_nothing() {
+        let scene = lights_scene();
+        let pick = LightPick::new(&scene, &profile(LightSelection::Local)).unwrap();
+        let mut k = 99;
+        let mut scratch = Vec::new();
+        let mut zeros = 0;
+        for p in points(&mut k) {
+            let normals: [[f32; LANES]; 3] = {
+                let ns: [Vec3; LANES] = std::array::from_fn(|_| unit(&mut k));
+                std::array::from_fn(|a| std::array::from_fn(|l| ns[l][a]))
+            };
+            let n = Vec3x8::from_rows(&normals);
+            pick.pick_x8(p, Some(n), f32x8::splat(0.5), &mut scratch);
+            for (li, light) in scene.lights.iter().enumerate() {
+                for l in 0..LANES {
+                    if scratch[li].to_array()[l] > 0.0 {
+                        continue;
+                    }
+                    zeros += 1;
+                    let (pl, nl) = (p.lane(l), n.lane(l));
+                    for s in 0..256 {
+                        let (a, b) = (((s % 16) as f32 + 0.5) / 16.0, ((s / 16) as f32 + 0.5) / 16.0);
+                        let (y, emits) = match *light {
+                            Light::Quad { quad, radiance } => {
+                                let y = quad.origin + quad.u * a + quad.v * b;
+                                (y, radiance != Vec3::ZERO && quad.normal().dot(pl - y) > 0.0)
+                            }
+                            Light::Disk { disk, .. } => {
+                                let (t, w) = crate::optics::onb(disk.normal);
+                                let r = disk.radius * a.sqrt();
+                                let phi = b * std::f32::consts::TAU;
+                                let y = disk.center + (t * phi.cos() + w * phi.sin()) * r;
+                                (y, disk.normal.dot(pl - y) > 0.0)
+                            }
+                            Light::Point { position, .. } => (position, true),
+                            Light::Sphere { center, radius, .. } => {
+                                let z = 2.0 * a - 1.0;
+                                let phi = b * std::f32::consts::TAU;
+                                let s = (1.0 - z * z).sqrt();
+                                let m = Vec3::new(s * phi.cos(), s * phi.sin(), z);
+                                let y = center + m * radius;
+                                (y, m.dot(pl - y) > 0.0)
+                            }
+                        };
+                        assert!(
+                            !(emits && nl.dot(y - pl) > 1e-4 * (y - pl).length()),
+                            "light {li} reaches {pl} (normal {nl}) at {y} but is never picked"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(zeros > 500, "the points and normals leave some lights out ({zeros} lane-lights)");
+    }
+}

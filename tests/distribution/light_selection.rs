@@ -1,0 +1,199 @@
+//! Light selection (`light_selection`: one light picked per shading point, divided by its probability)
+//! against ground truth: a Lambert plane under several quad lights, whose radiance is the sum of each
+//! light's Lambert polygon irradiance; and on a glossy floor, where lobe rays find the lights too and the
+//! MIS weights must count the pick's probability, against the render that samples every light.
+
+use super::irradiance::{floor, mean_rel_error, polygon_irradiance, ALBEDO, SIZE};
+use super::*;
+use strata::film::Film;
+use strata::scene::LightSelection;
+
+/// Quad lights in one plane above the floor camera (none shades another), as origin, u, v, radiance:
+/// all facing down but the last, which faces up and gives the floor nothing; broad dim ones, a small
+/// one and a tiny bright one.
+/// A quad light: origin, u, v and (grey) radiance.
+type QuadLight = ([f64; 3], [f64; 3], [f64; 3], f64);
+
+const LIGHTS: [QuadLight; 5] = [
+    ([-0.8, 1.5, -0.5], [0.4, 0.0, 0.0], [0.0, 0.0, 0.4], 2.0),
+    ([0.5, 1.5, 0.2], [0.3, 0.0, 0.0], [0.0, 0.0, 0.3], 6.0),
+    ([-0.2, 1.5, 0.6], [0.1, 0.0, 0.0], [0.0, 0.0, 0.1], 50.0),
+    ([0.3, 1.5, -0.9], [0.9, 0.0, 0.0], [0.0, 0.0, 0.6], 0.7),
+    ([1.5, 1.5, 0.0], [0.0, 0.0, 0.5], [0.5, 0.0, 0.0], 5.0),
+];
+
+fn lights_text() -> String {
+    LIGHTS
+        .iter()
+        .map(|(o, u, v, l)| {
+            let f = |a: &[f64; 3]| v3(DVec3::from_array(*a));
+            format!("[[lights]]\ntype = \"quad\"\norigin = {}\nu = {}\nv = {}\nradiance = [{l}, {l}, {l}]\n", f(o), f(u), f(v))
+        })
+        .collect()
+}
+
+/// The floor scene and, per pixel (through its centre), `albedo / pi x sum_l L_l E_l(p)`.
+fn many_lights() -> (Scene, Vec<DVec3>) {
+    let rc = floor();
+    let c = &rc.cam;
+    let text = format!(
+        "[image]\nwidth = {SIZE}\nheight = {SIZE}\n[camera]\nposition = {}\nlook_at = {}\nup = {}\nfov = {}\n\
+         [materials.ground]\ntype = \"lambert\"\nalbedo = [{}, {}, {}]\n\
+         [[shapes]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\nmaterial = \"ground\"\n{}",
+        v3(c.pos),
+        v3(c.pos + c.forward),
+        v3(c.up),
+        2.0 * c.half_h.atan().to_degrees(),
+        ALBEDO[0],
+        ALBEDO[1],
+        ALBEDO[2],
+        lights_text()
+    );
+    let mut truth = Vec::new();
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let d = c.dir(x as f64 + 0.5, y as f64 + 0.5);
+            let p = c.pos + d * (-c.pos.y / d.y);
+            let mut e = 0.0;
+            for (o, u, v, l) in LIGHTS {
+                let (o, u, v) = (DVec3::from_array(o), DVec3::from_array(u), DVec3::from_array(v));
+                if u.cross(v).y < 0.0 {
+                    e += l * polygon_irradiance(p, DVec3::Y, &[o, o + u, o + u + v, o + v]);
+                }
+            }
+            truth.push(DVec3::from_array(ALBEDO) * (e / std::f64::consts::PI));
+        }
+    }
+    (scene(&text), truth)
+}
+
+fn with_selection(mut p: Profile, mode: LightSelection) -> Profile {
+    p.light_selection = mode;
+    p
+}
+
+/// Per pixel, |mean - truth| in standard errors of the mean (largest channel), and their mean square.
+fn z_scores(film: &Film, truth: &[DVec3]) -> (f64, f64) {
+    let zs: Vec<f64> = film
+        .pixels()
+        .zip(truth)
+        .map(|(px, t)| ((px.mean().as_dvec3() - *t) / px.variance_of_mean().as_dvec3().max(DVec3::splat(1e-30)).sqrt()).abs().max_element())
+        .collect();
+    let worst = zs.iter().copied().fold(0.0, f64::max);
+    (worst, zs.iter().map(|z| z * z).sum::<f64>() / zs.len() as f64)
+}
+
+/// Every selection is unbiased: with independent (random) numbers each pixel lies within its noise of
+/// the closed form (E[z^2] is about 1 for an unbiased pixel; the largest channel of three is taken, so
+/// somewhat above), and with stratified (jittered) ones the image mean is within 1%. A pick that
+/// forgot its probability, or a light wrongly never picked, is off by far more.
+#[test]
+fn picked_lights_sum_to_lambert_polygon_irradiance() {
+    let (s, truth) = many_lights();
+    assert_eq!(s.lights.len(), 5);
+    for mode in LightSelection::ALL {
+        let p = with_selection(profile(256, "center", 1, "random"), mode);
+        let (film, stats) = render(&s, Settings { profile: p, seed: 17 }, 0);
+        assert_eq!(stats.nonfinite_samples, 0);
+        let (worst, mean_z2) = z_scores(&film, &truth);
+        let e = mean_rel_error(&film.to_rgb(), &truth);
+        let (img, stats) = render_image(&s, &with_selection(profile(64, "center", 1, "jittered"), mode), 17);
+        let ej = mean_rel_error(&img, &truth);
+        eprintln!(
+            "{:>7}: random: mean rel. error {e:.2e}, mean z^2 {mean_z2:.3}, worst |z| {worst:.2}; jittered: mean rel. error {ej:.2e}, {} shadow rays",
+            mode.name(),
+            (stats.rays.shadow + stats.rays.shadow_cleared)
+        );
+        assert!(mean_z2 < 1.6, "{}: mean z^2 {mean_z2:.2}: pixels are off by more than their noise", mode.name());
+        assert!(worst < 8.0, "{}: a pixel is {worst:.1} standard errors off", mode.name());
+        assert!(e < 0.01 && ej < 0.01, "{}: image mean off by {:.3}% (random), {:.3}% (jittered)", mode.name(), e * 100.0, ej * 100.0);
+        // One light per shading point (the lit floor's 64 x 1024 points), against all five.
+        let per_point = (stats.rays.shadow + stats.rays.shadow_cleared) as f64 / (64.0 * 1024.0);
+        let expect = if mode == LightSelection::All { 4.0 } else { 1.0 };
+        assert!(per_point <= expect + 1e-9, "{}: {per_point} shadow rays per point", mode.name());
+    }
+}
+
+/// A glossy floor reflecting quad lights: its light is sampled by the lights (picked) and by the lobe,
+/// weighted by MIS. The weights must use the pick's probability on both sides; the render that picks
+/// then equals the one that samples every light within their noise, pixel by pixel.
+#[test]
+fn glossy_mis_counts_the_pick_probability() {
+    let text = r#"
+[image]
+width = 40
+height = 30
+[camera]
+position = [0.0, 1.0, 3.0]
+look_at = [0.0, 0.2, -0.5]
+fov = 50.0
+[materials.floor]
+type = "glossy"
+tint = [0.9, 0.9, 0.9]
+roughness = 0.35
+[[shapes]]
+type = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 1.0, 0.0]
+material = "floor"
+[[lights]]
+type = "quad"
+origin = [-1.2, 1.3, -2.0]
+u = [0.6, 0.0, 0.0]
+v = [0.0, 0.0, 0.6]
+radiance = [3.0, 3.0, 3.0]
+[[lights]]
+type = "quad"
+origin = [0.3, 0.8, -1.6]
+u = [0.25, 0.0, 0.0]
+v = [0.0, 0.0, 0.25]
+radiance = [12.0, 6.0, 3.0]
+[[lights]]
+type = "disk"
+center = [1.0, 1.6, -2.5]
+normal = [0.0, -1.0, 0.3]
+radius = 0.4
+radiance = [2.0, 3.0, 6.0]
+[[lights]]
+type = "point"
+position = [0.0, 2.0, 0.5]
+intensity = [1.0, 1.0, 1.0]
+"#;
+    let s = scene(text);
+    let run = |mode: LightSelection| {
+        let p = with_selection(profile(256, "center", 1, "random"), mode);
+        let (film, stats) = render(&s, Settings { profile: p, seed: 23 }, 0);
+        assert_eq!(stats.nonfinite_samples, 0);
+        film
+    };
+    let all = run(LightSelection::All);
+    let all_px: Vec<_> = all.pixels().collect();
+    let lit = all_px.iter().filter(|p| p.mean().max_element() > 0.05).count();
+    assert!(lit > 300, "the floor reflects the lights ({lit} lit pixels)");
+    for mode in [LightSelection::Uniform, LightSelection::Power, LightSelection::Local] {
+        let film = run(mode);
+        // (Pixels whose light is below 1e-3 are left out: the film's fixed-point squares cannot hold
+        // their variance.)
+        let zs: Vec<f64> = film
+            .pixels()
+            .zip(&all_px)
+            .filter(|(_, b)| b.mean().max_element() > 1e-3)
+            .map(|(a, b)| {
+                let v = (a.variance_of_mean() + b.variance_of_mean()).as_dvec3().max(DVec3::splat(1e-30));
+                ((a.mean() - b.mean()).as_dvec3() / v.sqrt()).abs().max_element()
+            })
+            .collect();
+        let worst = zs.iter().copied().fold(0.0, f64::max);
+        let mean_z2 = zs.iter().map(|z| z * z).sum::<f64>() / zs.len() as f64;
+        let m = |f: &Film| f.to_rgb().iter().map(|c| c.as_dvec3()).sum::<DVec3>();
+        let rel = ((m(&film) - m(&all)) / m(&all)).abs().max_element();
+        eprintln!(
+            "glossy floor, {:>7} against all: image mean rel. difference {rel:.2e}, mean z^2 {mean_z2:.3}, worst |z| {worst:.2} ({} pixels)",
+            mode.name(),
+            zs.len()
+        );
+        assert!(mean_z2 < 1.6, "{}: mean z^2 {mean_z2:.2}", mode.name());
+        assert!(worst < 8.0, "{}: a pixel is {worst:.1} standard errors off", mode.name());
+        assert!(rel < 0.01, "{}: image mean differs by {:.3}%", mode.name(), rel * 100.0);
+    }
+}
