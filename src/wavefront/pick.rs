@@ -202,26 +202,50 @@ impl LightPick {
         scratch.clear();
         let (zero, one) = (f32x8::ZERO, f32x8::ONE);
         let mut total = zero;
-        for li in 0..self.phi.len() {
-            let v = p - Vec3x8::splat(self.centre[li]);
-            let d2 = v.dot_unfused(v).max(f32x8::splat(self.r2[li]));
-            let r = f32x8::splat(self.radius[li]);
-            let mut i = if self.one_sided[li] {
-                let dn = Vec3x8::splat(self.normal[li]).dot_unfused(v);
-                let d = d2.sqrt();
-                let cos = (dn / d + r / d).min(one).max(f32x8::splat(COS_FLOOR));
-                dn.simd_gt(f32x8::splat(-self.side_tol[li])).select(f32x8::splat(self.phi[li]) * cos / d2, zero)
-            } else {
-                f32x8::splat(self.phi[li]) / d2
-            };
-            if let Some(n) = n {
-                // Towards the light: -v.
-                let d = d2.sqrt();
-                let c = ((-n.dot_unfused(v)) / d + r / d + f32x8::splat(COS_FLOOR)).min(one).max(zero);
-                i *= c;
+        match n {
+            // Glossy points: the operations of the scalar `importance`, bit for bit.
+            None => {
+                for li in 0..self.phi.len() {
+                    let v = p - Vec3x8::splat(self.centre[li]);
+                    let d2 = v.dot_unfused(v).max(f32x8::splat(self.r2[li]));
+                    let i = if self.one_sided[li] {
+                        let r = f32x8::splat(self.radius[li]);
+                        let dn = Vec3x8::splat(self.normal[li]).dot_unfused(v);
+                        let d = d2.sqrt();
+                        let cos = (dn / d + r / d).min(one).max(f32x8::splat(COS_FLOOR));
+                        dn.simd_gt(f32x8::splat(-self.side_tol[li])).select(f32x8::splat(self.phi[li]) * cos / d2, zero)
+                    } else {
+                        f32x8::splat(self.phi[li]) / d2
+                    };
+                    scratch.push(i);
+                    total += i;
+                }
             }
-            scratch.push(i);
-            total += i;
+            // Lambert points: no scalar twin, so 1 / d by the hardware's estimate (about 12 bits): the
+            // importances are only a proposal, and each pick's probability is its own importance over
+            // the same total, so the estimate stays unbiased. The zeros (behind a one-sided light, below
+            // the horizon) come from exact comparisons.
+            Some(n) => {
+                for li in 0..self.phi.len() {
+                    let v = p - Vec3x8::splat(self.centre[li]);
+                    let d2 = v.dot_unfused(v).max(f32x8::splat(self.r2[li]));
+                    let inv_d = d2.recip_sqrt();
+                    let r = f32x8::splat(self.radius[li]);
+                    // Towards the light: -v. Below the horizon by more than COS_FLOOR x d: 0.
+                    let up = r - n.dot_unfused(v);
+                    let mut c = up
+                        .simd_gt(f32x8::splat(-COS_FLOOR) * d2 * inv_d)
+                        .select((up * inv_d + f32x8::splat(COS_FLOOR)).min(one).max(f32x8::splat(1e-6)), zero);
+                    if self.one_sided[li] {
+                        let dn = Vec3x8::splat(self.normal[li]).dot_unfused(v);
+                        let cos = ((dn + r) * inv_d).min(one).max(f32x8::splat(COS_FLOOR));
+                        c = dn.simd_gt(f32x8::splat(-self.side_tol[li])).select(c * cos, zero);
+                    }
+                    let i = f32x8::splat(self.phi[li]) * c * (inv_d * inv_d);
+                    scratch.push(i);
+                    total += i;
+                }
+            }
         }
         // The first light whose running sum passes u x total; past the end by rounding, the last light
         // with any importance.
@@ -231,6 +255,9 @@ impl LightPick {
         let (mut sel_imp, mut last_imp) = (zero, zero);
         let mut found = zero.simd_gt(zero);
         for (li, &imp) in scratch.iter().enumerate() {
+            if found.all() {
+                break;
+            }
             run += imp;
             let k = f32x8::splat(li as f32);
             let pos = imp.simd_gt(zero);

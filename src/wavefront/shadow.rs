@@ -464,9 +464,11 @@ fn shadow_queue<const LOBES: bool>(
             } else if li < KEY_CACHE && picks.is_none() {
                 lane_keys[li]
             } else {
+                // (Across samples, lanes of one pixel's requests share the key: made once per run.)
                 let mut k = [0u64; LANES];
-                for (l, key) in k.iter_mut().enumerate().take(m) {
-                    *key = light_key(base + l, li);
+                for l in 0..m {
+                    let i = base + l;
+                    k[l] = if across && l > 0 && nee.key[i] == nee.key[i - 1] { k[l - 1] } else { light_key(i, li) };
                 }
                 k
             };
