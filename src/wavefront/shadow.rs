@@ -204,9 +204,10 @@ pub fn shadow_with(
     mut scattered: Option<&mut WideStack>,
 ) -> (u64, u64) {
     let Some(pick) = LightPick::new(scene, profile) else {
-        let (mut traced, mut cleared) = shadow_queue::<false>(scene, profile, seed, nee, paths, arena, scattered.as_deref_mut(), None);
+        let (mut traced, mut cleared) =
+            shadow_queue::<false, false>(scene, profile, seed, nee, paths, arena, scattered.as_deref_mut(), None);
         if let Some(g) = nee.glossy.as_deref().filter(|g| !g.is_empty()) {
-            let (t, c) = shadow_queue::<true>(scene, profile, seed, g, paths, arena, scattered, None);
+            let (t, c) = shadow_queue::<true, false>(scene, profile, seed, g, paths, arena, scattered, None);
             (traced, cleared) = (traced + t, cleared + c);
         }
         return (traced, cleared);
@@ -223,9 +224,9 @@ pub fn shadow_with(
         sorted.sort(&pick, profile, seed, q);
         let picks = Some((&sorted.light[..], &sorted.prob[..]));
         let (t, c) = if k == 0 {
-            shadow_queue::<false>(scene, profile, seed, &sorted.queue, paths, arena, scattered.as_deref_mut(), picks)
+            shadow_queue::<false, true>(scene, profile, seed, &sorted.queue, paths, arena, scattered.as_deref_mut(), picks)
         } else {
-            shadow_queue::<true>(scene, profile, seed, &sorted.queue, paths, arena, scattered.as_deref_mut(), picks)
+            shadow_queue::<true, true>(scene, profile, seed, &sorted.queue, paths, arena, scattered.as_deref_mut(), picks)
         };
         (traced, cleared) = (traced + t, cleared + c);
     }
@@ -317,9 +318,11 @@ impl Picked {
 }
 
 /// The requests of one queue (see [`shadow_with`]): Lambert ones, or (`LOBES`) glossy ones, with lobe
-/// columns (a separate instance: the Lambert one compiles without the glossy code).
+/// columns (a separate instance: the Lambert one compiles without the glossy code); each request's
+/// light and its probability where (`PICK`) requests picked one, sorted by it (again an instance of
+/// its own: the renders of every light compile without the picks).
 #[allow(clippy::too_many_arguments)]
-fn shadow_queue<const LOBES: bool>(
+fn shadow_queue<const LOBES: bool, const PICK: bool>(
     scene: &Scene,
     profile: &Profile,
     seed: u64,
@@ -329,6 +332,8 @@ fn shadow_queue<const LOBES: bool>(
     scattered: Option<&mut WideStack>,
     picks: Option<(&[u32], &[f32])>,
 ) -> (u64, u64) {
+    debug_assert_eq!(PICK, picks.is_some());
+    let picks = if PICK { picks } else { None };
     // One batch per light in scenes of a few lights: a batch mixing lights in different directions has
     // directions of both signs on two or three axes, and its group is then traced packet by packet
     // (GroupBounds); a third of the showcase's were. A batch is flushed only after every lower light's
