@@ -11,7 +11,7 @@ use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughpu
 use std::path::Path;
 use strata::film::Film;
 use strata::render::{render, render_into, RenderJob};
-use strata::scene::{parse_scene, Profile, Scene};
+use strata::scene::{parse_scene, LightSelection, Profile, Scene};
 use strata::wavefront::Settings;
 
 /// `bench_spheres` with a lens (tiny aperture) and one moving sphere far behind the camera: the image is
@@ -28,8 +28,8 @@ fn spheres_with_lens_and_motion() -> Scene {
     scene
 }
 
-/// Name, samples per pixel, loader.
-type BenchScene = (&'static str, u32, fn() -> Scene);
+/// Name, samples per pixel, loader, light selection.
+type BenchScene = (&'static str, u32, fn() -> Scene, LightSelection);
 
 fn bench_render(c: &mut Criterion) {
     let mut g = c.benchmark_group("render");
@@ -37,18 +37,22 @@ fn bench_render(c: &mut Criterion) {
     // 4 samples per pixel keeps each iteration short; the showcase also at the bench profile's own 16
     // (what the render summary, `examples/scaling.rs` and the end-to-end target measure: at 4,
     // per-pixel work of generation and accumulation weighs more per ray).
-    let scenes: [BenchScene; 6] = [
-        ("bench_spheres.toml", 4, || support::scene("bench_spheres.toml")),
-        ("bench_spheres+lens+motion", 4, spheres_with_lens_and_motion),
-        ("bench_csg.toml", 4, || support::scene("bench_csg.toml")),
-        ("glass.toml", 4, || support::scene("glass.toml")),
-        ("showcase.toml", 4, || support::scene("showcase.toml")),
-        ("showcase.toml@16spp", 16, || support::scene("showcase.toml")),
+    // (256 lamps, one picked per shading point: `all` would take 60 times as long.)
+    let all = LightSelection::All;
+    let scenes: [BenchScene; 7] = [
+        ("bench_spheres.toml", 4, || support::scene("bench_spheres.toml"), all),
+        ("bench_spheres+lens+motion", 4, spheres_with_lens_and_motion, all),
+        ("bench_csg.toml", 4, || support::scene("bench_csg.toml"), all),
+        ("glass.toml", 4, || support::scene("glass.toml"), all),
+        ("showcase.toml", 4, || support::scene("showcase.toml"), all),
+        ("showcase.toml@16spp", 16, || support::scene("showcase.toml"), all),
+        ("many_lights.toml+local", 4, || support::scene("many_lights.toml"), LightSelection::Local),
     ];
-    for (name, spp, load) in scenes {
+    for (name, spp, load, selection) in scenes {
         let scene = load();
         let mut profile = Profile::builtin("bench");
         profile.spp = spp;
+        profile.light_selection = selection;
         let settings = Settings { profile, seed: 1 };
         // Validate: a render produces finite samples and a deterministic ray count.
         let (film, stats) = render(&scene, settings.clone(), support::THREADS);
