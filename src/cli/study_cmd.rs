@@ -293,7 +293,14 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
         errln!("note: the scene does not exercise {} (their strategy changes nothing)", unused.join(", "));
     }
     outln!("strata study: {}  {}x{}  profile {}", a.scene.display(), scene.width, scene.height, profile.name);
-    outln!("  sampling: {}", describe_mapping(&plan));
+    // (The pick of `light_selection` is a light integral of its own: jittered across the pixel's
+    // samples unless the light strategy is random or sobol, even where the light is held at its centre.)
+    let pick = match profile.light_selection {
+        crate::scene::LightSelection::All => String::new(),
+        _ if scene.lights.len() <= 1 => String::new(),
+        sel => format!("; 1 of {} lights picked per shading point ({})", scene.lights.len(), sel.name()),
+    };
+    outln!("  sampling: {}{pick}", describe_mapping(&plan));
     if !a.quiet {
         errln!("reference: preparing...");
     }
