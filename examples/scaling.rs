@@ -1,9 +1,10 @@
 //! How Strata scales on this machine (issue 8, item 5): rays/s at 1 and 2 threads, render time against
-//! the number of primitives (1e2 .. 1e6 spheres) and against the resolution. Prints markdown tables
+//! the number of primitives (1e2 .. 1e6 spheres), the resolution, the leaves of one CSG solid and the
+//! number of lights (per light selection). Prints markdown tables
 //! (docs/scaling.md holds a measured copy).
 //!
 //! ```text
-//! cargo run --release --example scaling [-- --reps 2 --spp 16 --max-prims 1000000 --only threads|prims|resolution|leaves]
+//! cargo run --release --example scaling [-- --reps 2 --spp 16 --max-prims 1000000 --only threads|prims|resolution|leaves|lights]
 //! ```
 //!
 //! Every number is a [`RenderStats`] of one render with the `bench` profile (fixed counts, no adaptive
@@ -25,7 +26,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 use std::time::Instant;
 use strata::render::{render, RenderStats};
-use strata::scene::{parse_scene, Profile, Scene};
+use strata::scene::{parse_scene, LightSelection, Profile, Scene};
 use strata::wavefront::Settings;
 
 struct Opts {
@@ -53,10 +54,10 @@ fn parse_args() -> Result<Opts, String> {
             "--reps" => o.reps = num(val)?.max(1) as usize,
             "--spp" => o.spp = Some(num(val)? as u32),
             "--max-prims" => o.max_prims = num(val)?,
-            "--only" if ["threads", "prims", "resolution", "leaves"].contains(&val.as_str()) => o.only = Some(val.clone()),
+            "--only" if ["threads", "prims", "resolution", "leaves", "lights"].contains(&val.as_str()) => o.only = Some(val.clone()),
             other => {
                 return Err(format!(
-                    "bad option `{other} {val}` (--reps N, --spp N, --max-prims N, --only threads|prims|resolution|leaves)"
+                    "bad option `{other} {val}` (--reps N, --spp N, --max-prims N, --only threads|prims|resolution|leaves|lights)"
                 ))
             }
         }
@@ -114,13 +115,16 @@ fn best(scene: &Scene, o: &Opts, threads: usize) -> Run {
 /// `gen_bench_spheres.py n` (with `--same-density`: radii scaled so that the spheres fill the same
 /// fraction of the layer as 1,000 do).
 fn gen_spheres(n: u64, same_density: bool) -> Result<String, String> {
-    let script = root().join("scenes/tools/gen_bench_spheres.py");
-    let out = Command::new("python3")
-        .arg(&script)
-        .arg(n.to_string())
-        .args(same_density.then_some("--same-density"))
-        .output()
-        .map_err(|e| format!("cannot run python3 {}: {e}", script.display()))?;
+    let n = n.to_string();
+    let args: &[&str] = if same_density { &[&n, "--same-density"] } else { &[&n] };
+    generated("gen_bench_spheres.py", args)
+}
+
+/// The scene text `scenes/tools/SCRIPT ARGS` writes.
+fn generated(script: &str, args: &[&str]) -> Result<String, String> {
+    let script = root().join("scenes/tools").join(script);
+    let out =
+        Command::new("python3").arg(&script).args(args).output().map_err(|e| format!("cannot run python3 {}: {e}", script.display()))?;
     if !out.status.success() {
         return Err(format!("{} failed: {}", script.display(), String::from_utf8_lossy(&out.stderr)));
     }
@@ -195,6 +199,9 @@ fn run(o: &Opts) -> Result<(), String> {
     }
     if o.wants("leaves") {
         leaves(o)?;
+    }
+    if o.wants("lights") {
+        lights(o)?;
     }
     Ok(())
 }
@@ -324,17 +331,8 @@ fn leaves(o: &Opts) -> Result<(), String> {
     println!("\n## Leaves of one CSG solid (scenes/tools/gen_perforated.py N: a plate minus N x N holes; 640x400, 2 threads)\n");
     println!("| holes | leaves | parse s | render s | rays (M) | M rays/s | CSG candidates (M) | csg_merge ns per candidate | shadow ns per shadow ray |");
     println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    let script = root().join("scenes/tools/gen_perforated.py");
     for n in [2u64, 4, 8, 16, 32, 64] {
-        let out = Command::new("python3")
-            .arg(&script)
-            .arg(n.to_string())
-            .output()
-            .map_err(|e| format!("cannot run python3 {}: {e}", script.display()))?;
-        if !out.status.success() {
-            return Err(format!("{} failed: {}", script.display(), String::from_utf8_lossy(&out.stderr)));
-        }
-        let text = String::from_utf8(out.stdout).map_err(|e| e.to_string())?;
+        let text = generated("gen_perforated.py", &[&n.to_string()])?;
         let (scene, load_s) = load(&format!("<gen_perforated.py {n}>"), &text)?;
         let r = best(&scene, o, 2);
         let st = &r.stats;
@@ -350,6 +348,37 @@ fn leaves(o: &Opts) -> Result<(), String> {
             t.csg_merge * 1e9 / st.csg_candidates.max(1) as f64,
             t.shadow * 1e9 / st.rays.shadow.max(1) as f64
         );
+    }
+    Ok(())
+}
+
+/// Time against the number of lights, for each light selection (`scenes/tools/gen_many_lights.py N`:
+/// N x N lamps over a square; `all` only up to 256 lamps, 19 s there).
+fn lights(o: &Opts) -> Result<(), String> {
+    println!("\n## Lights (scenes/tools/gen_many_lights.py N: N x N lamps; 640x400, 2 threads): render s, shadow stage thread s\n");
+    println!("| lamps | all | power | local | local: shadow stage ns per shadow ray |");
+    println!("|---:|---:|---:|---:|---:|");
+    for n in [1u64, 2, 4, 8, 16, 32] {
+        let text = generated("gen_many_lights.py", &[&n.to_string()])?;
+        let (scene, _) = load(&format!("<gen_many_lights.py {n}>"), &text)?;
+        let mut cells = Vec::new();
+        let mut per_point = String::new();
+        for sel in [LightSelection::All, LightSelection::Power, LightSelection::Local] {
+            if sel == LightSelection::All && n > 16 {
+                cells.push("-".to_string());
+                continue;
+            }
+            let mut p = profile(o);
+            p.light_selection = sel;
+            let st = fastest((0..o.reps).map(|_| Run { stats: render(&scene, Settings { profile: p.clone(), seed: 1 }, 2).1 })).stats;
+            cells.push(format!("{:.3} ({:.3})", st.seconds, st.stage_seconds.shadow));
+            if sel == LightSelection::Local {
+                // (Rays traced or cleared by the light-cone test: one per lit shading point here.)
+                let rays = (st.rays.shadow + st.rays.shadow_cleared).max(1) as f64;
+                per_point = format!("{:.0}", st.stage_seconds.shadow * 1e9 / rays);
+            }
+        }
+        println!("| {} | {} | {per_point} |", n * n, cells.join(" | "));
     }
     Ok(())
 }
