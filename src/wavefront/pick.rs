@@ -20,6 +20,7 @@ use crate::sample::Strategy;
 use crate::scene::{Light, LightSelection, Profile, Scene};
 use crate::simd::{f32x8, Vec3x8, LANES};
 use glam::Vec3;
+use std::rc::Rc;
 
 /// A lane's pick when no light can give its point anything (every importance 0).
 pub const NO_LIGHT: u32 = u32::MAX;
@@ -75,7 +76,29 @@ fn bounds(light: &Light) -> (Vec3, f32, Vec3) {
     }
 }
 
+thread_local! {
+    /// The thread's last selection, for the scene (address, file hash, lights) and mode it was made for:
+    /// the stages ask once per wavefront, and making it is O(L) with allocations.
+    static CACHE: std::cell::RefCell<Option<((usize, u64, usize, LightSelection), Option<Rc<LightPick>>)>> = const { std::cell::RefCell::new(None) };
+}
+
 impl LightPick {
+    /// [`LightPick::new`], kept per thread while the scene and mode stay the same.
+    pub fn cached(scene: &Scene, profile: &Profile) -> Option<Rc<LightPick>> {
+        if profile.light_selection == LightSelection::All {
+            return None;
+        }
+        let key = (scene as *const Scene as usize, scene.hash, scene.lights.len(), profile.light_selection);
+        CACHE.with_borrow_mut(|c| match c {
+            Some((k, pick)) if *k == key => pick.clone(),
+            _ => {
+                let pick = LightPick::new(scene, profile).map(Rc::new);
+                *c = Some((key, pick.clone()));
+                pick
+            }
+        })
+    }
+
     /// The profile's selection for this scene; `None` when every light is sampled at every point (`all`,
     /// or a scene of at most one light, where a pick would change nothing but the cost).
     pub fn new(scene: &Scene, profile: &Profile) -> Option<LightPick> {

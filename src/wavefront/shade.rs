@@ -404,8 +404,8 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         // at a glossy one, in part: the lobe ray's share is its MIS weight.
                         if geo.front & (1 << l) != 0 && !(prim.is_light && r.flags & FLAG_DIFFUSE != 0) {
                             if prim.is_light && r.flags & FLAG_GLOSSY != 0 && rays.with_pdf {
-                                let pick = pick.get_or_init(|| LightPick::new(scene, profile));
-                                let w = lobe_light_weight(scene, profile, pick.as_ref(), prim, &r, hits.t[i]);
+                                let pick = pick.get_or_init(|| LightPick::cached(scene, profile));
+                                let w = lobe_light_weight(scene, profile, pick.as_deref(), prim, &r, hits.t[i]);
                                 paths.add(r.path, r.throughput * *radiance * w);
                             } else {
                                 paths.add(r.path, r.throughput * *radiance);

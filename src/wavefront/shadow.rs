@@ -203,7 +203,7 @@ pub fn shadow_with(
     arena: &mut CsgArena,
     mut scattered: Option<&mut WideStack>,
 ) -> (u64, u64) {
-    let Some(pick) = LightPick::new(scene, profile) else {
+    let Some(pick) = LightPick::cached(scene, profile) else {
         let (mut traced, mut cleared) =
             shadow_queue::<false, false>(scene, profile, seed, nee, paths, arena, scattered.as_deref_mut(), None);
         if let Some(g) = nee.glossy.as_deref().filter(|g| !g.is_empty()) {
