@@ -76,10 +76,13 @@ fn bounds(light: &Light) -> (Vec3, f32, Vec3) {
     }
 }
 
+/// The scene (address, file hash, number of lights) and mode a cached selection was made for.
+type CacheKey = (usize, u64, usize, LightSelection);
+
 thread_local! {
-    /// The thread's last selection, for the scene (address, file hash, lights) and mode it was made for:
-    /// the stages ask once per wavefront, and making it is O(L) with allocations.
-    static CACHE: std::cell::RefCell<Option<((usize, u64, usize, LightSelection), Option<Rc<LightPick>>)>> = const { std::cell::RefCell::new(None) };
+    /// The thread's last selection and what it was made for: the stages ask once per wavefront, and
+    /// making it is O(L) with allocations.
+    static CACHE: std::cell::RefCell<Option<(CacheKey, Option<Rc<LightPick>>)>> = const { std::cell::RefCell::new(None) };
 }
 
 impl LightPick {
