@@ -579,6 +579,14 @@ fn cli_input_errors_exit_2_with_a_message() {
         assert_eq!(out.status.code(), Some(2), "{extra:?}: {err}");
         assert!(err.contains(msg), "{extra:?}: expected `{msg}` in: {err}");
     }
+    // The light alone under a pick (a scene of two lights): one pick per pixel, which n cannot refine.
+    let out = strata()
+        .args(["study", "scenes/showcase.toml", "--out", d, "--integrals", "light", "--set", "light_selection=power"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--integrals light with light_selection `power`"), "{err}");
     assert!(!dir.join("study.csv").exists(), "nothing is written on an input error");
     // A study that fails on its reference leaves no output directory it created.
     let fresh = dir.join("not-yet");

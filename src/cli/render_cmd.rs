@@ -446,9 +446,10 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     }
     if p.light_selection != LightSelection::All && scene.lights.len() <= 1 {
         out.push(format!(
-            "light_selection `{}` with {} light: there is nothing to pick from, every shading point samples every light",
+            "light_selection `{}` with {} light{}: there is nothing to pick from, every shading point samples every light",
             p.light_selection.name(),
-            scene.lights.len()
+            scene.lights.len(),
+            if scene.lights.len() == 1 { "" } else { "s" }
         ));
     }
     if p.light_strategy == Strategy::Grid && scene.features.area_lights && p.light_samples == 1 && p.spp > 1 {

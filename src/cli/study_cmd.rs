@@ -160,6 +160,17 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
             if light_only(&integrals) { "with `light` alone the count already is light samples" } else { "the light is not studied" }
         )));
     }
+    // One light is picked per camera path: with `light` alone (one path per pixel) every one of a pixel's
+    // n light samples goes to the one light it picked, and no count converges.
+    if light_only(&integrals) && profile.light_selection != crate::scene::LightSelection::All && scene.lights.len() > 1 {
+        return Err(Failure::input(format!(
+            "--integrals light with light_selection `{}`: a shading point picks one light per camera path, and the light \
+             study traces one path per pixel, so all n light samples of a pixel go to the one light it picked and the \
+             error cannot fall with n; study `light` with `pixel` (n = camera samples, each with its own pick), or \
+             light_selection = \"all\"",
+            profile.light_selection.name()
+        )));
+    }
     // The runs' sampling warnings, as `render` gives them, each once with the first run it concerns.
     let mut warned: Vec<String> = Vec::new();
     for &s in &strategies {

@@ -126,11 +126,17 @@ fn profile_differences(x: &str, y: &str, (a, b): (&str, &str)) -> String {
     let parse = |s: &str| serde_json::from_str::<serde_json::Map<String, serde_json::Value>>(s).unwrap_or_default();
     let (px, py) = (parse(x), parse(y));
     let keys: std::collections::BTreeSet<&String> = px.keys().chain(py.keys()).collect();
-    let show = |v: Option<&serde_json::Value>| v.map(|v| v.to_string()).unwrap_or_else(|| "absent".into());
+    // A field left out of a record is at its default: `light_selection` is written only when not "all"
+    // (`Profile::light_selection`); others are older renderers' records, which lack newer fields.
+    let show = |k: &str, v: Option<&serde_json::Value>| match v {
+        Some(v) => v.to_string(),
+        None if k == "light_selection" => "\"all\"".into(),
+        None => "absent".into(),
+    };
     let diffs: Vec<String> = keys
         .into_iter()
         .filter(|k| px.get(*k) != py.get(*k))
-        .map(|k| format!("{k} {a} {}, {b} {}", show(px.get(k)), show(py.get(k))))
+        .map(|k| format!("{k} {a} {}, {b} {}", show(k, px.get(k)), show(k, py.get(k))))
         .collect();
     if diffs.is_empty() {
         "the profile records differ".into()
@@ -392,5 +398,11 @@ mod tests {
         assert_eq!(d.len(), 2, "{d:?}");
         assert!(d[0].contains("seed: film 9, this render 10"), "{d:?}");
         assert!(d[1].contains("light_samples film 1, this render 3"), "{d:?}");
+        // `all`, left out of the record, is named as such.
+        p.light_samples = 1;
+        p.light_selection = crate::scene::LightSelection::Local;
+        o.profile = profile_record(&p);
+        let d = h.identity_differences(&o, ("film", "this render"));
+        assert!(d[1].contains("light_selection film \"all\", this render \"local\""), "{d:?}");
     }
 }

@@ -146,6 +146,12 @@ impl LightPick {
         if let Some(last) = phi.iter().rposition(|&p| p > 0.0) {
             cdf[last..].fill(1.0);
         }
+        // Each light's probability is the width of its slot in the f32 table, the chance a number in
+        // [0, 1) lands in it: a light of less than about 2^-24 of the total power may get no slot, and is
+        // then never picked with a probability of 0, not of its share (the picks stay consistent).
+        for i in 0..cdf.len() {
+            prob[i] = if i == 0 { cdf[0] } else { cdf[i] - cdf[i - 1] };
+        }
         Some(LightPick { mode, phi, centre, radius, r2, normal, one_sided, side_tol, prob, cdf })
     }
 
