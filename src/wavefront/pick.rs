@@ -533,8 +533,8 @@ radiance = [0.5, 0.5, 0.5]
                 hits[li as usize] += 1;
             }
         }
-        for li in 0..l {
-            assert_eq!(hits[li] as f64 / grid as f64, pick.prob(Vec3::ZERO, li) as f64, "light {li}: realized against reported");
+        for (li, &h) in hits.iter().enumerate() {
+            assert_eq!(h as f64 / grid as f64, pick.prob(Vec3::ZERO, li) as f64, "light {li}: realized against reported");
         }
     }
 
