@@ -272,12 +272,13 @@ impl LightPick {
                 for li in 0..self.phi.len() {
                     let v = p - Vec3x8::splat(self.centre[li]);
                     let d2 = v.dot_unfused(v).max(f32x8::splat(self.r2[li]));
-                    let inv_d = one / d2.sqrt();
+                    let d = d2.sqrt();
+                    let inv_d = one / d;
                     let r = f32x8::splat(self.radius[li]);
                     // Towards the light: -v. Below the horizon by more than COS_FLOOR x d: 0.
                     let up = r - n.dot_unfused(v);
                     let mut c = up
-                        .simd_gt(f32x8::splat(-COS_FLOOR) * d2 * inv_d)
+                        .simd_gt(f32x8::splat(-COS_FLOOR) * d)
                         .select((up * inv_d + f32x8::splat(COS_FLOOR)).min(one).max(f32x8::splat(1e-6)), zero);
                     if self.one_sided[li] {
                         let dn = Vec3x8::splat(self.normal[li]).dot_unfused(v);

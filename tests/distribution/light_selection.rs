@@ -116,7 +116,9 @@ fn picked_lights_sum_to_lambert_polygon_irradiance() {
 
 /// A glossy floor reflecting quad lights: its light is sampled by the lights (picked) and by the lobe,
 /// weighted by MIS. The weights must use the pick's probability on both sides; the render that picks
-/// then equals the one that samples every light within their noise, pixel by pixel.
+/// then equals the one that samples every light within their noise, pixel by pixel. Behind it a Lambert
+/// wall, lit at grazing angles by a point light 0.05 in front of it and a sphere light on the floor
+/// below it: `local`'s horizon test must not leave out a light that reaches a point.
 #[test]
 fn glossy_mis_counts_the_pick_probability() {
     let text = r#"
@@ -158,10 +160,28 @@ radiance = [2.0, 3.0, 6.0]
 type = "point"
 position = [0.0, 2.0, 0.5]
 intensity = [1.0, 1.0, 1.0]
+[materials.wall]
+type = "lambert"
+albedo = [0.7, 0.7, 0.7]
+[[shapes]]
+type = "quad"
+origin = [-3.0, 0.0, -3.2]
+u = [6.0, 0.0, 0.0]
+v = [0.0, 2.5, 0.0]
+material = "wall"
+[[lights]]
+type = "point"
+position = [0.4, 1.0, -3.15]
+intensity = [0.3, 0.3, 0.3]
+[[lights]]
+type = "sphere"
+center = [-1.5, 0.05, -3.0]
+radius = 0.15
+radiance = [3.0, 3.0, 3.0]
 "#;
     let s = scene(text);
     let run = |mode: LightSelection| {
-        let p = with_selection(profile(256, "center", 1, "random"), mode);
+        let p = with_selection(profile(1024, "center", 1, "random"), mode);
         let (film, stats) = render(&s, Settings { profile: p, seed: 23 }, 0);
         assert_eq!(stats.nonfinite_samples, 0);
         film
