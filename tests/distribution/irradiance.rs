@@ -39,8 +39,14 @@ pub fn floor() -> Receiver {
 }
 
 fn receiver_scene(rc: &Receiver, light: &str) -> Scene {
+    let [r, g, b] = RADIANCE;
+    scene(&receiver_text(rc, &format!("[[lights]]\n{light}\nradiance = [{r}, {g}, {b}]\n")))
+}
+
+/// The receiver plane (albedo [`ALBEDO`]) seen by its camera, under `lights` (TOML tables as written).
+pub fn receiver_text(rc: &Receiver, lights: &str) -> String {
     let c = &rc.cam;
-    scene(&format!(
+    format!(
         r#"
 [image]
 width = {SIZE}
@@ -58,10 +64,7 @@ type = "plane"
 point = {}
 normal = {}
 material = "ground"
-[[lights]]
-{light}
-radiance = [{}, {}, {}]
-"#,
+{lights}"#,
         v3(c.pos),
         v3(c.pos + c.forward),
         v3(c.up),
@@ -71,10 +74,7 @@ radiance = [{}, {}, {}]
         ALBEDO[2],
         v3(rc.point),
         v3(rc.normal),
-        RADIANCE[0],
-        RADIANCE[1],
-        RADIANCE[2]
-    ))
+    )
 }
 
 fn plane_scene(light: &str) -> Scene {

@@ -3,7 +3,7 @@
 //! light's Lambert polygon irradiance; and on a glossy floor, where lobe rays find the lights too and the
 //! MIS weights must count the pick's probability, against the render that samples every light.
 
-use super::irradiance::{floor, mean_rel_error, polygon_irradiance, ALBEDO, SIZE};
+use super::irradiance::{floor, mean_rel_error, polygon_irradiance, receiver_text, ALBEDO, SIZE};
 use super::*;
 use strata::film::Film;
 use strata::scene::LightSelection;
@@ -36,19 +36,7 @@ fn lights_text() -> String {
 fn many_lights() -> (Scene, Vec<DVec3>) {
     let rc = floor();
     let c = &rc.cam;
-    let text = format!(
-        "[image]\nwidth = {SIZE}\nheight = {SIZE}\n[camera]\nposition = {}\nlook_at = {}\nup = {}\nfov = {}\n\
-         [materials.ground]\ntype = \"lambert\"\nalbedo = [{}, {}, {}]\n\
-         [[shapes]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\nmaterial = \"ground\"\n{}",
-        v3(c.pos),
-        v3(c.pos + c.forward),
-        v3(c.up),
-        2.0 * c.half_h.atan().to_degrees(),
-        ALBEDO[0],
-        ALBEDO[1],
-        ALBEDO[2],
-        lights_text()
-    );
+    let text = receiver_text(&rc, &lights_text());
     let mut truth = Vec::new();
     for y in 0..SIZE {
         for x in 0..SIZE {
