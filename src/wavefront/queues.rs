@@ -422,7 +422,8 @@ impl CsgCandidates {
 }
 
 /// Direct-light requests from shading points (next-event estimation); the shadow stage turns each into
-/// light samples and traces them as any-hit packets.
+/// light samples and traces them as any-hit packets. (A new column goes into [`NeeQueue::clear`]'s and
+/// [`NeeQueue::copy_from`]'s lists too: the light selection's sorted copy would lack it.)
 #[derive(Default)]
 pub struct NeeQueue {
     /// The shading point (on the surface): light samples are taken from here.
