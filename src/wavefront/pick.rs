@@ -90,7 +90,9 @@ thread_local! {
 }
 
 impl LightPick {
-    /// [`LightPick::new`], kept per thread while the scene and mode stay the same.
+    /// [`LightPick::new`], kept per thread while the scene and mode stay the same: the key is the scene's
+    /// address, file hash and number of lights, so a scene's lights must not be edited in place between
+    /// renders (nothing in the crate does: a scene is compiled once and read).
     pub fn cached(scene: &Scene, profile: &Profile) -> Option<Rc<LightPick>> {
         if profile.light_selection == LightSelection::All {
             return None;

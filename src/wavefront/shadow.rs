@@ -276,8 +276,8 @@ impl Picked {
             }
             // (Lambert points' picks weigh their horizon: glossy points' must be found again by the MIS
             // weights of their lobe rays, which know no normal.)
-            let n = (q.alpha.is_empty()).then(|| Vec3x8::new(chunk8(&q.nx, base, m), chunk8(&q.ny, base, m), chunk8(&q.nz, base, m)));
-            let (light, prob) = pick.pick_x8(p, n, f32x8::from(u), &mut self.scratch);
+            let normals = (q.alpha.is_empty()).then(|| Vec3x8::new(chunk8(&q.nx, base, m), chunk8(&q.ny, base, m), chunk8(&q.nz, base, m)));
+            let (light, prob) = pick.pick_x8(p, normals, f32x8::from(u), &mut self.scratch);
             self.src_light.extend_from_slice(&light[..m]);
             self.src_prob.extend_from_slice(&prob[..m]);
             base += m;
