@@ -8,8 +8,10 @@
 //! - `power`: `P(l)` proportional to the light's emitted power `Phi` (mean over channels), mixed with
 //!   5% uniform over the lights that emit ([`POWER_FLOOR`]).
 //! - `local`: proportional to `Phi / max(d^2, r^2)` at the shading point, with `d` the distance to the
-//!   light's centre and `r` its bounding radius, and 0 where the point lies behind a one-sided (quad or
-//!   disk) light, which gives it nothing. A point weighs every light: O(L) arithmetic per point (8 points
+//!   light's centre and `r` its bounding radius, times bounds of the light's cosine (one-sided lights)
+//!   and of a Lambert point's own ([`LightPick::pick_x8`]), and 0 where the point lies behind a
+//!   one-sided (quad or disk) light or the light's bounding sphere below its horizon: where it gives
+//!   the point nothing. A point weighs every light: O(L) arithmetic per point (8 points
 //!   per vector), no traversal. A light tree would make it O(log L); not built.
 //!
 //! The pick's random number is one more dimension (`dims::LIGHT_PICK`), stratified across a pixel's
@@ -36,7 +38,7 @@ const D2_FLOOR: f32 = 1e-30;
 /// horizon test (`local`): a light that may give a point something keeps a chance.
 const COS_FLOOR: f32 = 1e-3;
 
-/// The selection of one render (built per shadow call: O(L)).
+/// The selection of one render (O(L) to make: kept per thread, [`LightPick::cached`]).
 pub struct LightPick {
     mode: LightSelection,
     /// Per light: its power, scaled so that the largest is 1 (`uniform`: all 1).
