@@ -356,15 +356,16 @@ fn leaves(o: &Opts) -> Result<(), String> {
 /// N x N lamps over a square; `all` only up to 256 lamps, 19 s there).
 fn lights(o: &Opts) -> Result<(), String> {
     println!("\n## Lights (scenes/tools/gen_many_lights.py N: N x N lamps; 640x400, 2 threads): render s, shadow stage thread s\n");
-    println!("| lamps | all | power | local | local: shadow stage ns per shadow ray |");
-    println!("|---:|---:|---:|---:|---:|");
-    for n in [1u64, 2, 4, 8, 16, 32] {
+    println!("| lamps | all | power | local | tree | shadow stage ns per shadow ray: local, tree |");
+    println!("|---:|---:|---:|---:|---:|---:|");
+    for n in [1u64, 2, 4, 8, 16, 32, 64] {
         let text = generated("gen_many_lights.py", &[&n.to_string()])?;
         let (scene, _) = load(&format!("<gen_many_lights.py {n}>"), &text)?;
         let mut cells = Vec::new();
-        let mut per_point = String::new();
-        for sel in [LightSelection::All, LightSelection::Power, LightSelection::Local] {
-            if sel == LightSelection::All && n > 16 {
+        let mut per_point = Vec::new();
+        for sel in [LightSelection::All, LightSelection::Power, LightSelection::Local, LightSelection::Tree] {
+            // (`all` takes 19 s at 256 lamps, `local` 12 s at 4,096.)
+            if (sel == LightSelection::All && n > 16) || (sel == LightSelection::Local && n > 32) {
                 cells.push("-".to_string());
                 continue;
             }
@@ -372,13 +373,13 @@ fn lights(o: &Opts) -> Result<(), String> {
             p.light_selection = sel;
             let st = fastest((0..o.reps).map(|_| Run { stats: render(&scene, Settings { profile: p.clone(), seed: 1 }, 2).1 })).stats;
             cells.push(format!("{:.3} ({:.3})", st.seconds, st.stage_seconds.shadow));
-            if sel == LightSelection::Local {
+            if matches!(sel, LightSelection::Local | LightSelection::Tree) {
                 // (Rays traced or cleared by the light-cone test: one per lit shading point here.)
                 let rays = (st.rays.shadow + st.rays.shadow_cleared).max(1) as f64;
-                per_point = format!("{:.0}", st.stage_seconds.shadow * 1e9 / rays);
+                per_point.push(format!("{:.0}", st.stage_seconds.shadow * 1e9 / rays));
             }
         }
-        println!("| {} | {} | {per_point} |", n * n, cells.join(" | "));
+        println!("| {} | {} | {} |", n * n, cells.join(" | "), per_point.join(", "));
     }
     Ok(())
 }

@@ -42,10 +42,14 @@ pub enum LightSelection {
     /// One light, with probability proportional to its power over its squared distance from the point
     /// (zero behind a one-sided light): near lights are picked more often.
     Local,
+    /// One light, by descending a tree of the lights with bounds of `local`'s importance at each node:
+    /// O(log L) per point where `local` is O(L).
+    Tree,
 }
 
 impl LightSelection {
-    pub const ALL: [LightSelection; 4] = [LightSelection::All, LightSelection::Uniform, LightSelection::Power, LightSelection::Local];
+    pub const ALL: [LightSelection; 5] =
+        [LightSelection::All, LightSelection::Uniform, LightSelection::Power, LightSelection::Local, LightSelection::Tree];
 
     /// The name profile files use.
     pub fn name(self) -> &'static str {
@@ -54,6 +58,7 @@ impl LightSelection {
             LightSelection::Uniform => "uniform",
             LightSelection::Power => "power",
             LightSelection::Local => "local",
+            LightSelection::Tree => "tree",
         }
     }
 }
@@ -321,7 +326,7 @@ impl Profile {
                 self.light_selection = LightSelection::ALL
                     .into_iter()
                     .find(|s| s.name() == t)
-                    .ok_or_else(|| format!("{key}: expected all, uniform, power or local, got `{value}`{}", lowercase_hint(t)))?
+                    .ok_or_else(|| format!("{key}: expected all, uniform, power, local or tree, got `{value}`{}", lowercase_hint(t)))?
             }
             "filter" => {
                 let t = value.trim();

@@ -10,6 +10,7 @@ pub mod cone;
 pub mod csg_merge;
 pub mod generate;
 pub mod intersect;
+pub mod light_tree;
 pub mod medium;
 pub mod pick;
 pub mod pipeline;

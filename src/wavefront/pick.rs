@@ -19,6 +19,7 @@
 //! light takes 4 of a pixel's 16 picks. Glossy points' MIS weights count the light strategy's density as
 //! `P(l)` x `light_samples` x the light's own density ([`LightPick::prob`] in the shade stage).
 
+use super::light_tree::{LightBounds, LightTree};
 use crate::sample::Strategy;
 use crate::scene::{Light, LightSelection, Profile, Scene};
 use crate::simd::{f32x8, Vec3x8, LANES};
@@ -54,6 +55,8 @@ pub struct LightPick {
     /// `uniform` and `power`: per light its probability, and the running sum (the last exactly 1).
     prob: Vec<f32>,
     cdf: Vec<f32>,
+    /// `tree`: the lights' tree.
+    tree: Option<LightTree>,
 }
 
 /// Mean radiant power over the channels (W), from the light's geometry.
@@ -168,7 +171,12 @@ impl LightPick {
             cdf[last..].fill(1.0);
         }
         let prob: Vec<f32> = (0..cdf.len()).map(|i| if i == 0 { cdf[0] } else { cdf[i] - cdf[i - 1] }).collect();
-        Some(LightPick { mode, phi, centre, radius, r2, normal, one_sided, side_tol, prob, cdf })
+        let tree = (mode == LightSelection::Tree).then(|| {
+            let bounds: Vec<LightBounds> =
+                (0..phi.len()).map(|i| LightBounds { centre: centre[i], radius: radius[i], normal: normal[i], phi: phi[i] }).collect();
+            LightTree::build(&bounds)
+        });
+        Some(LightPick { mode, phi, centre, radius, r2, normal, one_sided, side_tol, prob, cdf, tree })
     }
 
     /// Number of lights.
@@ -220,8 +228,20 @@ impl LightPick {
                     0.0
                 }
             }
+            LightSelection::Tree => self.tree.as_ref().map_or(0.0, |t| t.prob(p, None, li)),
             _ => self.prob[li],
         }
+    }
+
+    /// `tree`: the probability that a point at `p` with receiver normal `n` (Lambert points; `None`:
+    /// glossy points, as [`LightPick::prob`]) picks light `li`.
+    pub fn tree_prob(&self, p: Vec3, n: Option<Vec3>, li: usize) -> Option<f32> {
+        self.tree.as_ref().map(|t| t.prob(p, n, li))
+    }
+
+    /// `tree`: the depth of its deepest light.
+    pub fn tree_depth(&self) -> Option<usize> {
+        self.tree.as_ref().map(LightTree::depth)
     }
 
     /// Picks for 8 points `p` with uniform numbers `u` in [0, 1): per lane the light (or [`NO_LIGHT`])
@@ -237,6 +257,18 @@ impl LightPick {
     pub fn pick_x8(&self, p: Vec3x8, n: Option<Vec3x8>, u: f32x8, scratch: &mut Vec<f32x8>) -> ([u32; LANES], [f32; LANES]) {
         let mut light = [NO_LIGHT; LANES];
         let mut prob = [0.0f32; LANES];
+        if let Some(tree) = &self.tree {
+            let ps = std::array::from_fn(|l| p.lane(l));
+            let ns = n.map(|n| std::array::from_fn(|l| n.lane(l)));
+            let mut out = [None; LANES];
+            tree.pick_x8(&ps, ns.as_ref(), &u.to_array(), &mut out);
+            for l in 0..LANES {
+                if let Some(pick) = out[l] {
+                    (light[l], prob[l]) = pick;
+                }
+            }
+            return (light, prob);
+        }
         if self.mode != LightSelection::Local {
             let u = u.to_array();
             for l in 0..LANES {
@@ -442,20 +474,32 @@ radiance = [0.5, 0.5, 0.5]
         assert!(LightPick::new(&scene, &profile(LightSelection::All)).is_none(), "`all` picks nothing");
         let mut k = 0;
         let mut scratch = Vec::new();
-        for mode in [LightSelection::Uniform, LightSelection::Power, LightSelection::Local] {
+        for mode in [LightSelection::Uniform, LightSelection::Power, LightSelection::Local, LightSelection::Tree] {
             let pick = LightPick::new(&scene, &profile(mode)).unwrap();
+            let mut lost = 0;
             for p in points(&mut k) {
                 let u = f32x8::from(std::array::from_fn::<f32, LANES, _>(|_| rnd(&mut k)));
                 let (light, prob) = pick.pick_x8(p, None, u, &mut scratch);
                 for l in 0..LANES {
                     let pl = p.lane(l);
                     let sum: f64 = (0..pick.lights()).map(|li| pick.prob(pl, li) as f64).sum();
-                    assert!((sum - 1.0).abs() < 1e-5, "{mode:?} at {pl}: probabilities sum to {sum}");
+                    // (`tree`: below 1 where a node's bound has importance and all its children's
+                    // none; those numbers pick no light.)
+                    if mode == LightSelection::Tree {
+                        assert!(sum <= 1.0 && sum > 0.5, "{mode:?} at {pl}: probabilities sum to {sum}");
+                        if light[l] == NO_LIGHT {
+                            lost += 1;
+                            continue;
+                        }
+                    } else {
+                        assert!((sum - 1.0).abs() < 1e-5, "{mode:?} at {pl}: probabilities sum to {sum}");
+                    }
                     assert!(light[l] != NO_LIGHT, "{mode:?}: some light reaches every point");
                     assert_eq!(prob[l].to_bits(), pick.prob(pl, light[l] as usize).to_bits(), "{mode:?}: lane and scalar differ");
                     assert!(prob[l] > 0.0);
                 }
             }
+            assert!(lost < 64 * LANES / 10, "{mode:?}: {lost} picks of no light");
             // The light of zero radiance is never picked.
             assert_eq!(pick.prob(Vec3::ZERO, 2), 0.0, "{mode:?}");
         }
@@ -470,7 +514,7 @@ radiance = [0.5, 0.5, 0.5]
         let scene = lights_scene();
         let mut k = 7;
         let mut scratch = Vec::new();
-        for mode in [LightSelection::Power, LightSelection::Local] {
+        for mode in [LightSelection::Power, LightSelection::Local, LightSelection::Tree] {
             let pick = LightPick::new(&scene, &profile(mode)).unwrap();
             for _ in 0..6 {
                 let p = Vec3::new(rnd(&mut k) * 4.0 - 2.0, rnd(&mut k) * 2.0, rnd(&mut k) * 4.0 - 2.0);
@@ -493,7 +537,11 @@ radiance = [0.5, 0.5, 0.5]
                     let local = mode == LightSelection::Local;
                     let total: f32 = if local { (0..pick.lights()).map(|li| scratch[li].to_array()[0]).sum() } else { 1.0 };
                     for li in 0..pick.lights() {
-                        let expect = if local { scratch[li].to_array()[0] / total } else { pick.prob(p, li) };
+                        let expect = match pick.tree_prob(p, with_n.then_some(normal), li) {
+                            Some(prob) => prob,
+                            None if local => scratch[li].to_array()[0] / total,
+                            None => pick.prob(p, li),
+                        };
                         let seen = hits[li] as f32 / count as f32;
                         assert!(
                             (seen - expect).abs() <= 1.5 / count as f32,
@@ -548,7 +596,12 @@ radiance = [0.5, 0.5, 0.5]
     #[test]
     fn a_light_never_picked_gives_the_point_nothing() {
         let scene = lights_scene();
-        let pick = LightPick::new(&scene, &profile(LightSelection::Local)).unwrap();
+        for mode in [LightSelection::Local, LightSelection::Tree] {
+            never_picked_gives_nothing(&scene, &LightPick::new(&scene, &profile(mode)).unwrap());
+        }
+    }
+
+    fn never_picked_gives_nothing(scene: &Scene, pick: &LightPick) {
         let mut k = 99;
         let mut scratch = Vec::new();
         let mut zeros = 0;
@@ -561,7 +614,11 @@ radiance = [0.5, 0.5, 0.5]
             pick.pick_x8(p, Some(n), f32x8::splat(0.5), &mut scratch);
             for (li, light) in scene.lights.iter().enumerate() {
                 for l in 0..LANES {
-                    if scratch[li].to_array()[l] > 0.0 {
+                    let never = match pick.tree_prob(p.lane(l), Some(n.lane(l)), li) {
+                        Some(prob) => prob == 0.0,
+                        None => scratch[li].to_array()[l] <= 0.0,
+                    };
+                    if !never {
                         continue;
                     }
                     zeros += 1;

@@ -178,7 +178,7 @@ radiance = [3.0, 3.0, 3.0]
     let all_px: Vec<_> = all.pixels().collect();
     let lit = all_px.iter().filter(|p| p.mean().max_element() > 0.05).count();
     assert!(lit > 300, "the floor reflects the lights ({lit} lit pixels)");
-    for mode in [LightSelection::Uniform, LightSelection::Power, LightSelection::Local] {
+    for mode in [LightSelection::Uniform, LightSelection::Power, LightSelection::Local, LightSelection::Tree] {
         let film = run(mode);
         // (Pixels whose light is below 1e-3 are left out: the film's fixed-point squares cannot hold
         // their variance.)
