@@ -39,7 +39,7 @@ fn bench_render(c: &mut Criterion) {
     // per-pixel work of generation and accumulation weighs more per ray).
     // (256 lamps, one picked per shading point: `all` would take 60 times as long.)
     let all = LightSelection::All;
-    let scenes: [BenchScene; 7] = [
+    let scenes: [BenchScene; 8] = [
         ("bench_spheres.toml", 4, || support::scene("bench_spheres.toml"), all),
         ("bench_spheres+lens+motion", 4, spheres_with_lens_and_motion, all),
         ("bench_csg.toml", 4, || support::scene("bench_csg.toml"), all),
@@ -47,6 +47,7 @@ fn bench_render(c: &mut Criterion) {
         ("showcase.toml", 4, || support::scene("showcase.toml"), all),
         ("showcase.toml@16spp", 16, || support::scene("showcase.toml"), all),
         ("many_lights.toml+local", 4, || support::scene("many_lights.toml"), LightSelection::Local),
+        ("many_lights.toml+tree", 4, || support::scene("many_lights.toml"), LightSelection::Tree),
     ];
     for (name, spp, load, selection) in scenes {
         let scene = load();
