@@ -679,6 +679,16 @@ fn errors_and_bounds() {
     // Unknown ids and empty ranges do not panic.
     assert_eq!(first_hit(&csg, 999, Vec3::ZERO, Vec3::X, 0.0, 1.0, &mut arena), None);
     assert_eq!(first_hit(&csg, u, Vec3::ZERO, Vec3::X, 1.0, 1.0, &mut arena), None);
+    // Directions that are not rays (zero, non-finite) give nothing and return (the reference once
+    // looped for ever on a zero direction), from inside the solid and from outside.
+    let mut iv = vec![(0.0, 1.0)];
+    for o in [Vec3::ZERO, Vec3::new(-9.0, 0.2, 0.1)] {
+        for d in [Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 1.0), Vec3::new(f32::INFINITY, 0.0, 0.0)] {
+            intervals_f64(&csg, u, dv(o), dv(d), &mut iv);
+            assert!(iv.is_empty(), "{o} + t {d}: {iv:?}");
+            assert_eq!(first_hit(&csg, u, o, d, 0.0, f32::INFINITY, &mut arena), None, "{o} + t {d}");
+        }
+    }
 }
 
 /// Every reference interval of random solids lies inside the solid's bounds (the bounds are conservative),

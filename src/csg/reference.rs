@@ -171,12 +171,16 @@ pub fn rebase_shift_f64((lo, hi): (Vec3, Vec3), o: DVec3, d: DVec3) -> f64 {
 
 /// All inside intervals `(entry, exit)` of a solid along `o + t d`, all `t` (f64 reference, see the module
 /// docs). Coincident crossings are grouped as in `merge.rs`; a group's boundary is reported at its first
-/// crossing. An unknown solid id gives no intervals.
+/// crossing. An unknown solid id, and a direction that is not a ray's (zero or not finite), give no
+/// intervals.
 pub fn intervals_f64(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f64, f64)>) {
     out.clear();
     let Some(s) = csg.solids.get(solid as usize) else {
         return;
     };
+    if !(d.length_squared() > 0.0 && d.is_finite() && o.is_finite()) {
+        return;
+    }
     let leaves = &csg.leaves[s.leaf_start as usize..(s.leaf_start + s.leaf_count) as usize];
     let mut evs: Vec<(f64, usize)> = Vec::with_capacity(4 * leaves.len());
     for (k, leaf) in leaves.iter().enumerate() {
@@ -201,9 +205,13 @@ pub fn intervals_f64(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f
     while i < evs.len() {
         let t0 = evs[i].0;
         let end = t0 + (base + eps * (t0 - shift).abs().min(1e300));
-        while i < evs.len() && evs[i].0 <= end {
+        // (At least the group's first crossing, whatever `end` is: the loop always moves on.)
+        loop {
             state[evs[i].1] ^= true;
             i += 1;
+            if i == evs.len() || !(evs[i].0 <= end) {
+                break;
+            }
         }
         let now = eval_bool(prog, |k| state[k as usize]);
         if now != inside {
