@@ -367,6 +367,9 @@ fn lights(o: &Opts) -> Result<(), String> {
             // (`all` takes 19 s at 256 lamps, `local` 12 s at 4,096.)
             if (sel == LightSelection::All && n > 16) || (sel == LightSelection::Local && n > 32) {
                 cells.push("-".to_string());
+                if sel == LightSelection::Local {
+                    per_point.push("-".to_string());
+                }
                 continue;
             }
             let mut p = profile(o);

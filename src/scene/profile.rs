@@ -459,9 +459,9 @@ mod tests {
             p.set("light_selection", mode.name()).unwrap();
             assert_eq!(p.light_selection, mode);
         }
-        assert!(serde_json::to_string(&p).unwrap().contains("\"light_selection\":\"local\""));
+        assert!(serde_json::to_string(&p).unwrap().contains("\"light_selection\":\"tree\""));
         let e = p.set("light_selection", "nearest").unwrap_err();
-        assert!(e.contains("expected all, uniform, power or local"), "{e}");
+        assert!(e.contains("expected all, uniform, power, local or tree"), "{e}");
         // In a file: the field and its line.
         let text = "spp = 4\npixel_strategy = \"jittered\"\nlight_samples = 1\nlight_strategy = \"jittered\"\nmax_depth = 2\nlight_selection = \"near\"\n";
         let e = Profile::parse(Path::new("p.toml"), text).unwrap_err().to_string();

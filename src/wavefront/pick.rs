@@ -12,7 +12,9 @@
 //!   and of a Lambert point's own ([`LightPick::pick_x8`]), and 0 where the point lies behind a
 //!   one-sided (quad or disk) light or the light's bounding sphere below its horizon: where it gives
 //!   the point nothing. A point weighs every light: O(L) arithmetic per point (8 points
-//!   per vector), no traversal. A light tree would make it O(log L); not built.
+//!   per vector), no traversal.
+//! - `tree`: down a tree of the lights with bounds of `local`'s importance per node (`light_tree.rs`):
+//!   O(log L) per point.
 //!
 //! The pick's random number is one more dimension (`dims::LIGHT_PICK`), stratified across a pixel's
 //! camera samples (index = camera sample) like the light samples: with 16 spp and 4 equal lights each
@@ -237,11 +239,6 @@ impl LightPick {
     /// glossy points, as [`LightPick::prob`]) picks light `li`.
     pub fn tree_prob(&self, p: Vec3, n: Option<Vec3>, li: usize) -> Option<f32> {
         self.tree.as_ref().map(|t| t.prob(p, n, li))
-    }
-
-    /// `tree`: the depth of its deepest light.
-    pub fn tree_depth(&self) -> Option<usize> {
-        self.tree.as_ref().map(LightTree::depth)
     }
 
     /// Picks for 8 points `p` with uniform numbers `u` in [0, 1): per lane the light (or [`NO_LIGHT`])

@@ -264,7 +264,13 @@ impl Picked {
         let mut base = 0;
         while base < n {
             let m = (n - base).min(LANES);
-            let p = Vec3x8::new(chunk8(&q.px, base, m), chunk8(&q.py, base, m), chunk8(&q.pz, base, m));
+            // (Glossy points pick at their offset origin, bit for bit the lobe ray's, where its MIS
+            // weight asks the probability again.)
+            let p = if q.alpha.is_empty() {
+                Vec3x8::new(chunk8(&q.px, base, m), chunk8(&q.py, base, m), chunk8(&q.pz, base, m))
+            } else {
+                Vec3x8::new(chunk8(&q.ox, base, m), chunk8(&q.oy, base, m), chunk8(&q.oz, base, m))
+            };
             let mut u = [0.0f32; LANES];
             for (l, u) in u.iter_mut().enumerate().take(m) {
                 let i = base + l;
