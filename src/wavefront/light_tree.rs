@@ -21,10 +21,14 @@
 //! resolution). A node splits its range of grid values among its children in proportion to their
 //! importances (each child of positive importance keeps at least one value while the range has room),
 //! and the pick follows `u` down. A light's probability is the width of the range it ends in over 2^24:
-//! exactly the share of the numbers that pick it, so `1 / P` weighs what the picks do (a light of
-//! vanishing share at a point, below about 2^-24 of its node's, can end with no value there: it is then
-//! never picked there and its probability is 0, consistently). [`LightTree::prob`] follows a light's
-//! path from the root with the same operations: bit for bit the pick's.
+//! exactly the share of the numbers that pick it, so `1 / P` weighs what the picks do.
+//! [`LightTree::prob`] follows a light's path from the root with the same operations: bit for bit the
+//! pick's. A known bias: once a node's range has fewer values than children of importance (a path whose
+//! share of the 2^24 values, by the bounds' importances, not the light's, has run down to a few), the
+//! later children get none and probability 0, consistently but wrongly where they light the point (a
+//! review's dim lamps beside bright quads facing away from a point inside their bounding spheres, which
+//! take both cosine bounds as 1: half of the point's light lost at a power ratio of 1e8). A second
+//! random number once the range is small would mend it; not built.
 //!
 //! **Build.** Top down: a node's lights are split in two, repeatedly (the group of most lights first),
 //! until it has 8 groups or single lights; each split is the one along an axis, lights ordered by centre,
