@@ -37,6 +37,7 @@
 //! emit into). Past depth 32 the splits are at the median (each halves a group at least), so that no tree of fewer
 //! than 2^32 lights is deeper than 64 levels.
 
+use super::pick::{COS_FLOOR, D2_FLOOR};
 use crate::simd::{f32x8, Vec3x8};
 use glam::{DVec3, Vec3};
 
@@ -49,13 +50,6 @@ const EMPTY: u32 = u32::MAX;
 
 /// The tree's deepest path (the build splits at the median past half of it).
 const MAX_DEPTH: usize = 64;
-
-/// Smallest squared distance (keeps importances finite: at most 1e30 per unit of power).
-const D2_FLOOR: f32 = 1e-30;
-
-/// Tolerance of the emitter's and the receiver's cosine bounds (as `local`'s): a child whose bound is
-/// above `-COS_FLOOR` keeps a chance.
-const COS_FLOOR: f32 = 1e-3;
 
 /// One light as the tree sees it: bounding-sphere centre and radius, the emitting side's unit normal
 /// (zero: emits all round), and its power (scaled; 0: never picked, not in the tree).
@@ -160,12 +154,13 @@ impl Agg {
 
     /// The split heuristic's cost of this side.
     fn cost(&self) -> f64 {
-        if self.cone.is_none() {
+        // (An empty side, no cone: nothing.)
+        let Some(cone) = self.cone else {
             return 0.0;
-        }
+        };
         let e = (self.hi - self.lo).max(DVec3::ZERO);
         let area = 2.0 * (e.x * e.y + e.y * e.z + e.z * e.x);
-        self.phi * (area + 0.05 * e.length_squared()) * self.cone.map_or(0.0, Cone::measure)
+        self.phi * (area + 0.05 * e.length_squared()) * cone.measure()
     }
 }
 

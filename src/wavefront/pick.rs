@@ -34,12 +34,14 @@ pub const NO_LIGHT: u32 = u32::MAX;
 /// The share of `power` picks spread evenly over the lights that emit (see [`LightPick::new`]).
 pub const POWER_FLOOR: f64 = 0.05;
 
-/// Smallest squared distance in `local` importances (keeps them finite: at most 1e30 per light).
-const D2_FLOOR: f32 = 1e-30;
+/// Smallest squared distance in `local` and `tree` importances (keeps them finite: at most 1e30 per
+/// light).
+pub(super) const D2_FLOOR: f32 = 1e-30;
 
 /// Smallest cosine factor of a point in front of a one-sided light, and the tolerance of the receiver's
-/// horizon test (`local`): a light that may give a point something keeps a chance.
-const COS_FLOOR: f32 = 1e-3;
+/// horizon test (`local`; `tree`'s emitter and receiver bounds alike): a light that may give a point
+/// something keeps a chance.
+pub(super) const COS_FLOOR: f32 = 1e-3;
 
 /// The selection of one render (O(L) to make: kept per thread, [`LightPick::cached`]).
 pub struct LightPick {
