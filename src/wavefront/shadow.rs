@@ -221,7 +221,7 @@ pub fn shadow_with(
     let queues = [Some(nee), nee.glossy.as_deref()];
     for (k, q) in queues.into_iter().enumerate() {
         let Some(q) = q.filter(|q| !q.is_empty()) else { continue };
-        sorted.sort(&pick, profile, seed, q);
+        sorted.sort(pick, profile, seed, q);
         let picks = Some((&sorted.light[..], &sorted.prob[..]));
         let (t, c) = if k == 0 {
             shadow_queue::<false, true>(scene, profile, seed, &sorted.queue, paths, arena, scattered.as_deref_mut(), picks)
@@ -361,55 +361,30 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
     let (spp, nl) = (profile.spp as u64, profile.light_samples as u64);
     let across = matches!(profile.light_strategy, Strategy::Jittered | Strategy::Sobol) && spp * nl <= 1 << 24;
     let area = Sampler2d::new(profile.light_strategy, if across { (spp * nl) as u32 } else { profile.light_samples });
-    // A grid's sample j is the same point of the light square for every shading point (no key, no
-    // permutation): computed once here.
-    let grid: Vec<[f32x8; 2]> = if profile.light_strategy == Strategy::Grid && !across {
-        (0..profile.light_samples).map(|j| area.sample_x8_call(&[0; LANES], &[j; LANES], false)).collect()
-    } else {
-        Vec::new()
-    };
-    // So are the light points of those samples and their shadow-ray targets, per area light.
-    let grid_points: Vec<Vec<(Vec3x8, Vec3x8)>> =
-        scene.lights.iter().map(|light| grid.iter().map_while(|&u| light_points_x8(light, u)).collect()).collect();
-    // Per quad or disk light: its unit normal and radiance x area / samples.
-    let flat_light: Vec<(Vec3, Vec3)> = scene
-        .lights
-        .iter()
-        .map(|light| match *light {
-            Light::Quad { quad, radiance } => (quad.normal(), radiance * (quad.area() / samples_for(light, profile.light_samples) as f32)),
-            Light::Disk { disk, radiance } => (
-                disk.normal,
-                radiance * (std::f32::consts::PI * disk.radius * disk.radius / samples_for(light, profile.light_samples) as f32),
-            ),
-            _ => (Vec3::ZERO, Vec3::ZERO),
-        })
-        .collect();
+    let tables = LightTables::get(scene, profile, across, &area);
+    let LightTables { grid, grid_points, flat_light, .. } = &*tables;
     let walk = any_passable(scene, profile);
     // Only where it pays (measured): trees large enough that incoherent rays take the wide one in the
     // intersect stage too (in small trees groups share the top levels), and no CSG solids (a lone ray
     // would pay a whole 8-lane interval merge).
     let mut single = scattered.filter(|_| !walk && scene.wide_incoherent && !scene.features.csg && !scene.wide_bvh.is_empty());
-    let cones: Vec<Option<LightCone>> = scene
-        .lights
-        .iter()
-        .map(|light| (samples_for(light, profile.light_samples) >= cone_min_samples(scene)).then(|| LightCone::new(scene, light)).flatten())
-        .collect();
+    let cones = &tables.cones;
     // Point lights' light buffers, where shadow rays walk through nothing.
     let buffer = |li: usize| scene.light_buffers.get(li).and_then(|b| b.as_ref()).filter(|_| !walk);
     let light_key = |i: usize, li: usize| light_key(seed, nee, across, i, li);
     let mut keys = LightKeys { keys: [0; KEY_CACHE], cached: None };
-    // Whether any light draws samples (needs stream keys).
-    let keyed = scene.lights.iter().any(|l| !l.is_point());
+    let keyed = tables.keyed;
     // Requests are taken 8 at a time: one lane each, every light sample of the chunk computed as one
     // 8-lane light sample. Each request sums its unoccluded contributions by light, then sample, from
     // zero (`Credit`), and the sums go to the paths in request order at the end: a path's radiance
     // then does not depend on which requests share a chunk or a batch (that depends on the tile).
-    let buffers = (0..scene.lights.len()).any(|li| buffer(li).is_some());
+    let buffers = tables.buffers && !walk;
     debug_assert_eq!(nee.alpha.len(), if LOBES { nee.len() } else { 0 }, "lobe columns for every request or none");
     debug_assert!(nee.alpha.iter().all(|&a| a != 0.0), "a queue with lobes holds glossy requests only");
-    let mut credit = Credit::new(nee.len(), cones.iter().any(Option::is_some), buffers);
-    // Per light (when any has a buffer), the packet of an even chunk waiting for its pair.
-    let mut held: Vec<Option<BufferJob>> = if buffers { vec![None; scene.lights.len()] } else { Vec::new() };
+    let mut credit = Credit::new(nee.len(), tables.any_cone, buffers);
+    // Per light (when any has a buffer, and requests did not pick theirs), the packet of an even chunk
+    // waiting for its pair.
+    let mut held: Vec<Option<BufferJob>> = if buffers && picks.is_none() { vec![None; scene.lights.len()] } else { Vec::new() };
     let mut chunk = 0usize;
     let mut base = 0;
     while base < nee.len() {
@@ -424,10 +399,7 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
         let time = chunk8(&nee.time, base, m);
         // Requests sorted by the light they picked (`picks`): the chunk's lights, each lane's, and the
         // probabilities of their picks.
-        let picked = picks.map(|(light, prob)| {
-            let lanes = gather8(light, m == LANES, base, |l| base + l.min(m - 1));
-            (lanes, chunk8(prob, base, m), light[base] as usize..light[base + m - 1] as usize + 1)
-        });
+        let picked = picks.map(|(light, prob)| (gather8(light, m == LANES, base, |l| base + l.min(m - 1)), chunk8(prob, base, m)));
         // (Plain loops rather than `array::from_fn` in this loop: see `simd::chunk8`.)
         let mut req = [0u32; LANES];
         for (l, r) in req.iter_mut().enumerate() {
@@ -452,13 +424,25 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
                 }
             }
         }
-        let lights = picked.as_ref().map_or(0..scene.lights.len(), |(_, _, range)| range.clone());
-        for (li, light) in scene.lights.iter().enumerate().take(lights.end).skip(lights.start) {
+        // Every light, or the chunk's picked ones (ascending: each once).
+        let mut chosen = [0usize; LANES];
+        let mut n_chosen = 0;
+        if let Some((lanes, _)) = &picked {
+            for &li in lanes.iter().take(m) {
+                if n_chosen == 0 || chosen[n_chosen - 1] != li as usize {
+                    chosen[n_chosen] = li as usize;
+                    n_chosen += 1;
+                }
+            }
+        }
+        let every = if picked.is_some() { 0..0 } else { 0..scene.lights.len() };
+        for li in every.chain(chosen[..n_chosen].iter().copied()) {
+            let light = &scene.lights[li];
             // The lanes that sample this light (all, unless requests picked theirs), and the picks'
             // probabilities (for the MIS weights of glossy requests).
             let (live, pick_prob) = match &picked {
                 None => (live, None),
-                Some((light, prob, _)) => (live & lane_bits(|l| light[l] == li as u32), Some(*prob)),
+                Some((light, prob)) => (live & lane_bits(|l| light[l] == li as u32), Some(*prob)),
             };
             if live == 0 {
                 continue;
@@ -590,7 +574,8 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
                     if PAIR_PACKETS && picked.is_none() && chunk.is_multiple_of(2) {
                         held[li] = job;
                     } else {
-                        traced += resolve_buffered(scene, profile, lb, li, nee, held[li].take().as_ref(), job.as_ref(), &mut credit, arena);
+                        let first = held.get_mut(li).and_then(Option::take);
+                        traced += resolve_buffered(scene, profile, lb, li, nee, first.as_ref(), job.as_ref(), &mut credit, arena);
                     }
                 }
                 let mut todo = lanes & opaque;
@@ -876,7 +861,103 @@ pub fn occlusion_refused(scene: &Scene, profile: &Profile, ray: &Ray8, refused: 
     occlusion_group(scene, profile, &mut r, &[time], arena, false).0[0].to_bitmask()
 }
 
+/// The scene (its address, its prims' and light buffers' addresses, its number of lights; its file
+/// hash) and the profile's light sampling (samples, strategy, spp) that [`LightTables`] were made for.
+type TablesKey = ([usize; 4], u64, (u32, Strategy, u32));
+
+/// Per light, what the shadow stage works out once per scene and light sampling rather than per call
+/// (a call per wavefront: at 90,000 lamps, remaking these per call took more time than the picked
+/// lights' shadow rays, and each quad light's cone searched every prim for the light's own).
+struct LightTables {
+    /// What they were made for ([`TablesKey`]).
+    key: TablesKey,
+    /// A grid's sample `j` in the light square: the same for every shading point (no key, no
+    /// permutation), so made once (grid strategy, unless across samples).
+    grid: Vec<[f32x8; 2]>,
+    /// Per area light, its points and shadow-ray targets of those samples.
+    grid_points: Vec<Vec<(Vec3x8, Vec3x8)>>,
+    /// Per quad or disk light: its unit normal and radiance x area / samples.
+    flat_light: Vec<(Vec3, Vec3)>,
+    /// Per light, its light-cone data where its samples are many enough ([`cone_min_samples`]).
+    cones: Vec<Option<LightCone>>,
+    any_cone: bool,
+    /// Whether any light has a light buffer (used where shadow rays walk through nothing).
+    buffers: bool,
+    /// Whether any light draws samples (needs stream keys).
+    keyed: bool,
+}
+
+impl LightTables {
+    /// The thread's tables for `scene` and `profile`'s light sampling, made again when either changes.
+    fn get(scene: &Scene, profile: &Profile, across: bool, area: &Sampler2d) -> std::rc::Rc<LightTables> {
+        let key = (
+            [scene as *const Scene as usize, scene.prims.as_ptr() as usize, scene.light_buffers.as_ptr() as usize, scene.lights.len()],
+            scene.hash,
+            (profile.light_samples, profile.light_strategy, profile.spp),
+        );
+        TABLES.with_borrow_mut(|t| match t {
+            Some(t) if t.key == key => t.clone(),
+            _ => {
+                let made = std::rc::Rc::new(LightTables::new(key, scene, profile, across, area));
+                *t = Some(made.clone());
+                made
+            }
+        })
+    }
+
+    fn new(key: TablesKey, scene: &Scene, profile: &Profile, across: bool, area: &Sampler2d) -> Self {
+        let grid: Vec<[f32x8; 2]> = if profile.light_strategy == Strategy::Grid && !across {
+            (0..profile.light_samples).map(|j| area.sample_x8_call(&[0; LANES], &[j; LANES], false)).collect()
+        } else {
+            Vec::new()
+        };
+        let grid_points = scene.lights.iter().map(|light| grid.iter().map_while(|&u| light_points_x8(light, u)).collect()).collect();
+        let flat_light = scene
+            .lights
+            .iter()
+            .map(|light| match *light {
+                Light::Quad { quad, radiance } => {
+                    (quad.normal(), radiance * (quad.area() / samples_for(light, profile.light_samples) as f32))
+                }
+                Light::Disk { disk, radiance } => (
+                    disk.normal,
+                    radiance * (std::f32::consts::PI * disk.radius * disk.radius / samples_for(light, profile.light_samples) as f32),
+                ),
+                _ => (Vec3::ZERO, Vec3::ZERO),
+            })
+            .collect();
+        // Area lights' prims are the scene's last, in the lights' order (searched where not).
+        let area_lights = scene.lights.iter().filter(|l| !l.is_point()).count();
+        let mut guess = scene.prims.len().wrapping_sub(area_lights);
+        let cones: Vec<Option<LightCone>> = scene
+            .lights
+            .iter()
+            .map(|light| {
+                let at = guess;
+                if !light.is_point() {
+                    guess = guess.wrapping_add(1);
+                }
+                (samples_for(light, profile.light_samples) >= cone_min_samples(scene))
+                    .then(|| LightCone::new_near(scene, light, at))
+                    .flatten()
+            })
+            .collect();
+        LightTables {
+            key,
+            grid,
+            grid_points,
+            flat_light,
+            any_cone: cones.iter().any(Option::is_some),
+            cones,
+            buffers: scene.light_buffers.iter().any(Option::is_some),
+            keyed: scene.lights.iter().any(|l| !l.is_point()),
+        }
+    }
+}
+
 thread_local! {
+    /// Each thread's light tables for its last scene and light sampling ([`LightTables::get`]).
+    static TABLES: std::cell::RefCell<Option<std::rc::Rc<LightTables>>> = const { std::cell::RefCell::new(None) };
     /// Each thread's shadow batches, kept between calls of [`shadow_with`].
     static BATCHES: std::cell::Cell<Vec<Box<Batch>>> = const { std::cell::Cell::new(Vec::new()) };
     /// Each thread's sorted copies of its NEE queues where requests pick their light.
