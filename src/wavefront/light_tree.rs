@@ -23,12 +23,17 @@
 //! and the pick follows `u` down. A light's probability is the width of the range it ends in over 2^24:
 //! exactly the share of the numbers that pick it, so `1 / P` weighs what the picks do.
 //! [`LightTree::prob`] follows a light's path from the root with the same operations: bit for bit the
-//! pick's. A known bias: once a node's range has fewer values than children of importance (a path whose
-//! share of the 2^24 values, by the bounds' importances, not the light's, has run down to a few), the
-//! later children get none and probability 0, consistently but wrongly where they light the point (a
-//! review's dim lamps beside bright quads facing away from a point inside their bounding spheres, which
-//! take both cosine bounds as 1: half of the point's light lost at a power ratio of 1e8). A second
-//! random number once the range is small would mend it; not built.
+//! pick's.
+//!
+//! **Zooms.** A path's range narrows level by level, by the bounds' importances rather than the lights'
+//! (bright quads facing away from a point inside their bounding spheres take both cosine bounds as 1).
+//! Once a range had fewer values than children of importance, the later children would get none:
+//! probability 0 for lights that do light the point, a bias (a review's dim lamps beside such quads
+//! lost half of a point's light at a power ratio of 1e8). So a range narrower than 2^12 values is first
+//! widened by 12 fresh random bits (the pick's second number, `fine`): the value `a` of a range `w` wide
+//! becomes `a x 2^12 + f` of a range `w x 2^12` wide, again uniform, and the probabilities below carry a
+//! factor 2^-12. Two zooms take the resolution from 2^-24 to 2^-48: a child is left out only where its
+//! path's probability is below about 2^-45.
 //!
 //! **Build.** Top down: a node's lights are split in two, repeatedly (the group of most lights first),
 //! until it has 8 groups or single lights; each split is the one along an axis, lights ordered by centre,
@@ -43,6 +48,15 @@ use glam::{DVec3, Vec3};
 
 /// The pick's numbers: multiples of 2^-24 in [0, 1).
 pub const GRID: u32 = 1 << 24;
+
+/// A range narrower than this many values is widened by [`ZOOM_BITS`] fresh random bits before the next
+/// split (see the module docs), at most [`MAX_ZOOMS`] times along a path.
+const ZOOM_BELOW: u32 = 1 << 12;
+const ZOOM_BITS: u32 = 12;
+const MAX_ZOOMS: usize = 2;
+
+/// A light's range width over this: its probability after 0, 1 or 2 zooms (powers of two, exact in f32).
+const ZOOM_SCALE: [f32; MAX_ZOOMS + 1] = [1.0 / GRID as f32, 1.0 / GRID as f32 / 4096.0, 1.0 / GRID as f32 / 16_777_216.0];
 
 /// A child slot that holds a light (its index in the low bits) rather than a node.
 const LIGHT: u32 = 1 << 31;
@@ -395,20 +409,34 @@ impl LightTree {
         Some((self.nodes[node as usize].child[k], at - start, ends[k] as u32 - start))
     }
 
-    /// The light picked at `p` (normal `n` for Lambert points) by the number `u` in [0, 1), and its
-    /// probability; `None` where no light can give `p` anything.
-    pub fn pick(&self, p: Vec3, n: Option<Vec3>, u: f32) -> Option<(u32, f32)> {
+    /// The light picked at `p` (normal `n` for Lambert points) by the number `u` in [0, 1) and the 24
+    /// random bits `fine` (the zooms' numbers, low bits first), and its probability; `None` where no
+    /// light can give `p` anything.
+    pub fn pick(&self, p: Vec3, n: Option<Vec3>, u: f32, fine: u32) -> Option<(u32, f32)> {
         let mut out = [None; 8];
-        self.pick_x8(&[p; 8], n.map(|n| [n; 8]).as_ref(), &[u; 8], &mut out);
+        self.pick_x8(&[p; 8], n.map(|n| [n; 8]).as_ref(), &[u; 8], &[fine; 8], &mut out);
         out[0]
     }
 
     /// [`LightTree::pick`] for 8 points, level by level (the lanes' chains of dependent arithmetic
     /// overlap).
-    pub fn pick_x8(&self, p: &[Vec3; 8], n: Option<&[Vec3; 8]>, u: &[f32; 8], out: &mut [Option<(u32, f32)>; 8]) {
+    pub fn pick_x8(&self, p: &[Vec3; 8], n: Option<&[Vec3; 8]>, u: &[f32; 8], fine: &[u32; 8], out: &mut [Option<(u32, f32)>; 8]) {
+        self.pick_x8_zooms(p, n, u, fine, out);
+    }
+
+    /// [`LightTree::pick_x8`], also giving each lane's number of zooms.
+    fn pick_x8_zooms(
+        &self,
+        p: &[Vec3; 8],
+        n: Option<&[Vec3; 8]>,
+        u: &[f32; 8],
+        fine: &[u32; 8],
+        out: &mut [Option<(u32, f32)>; 8],
+    ) -> [usize; 8] {
         *out = [None; 8];
+        let mut zooms = [0usize; 8];
         if self.nodes.is_empty() {
-            return;
+            return zooms;
         }
         let mut at = u.map(|u| ((u * GRID as f32) as u32).min(GRID - 1));
         let (mut node, mut w) = ([0u32; 8], [GRID; 8]);
@@ -429,9 +457,14 @@ impl LightTree {
                 imp[l] = self.importance(node[l], p[l], n.map(|n| n[l]));
             }
             for l in lanes(live) {
+                if w[l] < ZOOM_BELOW && zooms[l] < MAX_ZOOMS {
+                    let f = (fine[l] >> (ZOOM_BITS as usize * zooms[l])) & (ZOOM_BELOW - 1);
+                    (at[l], w[l]) = ((at[l] << ZOOM_BITS) | f, w[l] << ZOOM_BITS);
+                    zooms[l] += 1;
+                }
                 match self.step(node[l], imp[l], at[l], w[l]) {
                     Some((c, _, width)) if c & LIGHT != 0 => {
-                        out[l] = Some((c & !LIGHT, width as f32 / GRID as f32));
+                        out[l] = Some((c & !LIGHT, width as f32 * ZOOM_SCALE[zooms[l]]));
                         live &= !(1 << l);
                     }
                     Some((c, a, width)) => (node[l], at[l], w[l]) = (c, a, width),
@@ -442,6 +475,7 @@ impl LightTree {
                 break;
             }
         }
+        zooms
     }
 
     /// The probability that a point at `p` (normal `n` as given to [`LightTree::pick`]) picks `light`:
@@ -452,9 +486,12 @@ impl LightTree {
         };
         let (path, depth) = self.path(node);
         // From the root down: path[depth - 2] .. path[0], then the light's own slot.
-        let mut w = GRID;
+        let (mut w, mut zooms) = (GRID, 0);
         for i in (0..depth).rev() {
             let (at, k) = if i == 0 { (node, slot) } else { path[i - 1] };
+            if w < ZOOM_BELOW && zooms < MAX_ZOOMS {
+                (w, zooms) = (w << ZOOM_BITS, zooms + 1);
+            }
             let Some(ends) = split(self.importance(at, p, n), w) else {
                 return 0.0;
             };
@@ -465,7 +502,7 @@ impl LightTree {
                 return 0.0;
             }
         }
-        w as f32 / GRID as f32
+        w as f32 * ZOOM_SCALE[zooms]
     }
 }
 
@@ -626,7 +663,7 @@ mod tests {
                     }
                     for _ in 0..16 {
                         let u = rnd(&mut k);
-                        if let Some((light, prob)) = tree.pick(p, normal, u) {
+                        if let Some((light, prob)) = tree.pick(p, normal, u, 0) {
                             assert_eq!(prob.to_bits(), tree.prob(p, normal, light as usize).to_bits());
                             assert!(prob > 0.0 && ls[light as usize].phi > 0.0);
                         }
@@ -679,38 +716,105 @@ mod tests {
         assert!(zeros > 1000, "the points and normals leave lights out ({zeros})");
     }
 
-    /// Over all 2^24 numbers, each light's count of picks is its probability x 2^24, and the numbers
-    /// that pick nothing are the rest.
+    /// The picks at `p` (normal `n`) over all 2^24 numbers `u` and, where a pick zooms, all the zooms'
+    /// random bits, counted per light (and for no light) in units of 2^-48: a pick with no zoom counts
+    /// 2^24 units, one zoom 2^12, two 1. Also the numbers `u` that zoomed, and the first zooms' numbers
+    /// that zoomed again.
+    fn realized(tree: &LightTree, lights: usize, p: Vec3, n: Option<Vec3>) -> (Vec<u64>, u64, usize, usize) {
+        let (n8, ps) = (n.map(|n| [n; 8]), [p; 8]);
+        let mut hits = vec![0u64; lights];
+        let mut none = 0u64;
+        let mut credit = |o: Option<(u32, f32)>, units: u64| match o {
+            Some((light, _)) => hits[light as usize] += units,
+            None => none += units,
+        };
+        let (mut zoomed, mut twice) = (0, 0);
+        let (mut out, mut o1, mut o2) = ([None; 8], [None; 8], [None; 8]);
+        for i in (0..GRID).step_by(8) {
+            let u: [f32; 8] = std::array::from_fn(|l| (i + l as u32) as f32 / GRID as f32);
+            let z = tree.pick_x8_zooms(&ps, n8.as_ref(), &u, &[0; 8], &mut out);
+            for l in 0..8 {
+                if z[l] == 0 {
+                    credit(out[l], 1 << 24);
+                    continue;
+                }
+                zoomed += 1;
+                for f in (0..ZOOM_BELOW).step_by(8) {
+                    let fine: [u32; 8] = std::array::from_fn(|j| f + j as u32);
+                    let z1 = tree.pick_x8_zooms(&ps, n8.as_ref(), &[u[l]; 8], &fine, &mut o1);
+                    for j in 0..8 {
+                        if z1[j] == 1 {
+                            credit(o1[j], 1 << 12);
+                            continue;
+                        }
+                        twice += 1;
+                        for g in (0..ZOOM_BELOW).step_by(8) {
+                            let fine2 = std::array::from_fn(|q| fine[j] | ((g + q as u32) << ZOOM_BITS));
+                            tree.pick_x8_zooms(&ps, n8.as_ref(), &[u[l]; 8], &fine2, &mut o2);
+                            for o in o2 {
+                                credit(o, 1);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (hits, none, zoomed, twice)
+    }
+
+    /// Each light's realized share of the picks ([`realized`]) is its reported probability, and the
+    /// picks of nothing are the rest. Returns the numbers that zoomed, once and twice.
+    fn realized_is_reported(tree: &LightTree, lights: usize, p: Vec3, n: Option<Vec3>) -> (Vec<u64>, usize, usize) {
+        let (hits, none, zoomed, twice) = realized(tree, lights, p, n);
+        const UNITS: f64 = (1u64 << 48) as f64;
+        let mut sum = 0.0;
+        for (l, &h) in hits.iter().enumerate() {
+            assert_eq!(h as f64 / UNITS, tree.prob(p, n, l) as f64, "light {l} at {p}");
+            sum += h as f64 / UNITS;
+        }
+        assert_eq!(none as f64 / UNITS, 1.0 - sum);
+        (hits, zoomed, twice)
+    }
+
     #[test]
     fn realized_probabilities_are_the_reported_ones() {
         let mut k = 21;
         let ls = lights(40, &mut k);
         let tree = LightTree::build(&ls);
         for (p, n) in [(Vec3::new(0.5, -1.0, 2.0), Some(Vec3::new(0.0, 0.6, 0.8))), (Vec3::new(7.0, 1.0, -6.0), None)] {
-            let mut hits = vec![0u32; ls.len()];
-            let mut none = 0u32;
-            let mut out = [None; 8];
-            for i in (0..GRID).step_by(8) {
-                let u = std::array::from_fn(|l| (i + l as u32) as f32 / GRID as f32);
-                tree.pick_x8(&[p; 8], n.map(|n| [n; 8]).as_ref(), &u, &mut out);
-                for o in out {
-                    match o {
-                        Some((light, _)) => hits[light as usize] += 1,
-                        None => none += 1,
-                    }
-                }
-            }
-            let mut sum = 0.0;
-            for (l, &h) in hits.iter().enumerate() {
-                assert_eq!(h as f64 / GRID as f64, tree.prob(p, n, l) as f64, "light {l}");
-                sum += h as f64 / GRID as f64;
-            }
-            assert_eq!(none as f64 / GRID as f64, 1.0 - sum);
+            let (hits, _, _) = realized_is_reported(&tree, ls.len(), p, n);
             assert!(hits.iter().filter(|&&h| h > 0).count() > 10, "{hits:?}");
         }
     }
 
-    /// Lights that share one point, and a row of points: the build stays shallow and balanced enough.
+    /// Clusters of very dim lights beside bright ones: a cluster's range is a few values, fewer than its
+    /// groups, and without zooms some of its lights would have probability 0 while lighting the
+    /// point (the bias of running out). With them every light keeps a chance, and the realized shares
+    /// of all numbers and zoom bits are still the reported probabilities.
+    #[test]
+    fn zooms_keep_every_dim_light_and_report_their_probabilities() {
+        let mut k = 5;
+        let mut ls: Vec<LightBounds> = (0..8)
+            .map(|_| LightBounds {
+                centre: Vec3::new(rnd(&mut k), rnd(&mut k), rnd(&mut k)) * 4.0,
+                radius: 0.1,
+                normal: Vec3::ZERO,
+                phi: 1.0,
+            })
+            .collect();
+        // 30 omni lamps of 1e-7 around (20, 0, 0), and 12 of 1e-14 close together beside them.
+        for i in 0..42 {
+            let (at, size, phi) = if i < 30 { (Vec3::new(20.0, 0.0, 0.0), 2.0, 1e-7) } else { (Vec3::new(20.0, 4.0, 0.0), 0.2, 1e-14) };
+            let centre = at + Vec3::new(rnd(&mut k), rnd(&mut k), rnd(&mut k)) * size;
+            ls.push(LightBounds { centre, radius: 0.0, normal: Vec3::ZERO, phi });
+        }
+        let tree = LightTree::build(&ls);
+        let (p, n) = (Vec3::new(10.0, 0.0, 0.0), None);
+        let (hits, zoomed, twice) = realized_is_reported(&tree, ls.len(), p, n);
+        assert!(hits.iter().all(|&h| h > 0), "every light lights the point and keeps a chance: {hits:?}");
+        assert!(zoomed > 0 && twice > 0, "the case zooms twice ({zoomed}, {twice})");
+    }
+
     #[test]
     fn coincident_and_collinear_lights_build_shallow_trees() {
         let same: Vec<LightBounds> =

@@ -38,6 +38,8 @@ pub mod dims {
     pub const ROULETTE: u32 = 0x400;
     pub const LIGHT: u32 = 0x500;
     pub const LIGHT_PICK: u32 = 0x600;
+    /// The light pick's second number: random bits for `tree`'s zooms (`light_tree.rs`).
+    pub const LIGHT_PICK_FINE: u32 = 0x700;
 }
 
 /// Counters of one render (or one wavefront), summed over workers.

@@ -232,7 +232,8 @@ impl LightPick {
         self.tree.as_ref().map(|t| t.prob(p, n, li))
     }
 
-    /// Picks for 8 points `p` with uniform numbers `u` in [0, 1): per lane the light (or [`NO_LIGHT`])
+    /// Picks for 8 points `p` with uniform numbers `u` in [0, 1) (and 24 random bits `fine` per lane for
+    /// `tree`'s zooms): per lane the light (or [`NO_LIGHT`])
     /// and its probability. `scratch` holds the lanes' importances (`local`). With the points' normals
     /// `n` (Lambert points), a `local` importance also has the receiver's cosine bound towards the
     /// light's bounding sphere, 0 when the sphere lies below the point's horizon; without (glossy points,
@@ -242,14 +243,21 @@ impl LightPick {
     /// disk) with normal `m` the bound `min(1, (m.(p - c) + r) / d)` of its cosine (at least
     /// [`COS_FLOOR`]), or 0 when `p` lies behind its plane; x the receiver's `min(1, (n.(c - p) + r) / d)`
     /// where it is given (0 when negative).
-    pub fn pick_x8(&self, p: Vec3x8, n: Option<Vec3x8>, u: f32x8, scratch: &mut Vec<f32x8>) -> ([u32; LANES], [f32; LANES]) {
+    pub fn pick_x8(
+        &self,
+        p: Vec3x8,
+        n: Option<Vec3x8>,
+        u: f32x8,
+        fine: [u32; LANES],
+        scratch: &mut Vec<f32x8>,
+    ) -> ([u32; LANES], [f32; LANES]) {
         let mut light = [NO_LIGHT; LANES];
         let mut prob = [0.0f32; LANES];
         if let Some(tree) = &self.tree {
             let ps = std::array::from_fn(|l| p.lane(l));
             let ns = n.map(|n| std::array::from_fn(|l| n.lane(l)));
             let mut out = [None; LANES];
-            tree.pick_x8(&ps, ns.as_ref(), &u.to_array(), &mut out);
+            tree.pick_x8(&ps, ns.as_ref(), &u.to_array(), &fine, &mut out);
             for l in 0..LANES {
                 if let Some(pick) = out[l] {
                     (light[l], prob[l]) = pick;
@@ -487,7 +495,7 @@ radiance = [0.5, 0.5, 0.5]
             let mut lost = 0;
             for p in points(&mut k) {
                 let u = f32x8::from(std::array::from_fn::<f32, LANES, _>(|_| rnd(&mut k)));
-                let (light, prob) = pick.pick_x8(p, None, u, &mut scratch);
+                let (light, prob) = pick.pick_x8(p, None, u, [0; LANES], &mut scratch);
                 for l in 0..LANES {
                     let pl = p.lane(l);
                     let sum: f64 = (0..pick.lights()).map(|li| pick.prob(pl, li) as f64).sum();
@@ -534,7 +542,7 @@ radiance = [0.5, 0.5, 0.5]
                     let mut probs = vec![0.0f32; pick.lights()];
                     for c in (0..count).step_by(LANES) {
                         let u = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| ((c + l) as f32 + 0.5) / count as f32));
-                        let (light, prob) = pick.pick_x8(Vec3x8::splat(p), n, u, &mut scratch);
+                        let (light, prob) = pick.pick_x8(Vec3x8::splat(p), n, u, [0; LANES], &mut scratch);
                         for l in 0..LANES {
                             if light[l] != NO_LIGHT {
                                 hits[light[l] as usize] += 1;
@@ -589,7 +597,7 @@ radiance = [0.5, 0.5, 0.5]
         let grid = 1u32 << 24;
         for k in (0..grid).step_by(LANES) {
             let u = f32x8::from(std::array::from_fn::<f32, LANES, _>(|j| (k + j as u32) as f32 / grid as f32));
-            let (light, _) = pick.pick_x8(Vec3x8::splat(Vec3::ZERO), None, u, &mut scratch);
+            let (light, _) = pick.pick_x8(Vec3x8::splat(Vec3::ZERO), None, u, [0; LANES], &mut scratch);
             for li in light {
                 hits[li as usize] += 1;
             }
@@ -619,7 +627,7 @@ radiance = [0.5, 0.5, 0.5]
                 std::array::from_fn(|a| std::array::from_fn(|l| ns[l][a]))
             };
             let n = Vec3x8::from_rows(&normals);
-            pick.pick_x8(p, Some(n), f32x8::splat(0.5), &mut scratch);
+            pick.pick_x8(p, Some(n), f32x8::splat(0.5), [0; LANES], &mut scratch);
             for (li, light) in scene.lights.iter().enumerate() {
                 for l in 0..LANES {
                     let never = match pick.tree_prob(p.lane(l), Some(n.lane(l)), li) {

@@ -24,6 +24,7 @@ use crate::geometry::{
 };
 use crate::light::{light_points_x8, power_heuristic_x8, sample_light_x8, sample_pdf_x8, samples_for};
 use crate::optics::{eval_ggx_reflect_x8, sample_ggx_reflect_pdf_x8};
+use crate::sample::hash::random_bits;
 use crate::sample::{hash_combine, sample_1d_keyed, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape};
 use crate::simd::{
@@ -260,7 +261,7 @@ impl Picked {
         let strategy = LightPick::strategy(profile);
         self.src_light.clear();
         self.src_prob.clear();
-        let mut memo = (0u64, 0u64);
+        let mut memo = (0u64, 0u64, 0u64);
         let mut base = 0;
         while base < n {
             let m = (n - base).min(LANES);
@@ -271,19 +272,20 @@ impl Picked {
             } else {
                 Vec3x8::new(chunk8(&q.ox, base, m), chunk8(&q.oy, base, m), chunk8(&q.oz, base, m))
             };
-            let mut u = [0.0f32; LANES];
-            for (l, u) in u.iter_mut().enumerate().take(m) {
+            let (mut u, mut fine) = ([0.0f32; LANES], [0u32; LANES]);
+            for l in 0..m {
                 let i = base + l;
-                // (A pixel's requests are consecutive: their stream key is made once.)
+                // (A pixel's requests are consecutive: their stream keys are made once.)
                 if memo.0 != q.key[i] || base + l == 0 {
-                    memo = (q.key[i], stream_key(seed, q.key[i], dims::LIGHT_PICK));
+                    memo = (q.key[i], stream_key(seed, q.key[i], dims::LIGHT_PICK), stream_key(seed, q.key[i], dims::LIGHT_PICK_FINE));
                 }
-                *u = sample_1d_keyed(strategy, memo.1, q.sample[i], profile.spp);
+                u[l] = sample_1d_keyed(strategy, memo.1, q.sample[i], profile.spp);
+                fine[l] = random_bits(memo.2, q.sample[i]) as u32;
             }
             // (Lambert points' picks weigh their horizon: glossy points' must be found again by the MIS
             // weights of their lobe rays, which know no normal.)
             let normals = (q.alpha.is_empty()).then(|| Vec3x8::new(chunk8(&q.nx, base, m), chunk8(&q.ny, base, m), chunk8(&q.nz, base, m)));
-            let (light, prob) = pick.pick_x8(p, normals, f32x8::from(u), &mut self.scratch);
+            let (light, prob) = pick.pick_x8(p, normals, f32x8::from(u), fine, &mut self.scratch);
             self.src_light.extend_from_slice(&light[..m]);
             self.src_prob.extend_from_slice(&prob[..m]);
             base += m;
