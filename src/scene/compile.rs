@@ -4,7 +4,9 @@
 
 use super::error::{read_text, InputError, Source};
 use super::format::{CameraDef, LightDef, MaterialDef, SceneFile, ShapeDef, TransformDef, S, V3};
-use super::{Dielectric, Features, Light, Material, MaterialKind, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS};
+use super::{
+    Dielectric, Features, Light, Material, MaterialKind, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS, NOT_A_LIGHT,
+};
 use crate::accel::{build_bvh, Aabb, Bound, BuildOptions, Collapse, LightBuffer, WideBvh, WIDE_MIN_NODES};
 use crate::camera::Camera;
 use crate::csg::{self, Csg, CsgTree, Op};
@@ -322,6 +324,10 @@ impl Compiler<'_> {
             }
         }
         let prim_kind: Vec<MaterialKind> = self.prims.iter().map(|p| self.materials[p.material as usize].kind()).collect();
+        // Each area light pushed one prim, in the lights' order.
+        let mut area_lights = (0..self.lights.len() as u32).filter(|&l| !self.lights[l as usize].is_point());
+        let light_of_prim: Vec<u32> =
+            self.prims.iter().map(|p| if p.is_light { area_lights.next().unwrap_or(NOT_A_LIGHT) } else { NOT_A_LIGHT }).collect();
         let leaf_kind: Vec<MaterialKind> =
             (0..self.csg.leaf_count()).map(|l| self.materials[self.csg.leaf(l as u32).material as usize].kind()).collect();
         let glass_neighbours = if features.dielectric {
@@ -373,6 +379,7 @@ impl Compiler<'_> {
             warnings: std::mem::take(&mut self.warnings),
             hash,
             light_picks: Default::default(),
+            light_of_prim,
         })
     }
 

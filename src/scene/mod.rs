@@ -257,6 +257,9 @@ pub struct Features {
     pub planes: bool,
 }
 
+/// [`Scene::light_of_prim`] of a prim that is no light's surface.
+pub const NOT_A_LIGHT: u32 = u32::MAX;
+
 /// A compiled scene: flat arrays, a BVH over the bounded primitives, and the features it uses.
 pub struct Scene {
     pub width: u32,
@@ -305,6 +308,8 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// A stable hash of the scene file text (films from different scenes are never merged).
     pub hash: u64,
+    /// Per prim, the light it is the surface of (area lights), else [`NOT_A_LIGHT`].
+    pub light_of_prim: Vec<u32>,
     /// Its light selections (`light_selection` other than `all`), made on first use and shared by the
     /// threads ([`crate::wavefront::pick::LightPick::cached`]).
     pub light_picks: crate::wavefront::pick::PickCache,

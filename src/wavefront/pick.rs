@@ -465,6 +465,32 @@ radiance = [0.5, 0.5, 0.5]
     }
 
     #[test]
+    fn each_area_light_is_found_from_its_prim() {
+        use crate::scene::{Shape, NOT_A_LIGHT};
+        let scene = lights_scene();
+        assert_eq!(scene.light_of_prim.len(), scene.prims.len());
+        let mut found = vec![0; scene.lights.len()];
+        for (prim, &li) in scene.prims.iter().zip(&scene.light_of_prim) {
+            assert_eq!(prim.is_light, li != NOT_A_LIGHT);
+            if li == NOT_A_LIGHT {
+                continue;
+            }
+            found[li as usize] += 1;
+            let same = match (scene.lights[li as usize], prim.shape) {
+                (Light::Quad { quad, .. }, Shape::Quad(q)) => (quad.origin, quad.u, quad.v) == (q.origin, q.u, q.v),
+                (Light::Disk { disk, .. }, Shape::Disk(k)) => (disk.center, disk.normal, disk.radius) == (k.center, k.normal, k.radius),
+                (Light::Sphere { center, radius, .. }, Shape::Sphere { center: c, radius: r }) => (center, radius) == (c, r),
+                _ => false,
+            };
+            assert!(same, "light {li}'s prim");
+        }
+        for (li, light) in scene.lights.iter().enumerate() {
+            assert_eq!(found[li], if light.is_point() { 0 } else { 1 }, "light {li}");
+        }
+        assert!(found.iter().filter(|&&f| f == 0).count() >= 2 && found.iter().sum::<i32>() >= 5);
+    }
+
+    #[test]
     fn each_mode_has_its_own_cached_selection() {
         // `PickCache` is indexed by the mode's discriminant: the order of `LightSelection::ALL`.
         for (i, mode) in LightSelection::ALL.into_iter().enumerate() {

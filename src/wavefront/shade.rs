@@ -19,7 +19,7 @@ use crate::optics::{
     sample_ggx_reflect_weight_x8, sample_ggx_reflect_x8, sample_hemisphere_cos_x8,
 };
 use crate::sample::{hash_combine, random_f32, stream_key, Sampler2d};
-use crate::scene::{checker_eval_x8, Branching, Dielectric, Light, Material, MaterialKind, Prim, Profile, Scene, Shape, Texture};
+use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture, NOT_A_LIGHT};
 use crate::simd::{consecutive8, f32x8, gather8, lane_bits, mask_from_bits, u32x8, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
@@ -405,7 +405,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         if geo.front & (1 << l) != 0 && !(prim.is_light && r.flags & FLAG_DIFFUSE != 0) {
                             if prim.is_light && r.flags & FLAG_GLOSSY != 0 && rays.with_pdf {
                                 let pick = pick.get_or_init(|| LightPick::cached(scene, profile));
-                                let w = lobe_light_weight(scene, profile, *pick, prim, &r, hits.t[i]);
+                                let w = lobe_light_weight(scene, profile, *pick, hits.prim[i], &r, hits.t[i]);
                                 paths.add(r.path, r.throughput * *radiance * w);
                             } else {
                                 paths.add(r.path, r.throughput * *radiance);
@@ -427,15 +427,10 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
 /// (`r.pdf`, one sample) against the light's `light_samples` samples, seen from the glossy point the ray
 /// left (`r.travel` back from `r.o`: it may have crossed surfaces unbent since), x the probability that
 /// the point picks this light (`pick`, where the profile picks one light per point).
-fn lobe_light_weight(scene: &Scene, profile: &Profile, pick: Option<&LightPick>, prim: &Prim, r: &RayItem, t: f32) -> f32 {
-    let light = scene.lights.iter().position(|l| match (*l, prim.shape) {
-        (Light::Quad { quad, .. }, Shape::Quad(q)) => quad.origin == q.origin && quad.u == q.u && quad.v == q.v,
-        (Light::Disk { disk, .. }, Shape::Disk(k)) => disk.center == k.center && disk.normal == k.normal && disk.radius == k.radius,
-        (Light::Sphere { center, radius, .. }, Shape::Sphere { center: c, radius: k }) => center == c && radius == k,
-        _ => false,
-    });
-    match light {
+fn lobe_light_weight(scene: &Scene, profile: &Profile, pick: Option<&LightPick>, prim: u32, r: &RayItem, t: f32) -> f32 {
+    match scene.light_of_prim.get(prim as usize).copied().filter(|&l| l != NOT_A_LIGHT) {
         Some(li) => {
+            let li = li as usize;
             let light = &scene.lights[li];
             // Seen from the glossy point: `travel` back along the (unbent) direction from the origin.
             let ns = samples_for(light, profile.light_samples) as f32;
