@@ -414,22 +414,35 @@ impl LightTree {
     /// light can give `p` anything.
     pub fn pick(&self, p: Vec3, n: Option<Vec3>, u: f32, fine: u32) -> Option<(u32, f32)> {
         let mut out = [None; 8];
-        self.pick_x8(&[p; 8], n.map(|n| [n; 8]).as_ref(), &[u; 8], &[fine; 8], &mut out);
+        let at = ((u * GRID as f32) as u32).min(GRID - 1);
+        self.pick_x8(&[p; 8], n.map(|n| [n; 8]).as_ref(), &[at; 8], GRID, &[fine; 8], &mut out);
         out[0]
     }
 
     /// [`LightTree::pick`] for 8 points, level by level (the lanes' chains of dependent arithmetic
-    /// overlap).
-    pub fn pick_x8(&self, p: &[Vec3; 8], n: Option<&[Vec3; 8]>, u: &[f32; 8], fine: &[u32; 8], out: &mut [Option<(u32, f32)>; 8]) {
-        self.pick_x8_zooms(p, n, u, fine, out);
+    /// overlap), with the numbers as grid values `at` in a root range of `root` values (the tree's share
+    /// of the 2^24: [`LightPick`](super::pick::LightPick) keeps the rest for its uniform floor; lanes
+    /// with `at >= root` pick nothing here). The probabilities are of the 2^24 values.
+    pub fn pick_x8(
+        &self,
+        p: &[Vec3; 8],
+        n: Option<&[Vec3; 8]>,
+        at: &[u32; 8],
+        root: u32,
+        fine: &[u32; 8],
+        out: &mut [Option<(u32, f32)>; 8],
+    ) {
+        self.pick_x8_zooms(p, n, at, root, fine, out);
     }
 
     /// [`LightTree::pick_x8`], also giving each lane's number of zooms.
+    #[allow(clippy::too_many_arguments)]
     fn pick_x8_zooms(
         &self,
         p: &[Vec3; 8],
         n: Option<&[Vec3; 8]>,
-        u: &[f32; 8],
+        at: &[u32; 8],
+        root: u32,
         fine: &[u32; 8],
         out: &mut [Option<(u32, f32)>; 8],
     ) -> [usize; 8] {
@@ -438,9 +451,10 @@ impl LightTree {
         if self.nodes.is_empty() {
             return zooms;
         }
-        let mut at = u.map(|u| ((u * GRID as f32) as u32).min(GRID - 1));
-        let (mut node, mut w) = ([0u32; 8], [GRID; 8]);
-        let mut live = 0xffu32;
+        debug_assert!(root <= GRID);
+        let mut at = *at;
+        let (mut node, mut w) = ([0u32; 8], [root; 8]);
+        let mut live = (0..8).filter(|&l| at[l] < root).fold(0u32, |m, l| m | 1 << l);
         let mut imp = [f32x8::ZERO; 8];
         // (Each phase a loop over the lanes, so that the lanes' chains of dependent arithmetic overlap.)
         let lanes = |mut left: u32| {
@@ -478,15 +492,16 @@ impl LightTree {
         zooms
     }
 
-    /// The probability that a point at `p` (normal `n` as given to [`LightTree::pick`]) picks `light`:
-    /// the pick's operations along the light's path, bit for bit.
-    pub fn prob(&self, p: Vec3, n: Option<Vec3>, light: usize) -> f32 {
+    /// The probability that a point at `p` (normal `n` as given to [`LightTree::pick`]) picks `light`
+    /// from a root range of `root` values (as [`LightTree::pick_x8`]): the pick's operations along the
+    /// light's path, bit for bit.
+    pub fn prob(&self, p: Vec3, n: Option<Vec3>, light: usize, root: u32) -> f32 {
         let Some(&(node, slot)) = self.leaf.get(light).filter(|l| l.0 != EMPTY) else {
             return 0.0;
         };
         let (path, depth) = self.path(node);
         // From the root down: path[depth - 2] .. path[0], then the light's own slot.
-        let (mut w, mut zooms) = (GRID, 0);
+        let (mut w, mut zooms) = (root, 0);
         for i in (0..depth).rev() {
             let (at, k) = if i == 0 { (node, slot) } else { path[i - 1] };
             if w < ZOOM_BELOW && zooms < MAX_ZOOMS {
@@ -652,19 +667,19 @@ mod tests {
                 let p = Vec3::new(rnd(&mut k), rnd(&mut k), rnd(&mut k)) * 14.0 - 7.0;
                 for normal in [None, Some(unit(&mut k))] {
                     // (Below 1 where a node's bound has importance and all its children's none.)
-                    let sum: f64 = (0..n).map(|l| tree.prob(p, normal, l) as f64).sum();
+                    let sum: f64 = (0..n).map(|l| tree.prob(p, normal, l, GRID) as f64).sum();
                     assert!(sum <= 1.0, "{n} lights at {p}: {sum}");
                     if normal.is_none() {
                         // Omni-directional lights (a third) face every point.
                         assert!(sum > 0.0);
                     }
                     for l in (0..n).filter(|l| ls[*l].phi == 0.0) {
-                        assert_eq!(tree.prob(p, normal, l), 0.0);
+                        assert_eq!(tree.prob(p, normal, l, GRID), 0.0);
                     }
                     for _ in 0..16 {
                         let u = rnd(&mut k);
                         if let Some((light, prob)) = tree.pick(p, normal, u, 0) {
-                            assert_eq!(prob.to_bits(), tree.prob(p, normal, light as usize).to_bits());
+                            assert_eq!(prob.to_bits(), tree.prob(p, normal, light as usize, GRID).to_bits());
                             assert!(prob > 0.0 && ls[light as usize].phi > 0.0);
                         }
                         // (The numbers that pick nothing are counted in the next test.)
@@ -689,7 +704,7 @@ mod tests {
             let p = Vec3::new(rnd(&mut k), rnd(&mut k), rnd(&mut k)) * 12.0 - 6.0;
             let n = unit(&mut k);
             for (li, l) in ls.iter().enumerate() {
-                if l.phi == 0.0 || tree.prob(p, Some(n), li) > 0.0 {
+                if l.phi == 0.0 || tree.prob(p, Some(n), li, GRID) > 0.0 {
                     continue;
                 }
                 zeros += 1;
@@ -720,7 +735,7 @@ mod tests {
     /// random bits, counted per light (and for no light) in units of 2^-48: a pick with no zoom counts
     /// 2^24 units, one zoom 2^12, two 1. Also the numbers `u` that zoomed, and the first zooms' numbers
     /// that zoomed again.
-    fn realized(tree: &LightTree, lights: usize, p: Vec3, n: Option<Vec3>) -> (Vec<u64>, u64, usize, usize) {
+    fn realized(tree: &LightTree, lights: usize, p: Vec3, n: Option<Vec3>, root: u32) -> (Vec<u64>, u64, usize, usize) {
         let (n8, ps) = (n.map(|n| [n; 8]), [p; 8]);
         let mut hits = vec![0u64; lights];
         let mut none = 0u64;
@@ -731,8 +746,8 @@ mod tests {
         let (mut zoomed, mut twice) = (0, 0);
         let (mut out, mut o1, mut o2) = ([None; 8], [None; 8], [None; 8]);
         for i in (0..GRID).step_by(8) {
-            let u: [f32; 8] = std::array::from_fn(|l| (i + l as u32) as f32 / GRID as f32);
-            let z = tree.pick_x8_zooms(&ps, n8.as_ref(), &u, &[0; 8], &mut out);
+            let u: [u32; 8] = std::array::from_fn(|l| i + l as u32);
+            let z = tree.pick_x8_zooms(&ps, n8.as_ref(), &u, root, &[0; 8], &mut out);
             for l in 0..8 {
                 if z[l] == 0 {
                     credit(out[l], 1 << 24);
@@ -741,7 +756,7 @@ mod tests {
                 zoomed += 1;
                 for f in (0..ZOOM_BELOW).step_by(8) {
                     let fine: [u32; 8] = std::array::from_fn(|j| f + j as u32);
-                    let z1 = tree.pick_x8_zooms(&ps, n8.as_ref(), &[u[l]; 8], &fine, &mut o1);
+                    let z1 = tree.pick_x8_zooms(&ps, n8.as_ref(), &[u[l]; 8], root, &fine, &mut o1);
                     for j in 0..8 {
                         if z1[j] == 1 {
                             credit(o1[j], 1 << 12);
@@ -750,7 +765,7 @@ mod tests {
                         twice += 1;
                         for g in (0..ZOOM_BELOW).step_by(8) {
                             let fine2 = std::array::from_fn(|q| fine[j] | ((g + q as u32) << ZOOM_BITS));
-                            tree.pick_x8_zooms(&ps, n8.as_ref(), &[u[l]; 8], &fine2, &mut o2);
+                            tree.pick_x8_zooms(&ps, n8.as_ref(), &[u[l]; 8], root, &fine2, &mut o2);
                             for o in o2 {
                                 credit(o, 1);
                             }
@@ -764,12 +779,12 @@ mod tests {
 
     /// Each light's realized share of the picks ([`realized`]) is its reported probability, and the
     /// picks of nothing are the rest. Returns the numbers that zoomed, once and twice.
-    fn realized_is_reported(tree: &LightTree, lights: usize, p: Vec3, n: Option<Vec3>) -> (Vec<u64>, usize, usize) {
-        let (hits, none, zoomed, twice) = realized(tree, lights, p, n);
+    fn realized_is_reported(tree: &LightTree, lights: usize, p: Vec3, n: Option<Vec3>, root: u32) -> (Vec<u64>, usize, usize) {
+        let (hits, none, zoomed, twice) = realized(tree, lights, p, n, root);
         const UNITS: f64 = (1u64 << 48) as f64;
         let mut sum = 0.0;
         for (l, &h) in hits.iter().enumerate() {
-            assert_eq!(h as f64 / UNITS, tree.prob(p, n, l) as f64, "light {l} at {p}");
+            assert_eq!(h as f64 / UNITS, tree.prob(p, n, l, root) as f64, "light {l} at {p}");
             sum += h as f64 / UNITS;
         }
         assert_eq!(none as f64 / UNITS, 1.0 - sum);
@@ -781,8 +796,10 @@ mod tests {
         let mut k = 21;
         let ls = lights(40, &mut k);
         let tree = LightTree::build(&ls);
-        for (p, n) in [(Vec3::new(0.5, -1.0, 2.0), Some(Vec3::new(0.0, 0.6, 0.8))), (Vec3::new(7.0, 1.0, -6.0), None)] {
-            let (hits, _, _) = realized_is_reported(&tree, ls.len(), p, n);
+        // (The second with the root range `LightPick` gives the tree beside its uniform floor.)
+        let cases = [(Vec3::new(0.5, -1.0, 2.0), Some(Vec3::new(0.0, 0.6, 0.8)), GRID), (Vec3::new(7.0, 1.0, -6.0), None, GRID - 838_861)];
+        for (p, n, root) in cases {
+            let (hits, _, _) = realized_is_reported(&tree, ls.len(), p, n, root);
             assert!(hits.iter().filter(|&&h| h > 0).count() > 10, "{hits:?}");
         }
     }
@@ -810,7 +827,7 @@ mod tests {
         }
         let tree = LightTree::build(&ls);
         let (p, n) = (Vec3::new(10.0, 0.0, 0.0), None);
-        let (hits, zoomed, twice) = realized_is_reported(&tree, ls.len(), p, n);
+        let (hits, zoomed, twice) = realized_is_reported(&tree, ls.len(), p, n, GRID);
         assert!(hits.iter().all(|&h| h > 0), "every light lights the point and keeps a chance: {hits:?}");
         assert!(zoomed > 0 && twice > 0, "the case zooms twice ({zoomed}, {twice})");
     }
@@ -825,7 +842,7 @@ mod tests {
             let tree = LightTree::build(&ls);
             assert!(tree.depth() <= 6, "depth {}", tree.depth());
             let p = Vec3::new(3.0, 2.0, 1.0);
-            let sum: f64 = (0..ls.len()).map(|l| tree.prob(p, None, l) as f64).sum();
+            let sum: f64 = (0..ls.len()).map(|l| tree.prob(p, None, l, GRID) as f64).sum();
             assert_eq!(sum, 1.0, "lights that emit all round");
         }
     }

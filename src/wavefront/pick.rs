@@ -16,12 +16,16 @@
 //! - `tree`: down a tree of the lights with bounds of `local`'s importance per node (`light_tree.rs`):
 //!   O(log L) per point.
 //!
+//! `local` and `tree` spread [`POWER_FLOOR`] of their picks evenly over the lights that emit, as
+//! `power` does (defensive sampling): their importances know no visibility, and where a bright light
+//! is blocked the dim ones it outshines still get at least `POWER_FLOOR / L` (`FLOOR_VALUES`).
+//!
 //! The pick's random number is one more dimension (`dims::LIGHT_PICK`), stratified across a pixel's
 //! camera samples (index = camera sample) like the light samples: with 16 spp and 4 equal lights each
 //! light takes 4 of a pixel's 16 picks. Glossy points' MIS weights count the light strategy's density as
 //! `P(l)` x `light_samples` x the light's own density ([`LightPick::prob`] in the shade stage).
 
-use super::light_tree::{LightBounds, LightTree};
+use super::light_tree::{LightBounds, LightTree, GRID};
 use crate::sample::Strategy;
 use crate::scene::{Light, LightSelection, Profile, Scene};
 use crate::simd::{f32x8, Vec3x8, LANES};
@@ -33,6 +37,13 @@ pub const NO_LIGHT: u32 = u32::MAX;
 
 /// The share of `power` picks spread evenly over the lights that emit (see [`LightPick::new`]).
 pub const POWER_FLOOR: f64 = 0.05;
+
+/// `local` and `tree`: the pick's grid values (of the 2^24) that go to a uniform pick over the lights
+/// that emit, [`POWER_FLOOR`] of them (as `power`'s floor), so that no light that emits has a
+/// probability below `POWER_FLOOR / L`, whatever the bounds say: a sun 1e12 times as bright as the
+/// lamps of a roofed floor left the lamps about 4e-7 each (the floor black at any affordable spp), and
+/// the importances know no visibility.
+const FLOOR_VALUES: u32 = 838_861;
 
 /// Smallest squared distance in `local` and `tree` importances (keeps them finite: at most 1e30 per
 /// light).
@@ -56,9 +67,14 @@ pub struct LightPick {
     normal: Vec<Vec3>,
     one_sided: Vec<bool>,
     side_tol: Vec<f32>,
-    /// `uniform` and `power`: per light its probability, and the running sum (the last exactly 1).
+    /// Per light its probability, and the running sum (the last exactly 1): the picks of `uniform` and
+    /// `power`, and the uniform floor of `local` and `tree` (uniform over the lights that emit).
     prob: Vec<f32>,
     cdf: Vec<f32>,
+    /// `local` and `tree`: the grid values of the floor ([`FLOOR_VALUES`]), and per light its
+    /// probability by the floor (`prob` x the floor's share).
+    floor: u32,
+    floor_prob: Vec<f32>,
     /// `tree`: the lights' tree.
     tree: Option<LightTree>,
 }
@@ -146,6 +162,7 @@ impl LightPick {
             match mode {
                 _ if p <= 0.0 || total <= 0.0 => 0.0,
                 LightSelection::Power => (1.0 - POWER_FLOOR) * p as f64 / total + POWER_FLOOR / emitting as f64,
+                LightSelection::Local | LightSelection::Tree => 1.0 / emitting as f64,
                 _ => p as f64 / total,
             }
         };
@@ -153,12 +170,12 @@ impl LightPick {
         // [0, 1) from the samplers): each light's probability is then exactly the chance that a number
         // lands in its slot, the last slot with any width ends at 1, and a light whose slot rounds to no
         // width (below 2^-24: more than about 800,000 lights) has probability 0, consistently.
-        const GRID: f64 = (1u32 << 24) as f64;
+        const GRID_F: f64 = GRID as f64;
         let mut cdf = Vec::with_capacity(phi.len());
         let mut run = 0.0f64;
         for &p in &phi {
             run += share(p);
-            cdf.push(((run * GRID).round().min(GRID) / GRID) as f32);
+            cdf.push(((run * GRID_F).round().min(GRID_F) / GRID_F) as f32);
         }
         if let Some(last) = phi.iter().rposition(|&p| p > 0.0) {
             cdf[last..].fill(1.0);
@@ -169,7 +186,9 @@ impl LightPick {
                 (0..phi.len()).map(|i| LightBounds { centre: centre[i], radius: radius[i], normal: normal[i], phi: phi[i] }).collect();
             LightTree::build(&bounds)
         });
-        Some(LightPick { mode, phi, centre, radius, r2, normal, one_sided, side_tol, prob, cdf, tree })
+        let floor = if matches!(mode, LightSelection::Local | LightSelection::Tree) { FLOOR_VALUES } else { 0 };
+        let floor_prob = prob.iter().map(|&p| p * (floor as f32 / GRID as f32)).collect();
+        Some(LightPick { mode, phi, centre, radius, r2, normal, one_sided, side_tol, prob, cdf, floor, floor_prob, tree })
     }
 
     /// Number of lights.
@@ -216,20 +235,40 @@ impl LightPick {
                 }
                 let i = self.importance(li, p);
                 if total > 0.0 {
-                    i / total
+                    self.floor_prob[li] + self.beside_floor() * (i / total)
                 } else {
-                    0.0
+                    self.floor_prob[li]
                 }
             }
-            LightSelection::Tree => self.tree.as_ref().map_or(0.0, |t| t.prob(p, None, li)),
+            LightSelection::Tree => self.tree_prob(p, None, li).unwrap_or(0.0),
             _ => self.prob[li],
         }
     }
 
+    /// `local` and `tree`: the share of the picks that are not the floor's.
+    #[inline(always)]
+    fn beside_floor(&self) -> f32 {
+        (GRID - self.floor) as f32 / GRID as f32
+    }
+
     /// `tree`: the probability that a point at `p` with receiver normal `n` (Lambert points; `None`:
-    /// glossy points, as [`LightPick::prob`]) picks light `li`.
+    /// glossy points, as [`LightPick::prob`]) picks light `li`, the floor's share and the tree's.
     pub fn tree_prob(&self, p: Vec3, n: Option<Vec3>, li: usize) -> Option<f32> {
-        self.tree.as_ref().map(|t| t.prob(p, n, li))
+        self.tree_share(p, n, li).map(|t| self.floor_prob[li] + t)
+    }
+
+    /// `tree`: the tree's share of [`LightPick::tree_prob`] (0 where the tree never picks `li` at `p`).
+    pub fn tree_share(&self, p: Vec3, n: Option<Vec3>, li: usize) -> Option<f32> {
+        self.tree.as_ref().map(|t| t.prob(p, n, li, GRID - self.floor))
+    }
+
+    /// The light of a floor pick by the random bits `fine` (their low 24): uniform over the lights that
+    /// emit, by `cdf`.
+    #[inline(always)]
+    fn floor_pick(&self, fine: u32) -> Option<u32> {
+        let u = (fine & (GRID - 1)) as f32 / GRID as f32;
+        let i = self.cdf.partition_point(|&c| c <= u).min(self.cdf.len() - 1);
+        (self.prob[i] > 0.0).then_some(i as u32)
     }
 
     /// Picks for 8 points `p` with uniform numbers `u` in [0, 1) (and 24 random bits `fine` per lane for
@@ -253,14 +292,24 @@ impl LightPick {
     ) -> ([u32; LANES], [f32; LANES]) {
         let mut light = [NO_LIGHT; LANES];
         let mut prob = [0.0f32; LANES];
+        // `local` and `tree`: the grid values below `floor` pick uniformly (with `fine`); the others,
+        // less `floor`, are the tree's root range (or `local`'s numbers, scaled to [0, 1)).
+        let at = u.to_array().map(|u| ((u * GRID as f32) as u32).min(GRID - 1));
+        let floored = (0..LANES).filter(|&l| at[l] < self.floor).fold(0u32, |m, l| m | 1 << l);
         if let Some(tree) = &self.tree {
-            let ps = std::array::from_fn(|l| p.lane(l));
-            let ns = n.map(|n| std::array::from_fn(|l| n.lane(l)));
+            let ps: [Vec3; LANES] = std::array::from_fn(|l| p.lane(l));
+            let ns: Option<[Vec3; LANES]> = n.map(|n| std::array::from_fn(|l| n.lane(l)));
             let mut out = [None; LANES];
-            tree.pick_x8(&ps, ns.as_ref(), &u.to_array(), &fine, &mut out);
+            let root = GRID - self.floor;
+            tree.pick_x8(&ps, ns.as_ref(), &at.map(|a| a.wrapping_sub(self.floor)), root, &fine, &mut out);
             for l in 0..LANES {
-                if let Some(pick) = out[l] {
-                    (light[l], prob[l]) = pick;
+                let picked = if floored & (1 << l) != 0 {
+                    self.floor_pick(fine[l]).map(|li| (li, tree.prob(ps[l], ns.map(|n| n[l]), li as usize, root)))
+                } else {
+                    out[l]
+                };
+                if let Some((li, share)) = picked {
+                    (light[l], prob[l]) = (li, self.floor_prob[li as usize] + share);
                 }
             }
             return (light, prob);
@@ -323,8 +372,10 @@ impl LightPick {
                 }
             }
         }
-        // The first light whose running sum passes u x total; past the end by rounding, the last light
-        // with any importance.
+        // The first light whose running sum passes u x total (u: the number past the floor, scaled to
+        // [0, 1)); past the end by rounding, the last light with any importance.
+        let beside = (GRID - self.floor) as f32;
+        let u = f32x8::from(at.map(|a| a.saturating_sub(self.floor) as f32 / beside));
         let target = u * total;
         let mut run = zero;
         let (mut sel, mut last) = (f32x8::splat(-1.0), f32x8::splat(-1.0));
@@ -348,8 +399,17 @@ impl LightPick {
         let sel_imp = found.select(sel_imp, last_imp).to_array();
         let totals = total.to_array();
         for l in 0..LANES {
-            if sel[l] >= 0.0 && totals[l] > 0.0 {
-                (light[l], prob[l]) = (sel[l] as u32, sel_imp[l] / totals[l]);
+            // (The same operations as `prob`.)
+            if floored & (1 << l) != 0 {
+                if let Some(li) = self.floor_pick(fine[l]) {
+                    let i = scratch[li as usize].to_array()[l];
+                    let share = if totals[l] > 0.0 { self.beside_floor() * (i / totals[l]) } else { 0.0 };
+                    (light[l], prob[l]) =
+                        (li, if totals[l] > 0.0 { self.floor_prob[li as usize] + share } else { self.floor_prob[li as usize] });
+                }
+            } else if sel[l] >= 0.0 && totals[l] > 0.0 {
+                let li = sel[l] as usize;
+                (light[l], prob[l]) = (li as u32, self.floor_prob[li] + self.beside_floor() * (sel_imp[l] / totals[l]));
             }
         }
         (light, prob)
@@ -527,8 +587,14 @@ radiance = [0.5, 0.5, 0.5]
                     let sum: f64 = (0..pick.lights()).map(|li| pick.prob(pl, li) as f64).sum();
                     // (`tree`: below 1 where a node's bound has importance and all its children's
                     // none; those numbers pick no light.)
+                    // `local` and `tree`: every light that emits keeps the floor's share.
+                    if matches!(mode, LightSelection::Local | LightSelection::Tree) {
+                        for li in (0..pick.lights()).filter(|&li| li != 2) {
+                            assert!(pick.prob(pl, li) >= POWER_FLOOR as f32 / 8.0 * 0.999, "{mode:?}: light {li} at {pl}");
+                        }
+                    }
                     if mode == LightSelection::Tree {
-                        assert!(sum <= 1.0 && sum > 0.5, "{mode:?} at {pl}: probabilities sum to {sum}");
+                        assert!(sum <= 1.0 + 1e-6 && sum > 0.5, "{mode:?} at {pl}: probabilities sum to {sum}");
                         if light[l] == NO_LIGHT {
                             lost += 1;
                             continue;
@@ -566,9 +632,13 @@ radiance = [0.5, 0.5, 0.5]
                     let count = 4096usize;
                     let mut hits = vec![0usize; pick.lights()];
                     let mut probs = vec![0.0f32; pick.lights()];
+                    // The numbers below the floor's share pick uniformly by `fine`: stratified over
+                    // those numbers too.
+                    let floored = (0..count).filter(|&c| ((c as f64 + 0.5) / count as f64) < FLOOR_VALUES as f64 / GRID as f64).count();
+                    let fine = |c: usize| ((c as f64 + 0.5) / floored as f64 * GRID as f64) as u32 & (GRID - 1);
                     for c in (0..count).step_by(LANES) {
                         let u = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| ((c + l) as f32 + 0.5) / count as f32));
-                        let (light, prob) = pick.pick_x8(Vec3x8::splat(p), n, u, [0; LANES], &mut scratch);
+                        let (light, prob) = pick.pick_x8(Vec3x8::splat(p), n, u, std::array::from_fn(|l| fine(c + l)), &mut scratch);
                         for l in 0..LANES {
                             if light[l] != NO_LIGHT {
                                 hits[light[l] as usize] += 1;
@@ -581,12 +651,13 @@ radiance = [0.5, 0.5, 0.5]
                     for li in 0..pick.lights() {
                         let expect = match pick.tree_prob(p, with_n.then_some(normal), li) {
                             Some(prob) => prob,
-                            None if local => scratch[li].to_array()[0] / total,
+                            None if local => pick.floor_prob[li] + pick.beside_floor() * (scratch[li].to_array()[0] / total),
                             None => pick.prob(p, li),
                         };
                         let seen = hits[li] as f32 / count as f32;
+                        // (Within one pick of the floor's strata and 1.5 of the others'.)
                         assert!(
-                            (seen - expect).abs() <= 1.5 / count as f32,
+                            (seen - expect).abs() <= 2.5 / count as f32,
                             "{mode:?} light {li} at {p}: picked {seen}, probability {expect}"
                         );
                         if hits[li] > 0 {
@@ -656,7 +727,7 @@ radiance = [0.5, 0.5, 0.5]
             pick.pick_x8(p, Some(n), f32x8::splat(0.5), [0; LANES], &mut scratch);
             for (li, light) in scene.lights.iter().enumerate() {
                 for l in 0..LANES {
-                    let never = match pick.tree_prob(p.lane(l), Some(n.lane(l)), li) {
+                    let never = match pick.tree_share(p.lane(l), Some(n.lane(l)), li) {
                         Some(prob) => prob == 0.0,
                         None => scratch[li].to_array()[l] <= 0.0,
                     };
