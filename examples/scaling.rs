@@ -353,12 +353,12 @@ fn leaves(o: &Opts) -> Result<(), String> {
 }
 
 /// Time against the number of lights, for each light selection (`scenes/tools/gen_many_lights.py N`:
-/// N x N lamps over a square; `all` only up to 256 lamps, 19 s there).
+/// N x N lamps over a square, up to 65,536; `all` only up to 256 lamps, 19 s there, `local` up to 1,024).
 fn lights(o: &Opts) -> Result<(), String> {
     println!("\n## Lights (scenes/tools/gen_many_lights.py N: N x N lamps; 640x400, 2 threads): render s, shadow stage thread s\n");
     println!("| lamps | all | power | local | tree | shadow stage ns per shadow ray: local, tree |");
     println!("|---:|---:|---:|---:|---:|---:|");
-    for n in [1u64, 2, 4, 8, 16, 32, 64] {
+    for n in [1u64, 2, 4, 8, 16, 32, 64, 128, 256] {
         let text = generated("gen_many_lights.py", &[&n.to_string()])?;
         let (scene, _) = load(&format!("<gen_many_lights.py {n}>"), &text)?;
         let mut cells = Vec::new();
