@@ -422,22 +422,9 @@ impl LightTree {
     /// [`LightTree::pick`] for 8 points, level by level (the lanes' chains of dependent arithmetic
     /// overlap), with the numbers as grid values `at` in a root range of `root` values (the tree's share
     /// of the 2^24: [`LightPick`](super::pick::LightPick) keeps the rest for its uniform floor; lanes
-    /// with `at >= root` pick nothing here). The probabilities are of the 2^24 values.
+    /// with `at >= root` pick nothing here). The probabilities are of the 2^24 values. Returns each
+    /// lane's number of zooms.
     pub fn pick_x8(
-        &self,
-        p: &[Vec3; 8],
-        n: Option<&[Vec3; 8]>,
-        at: &[u32; 8],
-        root: u32,
-        fine: &[u32; 8],
-        out: &mut [Option<(u32, f32)>; 8],
-    ) {
-        self.pick_x8_zooms(p, n, at, root, fine, out);
-    }
-
-    /// [`LightTree::pick_x8`], also giving each lane's number of zooms.
-    #[allow(clippy::too_many_arguments)]
-    fn pick_x8_zooms(
         &self,
         p: &[Vec3; 8],
         n: Option<&[Vec3; 8]>,
@@ -747,7 +734,7 @@ mod tests {
         let (mut out, mut o1, mut o2) = ([None; 8], [None; 8], [None; 8]);
         for i in (0..GRID).step_by(8) {
             let u: [u32; 8] = std::array::from_fn(|l| i + l as u32);
-            let z = tree.pick_x8_zooms(&ps, n8.as_ref(), &u, root, &[0; 8], &mut out);
+            let z = tree.pick_x8(&ps, n8.as_ref(), &u, root, &[0; 8], &mut out);
             for l in 0..8 {
                 if z[l] == 0 {
                     credit(out[l], 1 << 24);
@@ -756,7 +743,7 @@ mod tests {
                 zoomed += 1;
                 for f in (0..ZOOM_BELOW).step_by(8) {
                     let fine: [u32; 8] = std::array::from_fn(|j| f + j as u32);
-                    let z1 = tree.pick_x8_zooms(&ps, n8.as_ref(), &[u[l]; 8], root, &fine, &mut o1);
+                    let z1 = tree.pick_x8(&ps, n8.as_ref(), &[u[l]; 8], root, &fine, &mut o1);
                     for j in 0..8 {
                         if z1[j] == 1 {
                             credit(o1[j], 1 << 12);
@@ -765,7 +752,7 @@ mod tests {
                         twice += 1;
                         for g in (0..ZOOM_BELOW).step_by(8) {
                             let fine2 = std::array::from_fn(|q| fine[j] | ((g + q as u32) << ZOOM_BITS));
-                            tree.pick_x8_zooms(&ps, n8.as_ref(), &[u[l]; 8], root, &fine2, &mut o2);
+                            tree.pick_x8(&ps, n8.as_ref(), &[u[l]; 8], root, &fine2, &mut o2);
                             for o in o2 {
                                 credit(o, 1);
                             }
