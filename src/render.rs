@@ -48,6 +48,9 @@ pub struct RenderStats {
     pub stage_seconds: StageTimes,
     pub completed: bool,
     pub features: crate::scene::Features,
+    /// Seconds spent making the light selection (`light_selection` other than `all`: the power table,
+    /// the light tree) before the render's clock started: setup, not in `seconds`.
+    pub selection_seconds: f64,
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -214,11 +217,16 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
     let done = AtomicUsize::new(0);
     let totals = Mutex::new((Counters::default(), StageTimes::default()));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
-    // The light selection is made once for every thread, before the clock (setup, like the BVH).
-    crate::wavefront::pick::LightPick::cached(scene, &job.settings.profile);
+    // The light selection is made once for all the workers, before the clock (setup, like the BVH).
+    let picking = Instant::now();
+    let pick = crate::wavefront::pick::LightPick::new(scene, &job.settings.profile).map(std::sync::Arc::new);
+    let selection_seconds = picking.elapsed().as_secs_f64();
     // The clock starts after the pool exists: thread start-up is not render time.
     let t0 = Instant::now();
     pool.broadcast(|_| {
+        // (The pool's threads are new for each render: nothing of another render's scene is cached in
+        // them, in this thread-local or the shadow stage's.)
+        crate::wavefront::pick::LightPick::install(scene, &job.settings.profile, pick.clone());
         let mut wf = Wavefront::new(&scene.features);
         loop {
             if job.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
@@ -290,6 +298,7 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
         stage_seconds: times,
         completed: completed.iter().all(|&c| c),
         features: scene.features,
+        selection_seconds,
     };
     (film, completed, stats)
 }

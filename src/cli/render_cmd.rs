@@ -175,12 +175,8 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     let setup = Instant::now();
     let scene = load_scene_sized(&a.scene, size).map_err(Failure::input)?;
     // Reading, parsing, the BVHs and the light buffers: not in the render's time, so said apart.
-    let mut setup_seconds = setup.elapsed().as_secs_f64();
+    let setup_seconds = setup.elapsed().as_secs_f64();
     let profile = resolve_profile(&a)?;
-    // The light selection (a `tree`'s build) is made once for all threads: setup too.
-    let picking = Instant::now();
-    crate::wavefront::pick::LightPick::cached(&scene, &profile);
-    setup_seconds += picking.elapsed().as_secs_f64();
     for w in &scene.warnings {
         errln!("warning: {w}");
     }
@@ -318,7 +314,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         write_film(f, &header, &film).map_err(Failure::runtime)?;
     }
     if !a.quiet {
-        print_summary(&a.scene, &scene, &job, &stats, setup_seconds, &out);
+        print_summary(&a.scene, &scene, &job, &stats, setup_seconds + stats.selection_seconds, &out);
         let resumed = match &a.resume {
             Some(r) => format!(", resumed {resumed_units} of {n_units} work units from {}", r.display()),
             None => String::new(),

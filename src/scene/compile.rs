@@ -378,7 +378,6 @@ impl Compiler<'_> {
             glass_neighbours,
             warnings: std::mem::take(&mut self.warnings),
             hash,
-            light_picks: Default::default(),
             light_of_prim,
         })
     }

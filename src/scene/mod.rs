@@ -310,9 +310,6 @@ pub struct Scene {
     pub hash: u64,
     /// Per prim, the light it is the surface of (area lights), else [`NOT_A_LIGHT`].
     pub light_of_prim: Vec<u32>,
-    /// Its light selections (`light_selection` other than `all`), made on first use and shared by the
-    /// threads ([`crate::wavefront::pick::LightPick::cached`]).
-    pub light_picks: crate::wavefront::pick::PickCache,
 }
 
 impl Scene {

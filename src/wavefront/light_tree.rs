@@ -438,7 +438,7 @@ impl LightTree {
         if self.nodes.is_empty() {
             return zooms;
         }
-        debug_assert!(root <= GRID);
+        assert!(root <= GRID, "a root range within the 2^24 grid (exact f32 splits)");
         let mut at = *at;
         let (mut node, mut w) = ([0u32; 8], [root; 8]);
         let mut live = (0..8).filter(|&l| at[l] < root).fold(0u32, |m, l| m | 1 << l);
@@ -488,6 +488,7 @@ impl LightTree {
         };
         let (path, depth) = self.path(node);
         // From the root down: path[depth - 2] .. path[0], then the light's own slot.
+        assert!(root <= GRID, "a root range within the 2^24 grid (exact f32 splits)");
         let (mut w, mut zooms) = (root, 0);
         for i in (0..depth).rev() {
             let (at, k) = if i == 0 { (node, slot) } else { path[i - 1] };

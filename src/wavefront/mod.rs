@@ -38,7 +38,8 @@ pub mod dims {
     pub const ROULETTE: u32 = 0x400;
     pub const LIGHT: u32 = 0x500;
     pub const LIGHT_PICK: u32 = 0x600;
-    /// The light pick's second number: random bits for `tree`'s zooms (`light_tree.rs`).
+    /// The light pick's second number: random bits for the uniform floor's pick of `local` and `tree`
+    /// (`pick.rs`), or else for `tree`'s zooms (`light_tree.rs`).
     pub const LIGHT_PICK_FINE: u32 = 0x700;
 }
 

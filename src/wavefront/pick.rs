@@ -21,8 +21,9 @@
 //! is blocked the dim ones it outshines still get at least `POWER_FLOOR / L` (`FLOOR_VALUES`).
 //!
 //! The pick's random number is one more dimension (`dims::LIGHT_PICK`), stratified across a pixel's
-//! camera samples (index = camera sample) like the light samples: with 16 spp and 4 equal lights each
-//! light takes 4 of a pixel's 16 picks. Glossy points' MIS weights count the light strategy's density as
+//! camera samples (index = camera sample) like the light samples: with 16 spp and 4 equal lights
+//! `power` gives each light 4 of a pixel's 16 picks (`local` and `tree` stratify all but the floor's
+//! picks, which take a second, random number: `dims::LIGHT_PICK_FINE`). Glossy points' MIS weights count the light strategy's density as
 //! `P(l)` x `light_samples` x the light's own density ([`LightPick::prob`] in the shade stage).
 
 use super::light_tree::{LightBounds, LightTree, GRID};
@@ -30,7 +31,7 @@ use crate::sample::Strategy;
 use crate::scene::{Light, LightSelection, Profile, Scene};
 use crate::simd::{f32x8, Vec3x8, LANES};
 use glam::Vec3;
-use std::sync::OnceLock;
+use std::sync::Arc;
 
 /// A lane's pick when no light can give its point anything (every importance 0).
 pub const NO_LIGHT: u32 = u32::MAX;
@@ -43,7 +44,7 @@ pub const POWER_FLOOR: f64 = 0.05;
 /// probability below `POWER_FLOOR / L`, whatever the bounds say: a sun 1e12 times as bright as the
 /// lamps of a roofed floor left the lamps about 4e-7 each (the floor black at any affordable spp), and
 /// the importances know no visibility.
-const FLOOR_VALUES: u32 = 838_861;
+const FLOOR_VALUES: u32 = (POWER_FLOOR * GRID as f64 + 0.5) as u32;
 
 /// Smallest squared distance in `local` and `tree` importances (keeps them finite: at most 1e30 per
 /// light).
@@ -54,7 +55,7 @@ pub(super) const D2_FLOOR: f32 = 1e-30;
 /// something keeps a chance.
 pub(super) const COS_FLOOR: f32 = 1e-3;
 
-/// The selection of one scene and mode (O(L) to make: kept in the scene, [`LightPick::cached`]).
+/// The selection of one scene and mode (O(L) to make: made once per render, [`LightPick::cached`]).
 pub struct LightPick {
     mode: LightSelection,
     /// Per light: its power, scaled so that the largest is 1 (`uniform`: all 1).
@@ -105,21 +106,45 @@ fn bounds(light: &Light) -> (Vec3, f32, Vec3) {
     }
 }
 
-/// A scene's light selections, one per mode, each made on its first use and then shared by every
-/// thread of every render of the scene (`Scene::light_picks`): a selection is O(L) to make (a `tree`'s
-/// build about 1 s at 100,000 lights), and a scene's lights never change once it is compiled.
-#[derive(Default)]
-pub struct PickCache([OnceLock<Option<LightPick>>; LightSelection::ALL.len()]);
+/// The scene (address, file hash, number of lights) and mode a cached selection was made for.
+type CacheKey = (usize, u64, usize, LightSelection);
+
+thread_local! {
+    /// The thread's selection and what it was made for: the stages ask once per wavefront. A render
+    /// makes it once, before its clock, and installs it in each of its workers
+    /// ([`LightPick::install`]); a thread that calls the stages itself makes its own on first use.
+    static CACHE: std::cell::RefCell<Option<(CacheKey, Option<Arc<LightPick>>)>> = const { std::cell::RefCell::new(None) };
+}
 
 impl LightPick {
-    /// [`LightPick::new`], made once per scene and mode (the first thread to ask makes it; others
-    /// wait for it) and kept in the scene.
-    pub fn cached<'s>(scene: &'s Scene, profile: &Profile) -> Option<&'s LightPick> {
-        let mode = profile.light_selection;
-        if mode == LightSelection::All {
+    fn key(scene: &Scene, profile: &Profile) -> CacheKey {
+        (scene as *const Scene as usize, scene.hash, scene.lights.len(), profile.light_selection)
+    }
+
+    /// The thread's selection for `scene` and `profile` ([`LightPick::new`]; `None` for `all`): the
+    /// installed one, or made on first use and kept while the scene and mode stay the same. (The key is
+    /// the scene's address, file hash and number of lights: a thread that renders a scene, edits its
+    /// lights in place and renders again must not call the stages itself; the renderer's workers are
+    /// new threads per render, each given the selection made for that render.)
+    pub fn cached(scene: &Scene, profile: &Profile) -> Option<Arc<LightPick>> {
+        if profile.light_selection == LightSelection::All {
             return None;
         }
-        scene.light_picks.0[mode as usize].get_or_init(|| LightPick::new(scene, profile)).as_ref()
+        let key = Self::key(scene, profile);
+        CACHE.with_borrow_mut(|c| match c {
+            Some((k, pick)) if *k == key => pick.clone(),
+            _ => {
+                let pick = LightPick::new(scene, profile).map(Arc::new);
+                *c = Some((key, pick.clone()));
+                pick
+            }
+        })
+    }
+
+    /// Make `pick` (made by [`LightPick::new`] for `scene` and `profile`) this thread's selection for
+    /// them: a render makes one and shares it among its workers.
+    pub fn install(scene: &Scene, profile: &Profile, pick: Option<Arc<LightPick>>) {
+        CACHE.set(Some((Self::key(scene, profile), pick)));
     }
 
     /// The profile's selection for this scene; `None` when every light is sampled at every point (`all`,
@@ -271,8 +296,9 @@ impl LightPick {
         (self.prob[i] > 0.0).then_some(i as u32)
     }
 
-    /// Picks for 8 points `p` with uniform numbers `u` in [0, 1) (and 24 random bits `fine` per lane for
-    /// `tree`'s zooms): per lane the light (or [`NO_LIGHT`])
+    /// Picks for 8 points `p` with uniform numbers `u` in [0, 1) (and 24 random bits `fine` per lane:
+    /// the floor's pick of `local` and `tree` where `u` falls in the floor, else `tree`'s zooms): per
+    /// lane the light (or [`NO_LIGHT`])
     /// and its probability. `scratch` holds the lanes' importances (`local`). With the points' normals
     /// `n` (Lambert points), a `local` importance also has the receiver's cosine bound towards the
     /// light's bounding sphere, 0 when the sphere lies below the point's horizon; without (glossy points,
@@ -551,22 +577,21 @@ radiance = [0.5, 0.5, 0.5]
     }
 
     #[test]
-    fn each_mode_has_its_own_cached_selection() {
-        // `PickCache` is indexed by the mode's discriminant: the order of `LightSelection::ALL`.
-        for (i, mode) in LightSelection::ALL.into_iter().enumerate() {
-            assert_eq!(mode as usize, i);
-        }
+    fn a_thread_keeps_its_selection_and_takes_an_installed_one() {
         let scene = lights_scene();
         assert!(LightPick::cached(&scene, &profile(LightSelection::All)).is_none());
         for mode in [LightSelection::Uniform, LightSelection::Power, LightSelection::Local, LightSelection::Tree] {
             let a = LightPick::cached(&scene, &profile(mode)).expect("several lights");
             assert_eq!(a.mode, mode);
-            // Made once: the same selection on the next call, and from another thread.
-            assert!(std::ptr::eq(a, LightPick::cached(&scene, &profile(mode)).unwrap()));
-            let other = std::thread::scope(|s| {
-                s.spawn(|| LightPick::cached(&scene, &profile(mode)).unwrap() as *const LightPick as usize).join().unwrap()
+            // Kept: the same selection on the next call. Another thread makes its own, unless given one.
+            assert!(Arc::ptr_eq(&a, &LightPick::cached(&scene, &profile(mode)).unwrap()));
+            std::thread::scope(|s| {
+                s.spawn(|| assert!(!Arc::ptr_eq(&a, &LightPick::cached(&scene, &profile(mode)).unwrap())));
+                s.spawn(|| {
+                    LightPick::install(&scene, &profile(mode), Some(a.clone()));
+                    assert!(Arc::ptr_eq(&a, &LightPick::cached(&scene, &profile(mode)).unwrap()));
+                });
             });
-            assert_eq!(other, a as *const LightPick as usize);
         }
     }
 

@@ -405,7 +405,7 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         if geo.front & (1 << l) != 0 && !(prim.is_light && r.flags & FLAG_DIFFUSE != 0) {
                             if prim.is_light && r.flags & FLAG_GLOSSY != 0 && rays.with_pdf {
                                 let pick = pick.get_or_init(|| LightPick::cached(scene, profile));
-                                let w = lobe_light_weight(scene, profile, *pick, hits.prim[i], &r, hits.t[i]);
+                                let w = lobe_light_weight(scene, profile, pick.as_deref(), hits.prim[i], &r, hits.t[i]);
                                 paths.add(r.path, r.throughput * *radiance * w);
                             } else {
                                 paths.add(r.path, r.throughput * *radiance);

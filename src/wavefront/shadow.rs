@@ -222,7 +222,7 @@ pub fn shadow_with(
     let queues = [Some(nee), nee.glossy.as_deref()];
     for (k, q) in queues.into_iter().enumerate() {
         let Some(q) = q.filter(|q| !q.is_empty()) else { continue };
-        sorted.sort(pick, profile, seed, q);
+        sorted.sort(&pick, profile, seed, q);
         let picks = Some((&sorted.light[..], &sorted.prob[..]));
         let (t, c) = if k == 0 {
             shadow_queue::<false, true>(scene, profile, seed, &sorted.queue, paths, arena, scattered.as_deref_mut(), picks)
@@ -254,7 +254,7 @@ struct Picked {
 impl Picked {
     /// Pick a light for each request of `q` (its random number: [`LightPick::strategy`], key of the
     /// request's stream and `dims::LIGHT_PICK`, index its camera sample among `spp`, so a pixel's picks
-    /// are stratified), and copy `q` sorted by light (stably), leaving out requests no light reaches,
+    /// are stratified; and 24 random bits of `dims::LIGHT_PICK_FINE` for the floor and the zooms), and copy `q` sorted by light (stably), leaving out requests no light reaches,
     /// their weights divided by the probabilities.
     fn sort(&mut self, pick: &LightPick, profile: &Profile, seed: u64, q: &NeeQueue) {
         let n = q.len();
@@ -890,7 +890,9 @@ struct LightTables {
 }
 
 impl LightTables {
-    /// The thread's tables for `scene` and `profile`'s light sampling, made again when either changes.
+    /// The thread's tables for `scene` and `profile`'s light sampling, made again when the key changes.
+    /// (A render's workers are new threads: each render makes its own. A thread that calls the stages
+    /// itself must not edit a scene's lights in place between calls: the key would not see it.)
     fn get(scene: &Scene, profile: &Profile, across: bool, area: &Sampler2d) -> std::rc::Rc<LightTables> {
         let key = (
             [scene as *const Scene as usize, scene.prims.as_ptr() as usize, scene.light_buffers.as_ptr() as usize, scene.lights.len()],
