@@ -331,7 +331,8 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     if let Some(j) = &a.stats_json {
         let json = StatsJson {
             stats: &stats,
-            setup_seconds,
+            // (The summary's setup: the light selection's making included.)
+            setup_seconds: setup_seconds + stats.selection_seconds,
             work_units: WorkUnitsJson { done: header.units_done(), total: n_units, resumed: resumed_units },
             filter: job.settings.profile.filter.name(),
             strategies: UsedStrategies(used_strategies(&scene, &job.settings.profile)),
