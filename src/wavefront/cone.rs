@@ -64,9 +64,8 @@ impl LightCone {
         Self::new_near(scene, light, usize::MAX)
     }
 
-    /// [`LightCone::new`] with the light's prim looked for at `guess` first (the shadow stage's tables:
-    /// the k-th area light's prim is usually the k-th of the scene's last ones, and a search of every
-    /// prim per light is O(L x P)).
+    /// [`LightCone::new`] with the light's prim looked for at `guess` first (the shadow stage's tables,
+    /// from `Scene::light_of_prim`: a search of every prim per light is O(L x P)).
     pub fn new_near(scene: &Scene, light: &Light, guess: usize) -> Option<Self> {
         if scene.features.motion {
             return None;

@@ -23,8 +23,9 @@
 //! The pick's random number is one more dimension (`dims::LIGHT_PICK`), stratified across a pixel's
 //! camera samples (index = camera sample) like the light samples: with 16 spp and 4 equal lights
 //! `power` gives each light 4 of a pixel's 16 picks (`local` and `tree` stratify all but the floor's
-//! picks, which take a second, random number: `dims::LIGHT_PICK_FINE`). Glossy points' MIS weights count the light strategy's density as
-//! `P(l)` x `light_samples` x the light's own density ([`LightPick::prob`] in the shade stage).
+//! picks, which take a second, random number: `dims::LIGHT_PICK_FINE`). Glossy points' MIS weights
+//! count the light strategy's density as `P(l)` x `light_samples` x the light's own density
+//! ([`LightPick::prob`] in the shade stage).
 
 use super::light_tree::{LightBounds, LightTree, GRID};
 use crate::sample::Strategy;
@@ -258,15 +259,21 @@ impl LightPick {
                 for l in 0..self.phi.len() {
                     total += self.importance(l, p);
                 }
-                let i = self.importance(li, p);
-                if total > 0.0 {
-                    self.floor_prob[li] + self.beside_floor() * (i / total)
-                } else {
-                    self.floor_prob[li]
-                }
+                self.local_prob(li, self.importance(li, p), total)
             }
             LightSelection::Tree => self.tree_prob(p, None, li).unwrap_or(0.0),
             _ => self.prob[li],
+        }
+    }
+
+    /// `local`: the probability of light `li`, of importance `i` among importances summing to `total`
+    /// at the point, floor included (the one expression of [`LightPick::prob`] and the lanes).
+    #[inline(always)]
+    fn local_prob(&self, li: usize, i: f32, total: f32) -> f32 {
+        if total > 0.0 {
+            self.floor_prob[li] + self.beside_floor() * (i / total)
+        } else {
+            self.floor_prob[li]
         }
     }
 
@@ -428,14 +435,11 @@ impl LightPick {
             // (The same operations as `prob`.)
             if floored & (1 << l) != 0 {
                 if let Some(li) = self.floor_pick(fine[l]) {
-                    let i = scratch[li as usize].to_array()[l];
-                    let share = if totals[l] > 0.0 { self.beside_floor() * (i / totals[l]) } else { 0.0 };
-                    (light[l], prob[l]) =
-                        (li, if totals[l] > 0.0 { self.floor_prob[li as usize] + share } else { self.floor_prob[li as usize] });
+                    (light[l], prob[l]) = (li, self.local_prob(li as usize, scratch[li as usize].to_array()[l], totals[l]));
                 }
             } else if sel[l] >= 0.0 && totals[l] > 0.0 {
                 let li = sel[l] as usize;
-                (light[l], prob[l]) = (li as u32, self.floor_prob[li] + self.beside_floor() * (sel_imp[l] / totals[l]));
+                (light[l], prob[l]) = (li as u32, self.local_prob(li, sel_imp[l], totals[l]));
             }
         }
         (light, prob)
@@ -676,7 +680,7 @@ radiance = [0.5, 0.5, 0.5]
                     for li in 0..pick.lights() {
                         let expect = match pick.tree_prob(p, with_n.then_some(normal), li) {
                             Some(prob) => prob,
-                            None if local => pick.floor_prob[li] + pick.beside_floor() * (scratch[li].to_array()[0] / total),
+                            None if local => pick.local_prob(li, scratch[li].to_array()[0], total),
                             None => pick.prob(p, li),
                         };
                         let seen = hits[li] as f32 / count as f32;

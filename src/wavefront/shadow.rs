@@ -26,7 +26,7 @@ use crate::light::{light_points_x8, power_heuristic_x8, sample_light_x8, sample_
 use crate::optics::{eval_ggx_reflect_x8, sample_ggx_reflect_pdf_x8};
 use crate::sample::hash::random_bits;
 use crate::sample::{hash_combine, sample_1d_keyed, stream_key, Sampler2d, Strategy};
-use crate::scene::{Light, Profile, Scene, Shape};
+use crate::scene::{Light, Profile, Scene, Shape, NOT_A_LIGHT};
 use crate::simd::{
     chunk8, f32x16, f32x8, gather8, i32x16, lane_bits, load8, mask_from_bits, store8, u32x16, u32x8, Lanes, Ray8, Vec3x8, LANES,
 };
@@ -254,8 +254,9 @@ struct Picked {
 impl Picked {
     /// Pick a light for each request of `q` (its random number: [`LightPick::strategy`], key of the
     /// request's stream and `dims::LIGHT_PICK`, index its camera sample among `spp`, so a pixel's picks
-    /// are stratified; and 24 random bits of `dims::LIGHT_PICK_FINE` for the floor and the zooms), and copy `q` sorted by light (stably), leaving out requests no light reaches,
-    /// their weights divided by the probabilities.
+    /// are stratified; and 24 random bits of `dims::LIGHT_PICK_FINE` for the floor and the zooms), and
+    /// copy `q` sorted by light (stably), leaving out requests no light reaches, their weights divided
+    /// by the probabilities.
     fn sort(&mut self, pick: &LightPick, profile: &Profile, seed: u64, q: &NeeQueue) {
         let n = q.len();
         let strategy = LightPick::strategy(profile);
@@ -930,19 +931,18 @@ impl LightTables {
                 _ => (Vec3::ZERO, Vec3::ZERO),
             })
             .collect();
-        // Area lights' prims are the scene's last, in the lights' order (searched where not).
-        let area_lights = scene.lights.iter().filter(|l| !l.is_point()).count();
-        let mut guess = scene.prims.len().wrapping_sub(area_lights);
+        // Each area light's prim, from the scene's map of prims to lights (the cone checks it).
+        let mut prim_of = vec![usize::MAX; scene.lights.len()];
+        for (pid, &li) in scene.light_of_prim.iter().enumerate().filter(|(_, &li)| li != NOT_A_LIGHT) {
+            prim_of[li as usize] = pid;
+        }
         let cones: Vec<Option<LightCone>> = scene
             .lights
             .iter()
-            .map(|light| {
-                let at = guess;
-                if !light.is_point() {
-                    guess = guess.wrapping_add(1);
-                }
+            .zip(&prim_of)
+            .map(|(light, &pid)| {
                 (samples_for(light, profile.light_samples) >= cone_min_samples(scene))
-                    .then(|| LightCone::new_near(scene, light, at))
+                    .then(|| LightCone::new_near(scene, light, pid))
                     .flatten()
             })
             .collect();
