@@ -557,3 +557,38 @@ fn coincident_glass_sphere_surfaces_are_warned_of() {
     assert_eq!(w.len(), 9, "{w:?}");
     assert!(w[8].contains("`shapes[9]`") && w[8].contains("and 11 more shapes from here on"), "{}", w[8]);
 }
+
+/// Area lights whose surfaces coincide (two equal disks, a quad given twice) are warned of at the later
+/// light, naming the other: a reflected ray meets only one of them. Lights apart, of another size, or
+/// points at one position (never met by a ray) are not.
+#[test]
+fn coincident_emitters_are_warned_of() {
+    let disk = |c: &str, r: &str| {
+        format!("[[lights]]\ntype = \"disk\"\ncenter = [{c}]\nnormal = [0, -1, 0]\nradius = {r}\nradiance = [4, 4, 4]\n")
+    };
+    let quad = "[[lights]]\ntype = \"quad\"\norigin = [-1, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]\nradiance = [2, 2, 2]\n";
+    let point = "[[lights]]\ntype = \"point\"\nposition = [0, 3, 0]\nintensity = [5, 5, 5]\n";
+    let sphere = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\n";
+    let cases = [
+        (format!("{}{}", disk("0, 3, 0", "0.5"), disk("0, 3, 0", "0.5")), Some(("lights[1]", "lights[0]"))),
+        (format!("{}{}", disk("0, 3, 0", "0.5"), disk("0, 3, 0", "0.25")), None),
+        (format!("{}{}", disk("0, 3, 0", "0.5"), disk("0, 3.5, 0", "0.5")), None),
+        (format!("{quad}{point}{quad}"), Some(("lights[2]", "lights[0]"))),
+        (format!("{point}{point}"), None),
+    ];
+    for (lights, want) in cases {
+        let text = format!("{BASE}{sphere}{lights}");
+        let s = parse_scene(Path::new("e.toml"), &text).unwrap();
+        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("surface coincides with")).collect();
+        match want {
+            None => assert!(w.is_empty(), "{lights}: {w:?}"),
+            Some((at, other)) => {
+                assert_eq!(w.len(), 1, "{lights}: {:?}", s.warnings);
+                let n: usize = at[7..at.len() - 1].parse().unwrap();
+                let line = text.lines().enumerate().filter(|(_, l)| *l == "[[lights]]").nth(n).unwrap().0 + 1;
+                assert!(w[0].starts_with(&format!("e.toml:{line}:")), "{}", w[0]);
+                assert!(w[0].contains(&format!("`{at}`")) && w[0].contains(&format!("`{other}`")), "{}", w[0]);
+            }
+        }
+    }
+}

@@ -9,7 +9,7 @@ use strata::film::Film;
 use strata::sample::Strategy;
 use strata::scene::{load_scene, parse_scene, Profile, Scene};
 use strata::study::analytic::{gauss_legendre, polygon_irradiance, Footprint, QuadIrradiance};
-use strata::study::metrics::{efficiency, fit_loglog, mse, relmse};
+use strata::study::metrics::{efficiency, fit_loglog, mean_check, mse, relmse};
 use strata::study::reference::{obtain, ReferenceSource};
 use strata::study::run::{configure, render_once, run_series, slopes, summarize, time_slope_meaningful, Plan, Summary};
 use strata::study::{Integral, IntegralSet};
@@ -63,6 +63,39 @@ fn metrics_match_hand_computed_values() {
     assert_eq!(efficiency(0.0, 2.0), f64::INFINITY);
     // Identical images: zero error.
     assert_eq!(mse(&img, &img.map(|v| v.as_dvec3())), 0.0);
+}
+
+/// The image-mean check: ratio and z-score against known offsets in seeded noise (uniform in +-0.2
+/// about a reference of 0.5 per channel: a standard deviation of 0.2 / sqrt(3) per value, 0.0667 per
+/// pixel's channel mean, so that the mean of 12,000 pixels has a standard error of 6.1e-4).
+#[test]
+fn mean_check_finds_offsets_that_noise_does_not_explain() {
+    use rand_core::{Rng, SeedableRng};
+    let n = 12_000;
+    let reference = vec![DVec3::splat(0.5); n];
+    let image = |seed: u64, offset: f32| -> Vec<Vec3> {
+        let mut r = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+        let mut u = move || (r.next_u32() >> 8) as f32 / (1u32 << 24) as f32 * 0.4 - 0.2;
+        (0..n).map(|_| Vec3::new(0.5 + u() + offset, 0.5 + u() + offset, 0.5 + u() + offset)).collect()
+    };
+    // Identical images: ratio 1, z 0; a black reference has no ratio.
+    let same: Vec<Vec3> = reference.iter().map(|r| r.as_vec3()).collect();
+    assert_eq!(mean_check(&same, &reference), (1.0, 0.0));
+    assert!(mean_check(&same, &vec![DVec3::ZERO; n]).0.is_nan());
+    // A uniform offset without noise: infinitely many standard errors.
+    let shifted: Vec<Vec3> = same.iter().map(|v| *v + 0.001).collect();
+    let (ratio, z) = mean_check(&shifted, &reference);
+    assert!((ratio - 1.002).abs() < 1e-6 && z == f64::INFINITY, "{ratio} {z}");
+    for seed in 1..=8 {
+        // Noise alone: |z| below 4 at every seed (standard normal), the ratio within 4 standard errors.
+        let (ratio, z) = mean_check(&image(seed, 0.0), &reference);
+        assert!(z.abs() < 4.0 && (ratio - 1.0).abs() < 4.0 * 6.1e-4 / 0.5, "seed {seed}: ratio {ratio}, z {z}");
+        // An offset of 1% of the mean (0.005, 8.2 standard errors): found, at the ratio it is.
+        let (ratio, z) = mean_check(&image(seed, 0.005), &reference);
+        assert!(z > 5.0 && (ratio - 1.01).abs() < 4.0 * 6.1e-4 / 0.5, "seed {seed}: ratio {ratio}, z {z}");
+        let (ratio, z) = mean_check(&image(seed, -0.005), &reference);
+        assert!(z < -5.0 && (ratio - 0.99).abs() < 4.0 * 6.1e-4 / 0.5, "seed {seed}: ratio {ratio}, z {z}");
+    }
 }
 
 #[test]
@@ -399,6 +432,8 @@ fn time_slope_needs_three_counts_and_growing_times() {
         mse,
         relmse: 0.0,
         efficiency: 0.0,
+        mean_ratio: 1.0,
+        mean_z: 0.0,
     };
     let (vs_n, vs_t) = slopes(&[row(1, 0.010, 1.0), row(4, 0.011, 0.25)], Strategy::Random);
     assert!((vs_n.unwrap().slope + 1.0).abs() < 1e-12 && vs_t.is_none());
@@ -469,6 +504,48 @@ fn cli_writes_csv_plot_and_sheet() {
     // 48 x 32 renders are enlarged x3 to 144 x 96 cells: 110 + 2 (144 + 6) + 6 by 30 + 2 (96 + 6) + 6.
     assert_eq!(sheet.dimensions(), (416, 240));
     assert_eq!(sheet.dimensions(), strata::study::sheet::sheet_size(48, 32, 2, 2));
+}
+
+/// The study's bias check: against the exact (analytic) reference no row is marked and every run's
+/// image mean is the reference's within noise; against that reference scaled by 0.97 (a biased
+/// reference, as a biased render would be) every row is marked `!` and the ratio is 1 / 0.97.
+#[test]
+fn cli_marks_a_biased_mean() {
+    let dir = tmp_dir("bias");
+    let d = dir.to_str().unwrap();
+    let args = |reference: &str| {
+        let a = ["study", "scenes/quad_irradiance.toml", "--integrals", "light", "--strategies", "random,jittered", "--spp", "4,16"];
+        let mut a: Vec<String> = a.iter().map(|s| s.to_string()).collect();
+        a.extend(["--seeds", "2", "--reference", reference, "--out", d].map(String::from));
+        a
+    };
+    let rows = |stdout: &str| -> Vec<String> {
+        stdout.lines().filter(|l| l.starts_with("random") || l.starts_with("jittered")).map(String::from).collect()
+    };
+    let csv_col = |name: &str| -> Vec<f64> {
+        let csv = std::fs::read_to_string(dir.join("study.csv")).unwrap();
+        let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+        let c = header.iter().position(|h| *h == name).unwrap();
+        csv.lines().skip(1).map(|l| l.split(',').nth(c).unwrap().parse().unwrap()).collect()
+    };
+    let exact = run_ok(&args("analytic").iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(rows(&exact).len(), 4, "{exact}");
+    assert!(rows(&exact).iter().all(|r| !r.ends_with('!')) && !exact.contains("standard errors"), "{exact}");
+    for (ratio, z) in csv_col("mean_ratio").into_iter().zip(csv_col("mean_z")) {
+        assert!((ratio - 1.0).abs() < 0.01 && z.abs() < 5.0, "ratio {ratio}, z {z}");
+    }
+    // The analytic image x 0.97 as a file.
+    let scene = load_scene(&root().join("scenes/quad_irradiance.toml")).unwrap();
+    let form = QuadIrradiance::from_scene(&scene, &Profile::builtin("preview")).unwrap();
+    let scaled: Vec<Vec3> = form.image(Footprint::Centre).iter().map(|p| (*p * 0.97).as_vec3()).collect();
+    let file = dir.join("scaled.exr");
+    strata::film::output::write_image(&file, scene.width, scene.height, &scaled).unwrap();
+    let biased = run_ok(&args(file.to_str().unwrap()).iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(rows(&biased).len(), 4, "{biased}");
+    assert!(rows(&biased).iter().all(|r| r.ends_with('!')) && biased.contains("standard errors"), "{biased}");
+    for (ratio, z) in csv_col("mean_ratio").into_iter().zip(csv_col("mean_z")) {
+        assert!((ratio - 1.0 / 0.97).abs() < 0.01 && z > 5.0, "ratio {ratio}, z {z}");
+    }
 }
 
 /// `--reference-spp` renders once and caches; the cache is reused only for the same scene text, profile

@@ -653,7 +653,17 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
     wl!("  time: {:.3} s wall, {:.2} M rays/s", s.seconds, s.rays_per_second / 1e6);
     let points = scene.lights.iter().filter(|l| l.is_point()).count();
     let buffers = if points > 0 {
-        format!(", light buffers for {} of {points} point lights", scene.light_buffers.iter().flatten().count())
+        let built = scene.light_buffers.iter().flatten().count();
+        // (Why a point light has none: CSG solids' bounds are loose; past the first 32 point lights, the
+        // entry budget, or a cell list too long, the BVH answers its shadow rays.)
+        let why = if built == 0 && scene.features.csg {
+            ": none in scenes with CSG solids"
+        } else if built < points {
+            ": the others' shadow rays take the BVH"
+        } else {
+            ""
+        };
+        format!(", light buffers for {built} of {points} point lights{why}")
     } else {
         String::new()
     };

@@ -5,7 +5,7 @@ use crate::sample::Strategy;
 use crate::scene::{load_scene_sized, Material, Profile, Scene};
 use crate::study::reference::{obtain, RefError, ReferenceSource};
 use crate::study::run::{
-    configure, light_only, run_series, slopes, summarize, Plan, RunResult, Summary, TIME_SLOPE_MIN_COUNTS, TIME_SLOPE_MIN_GROWTH,
+    configure, light_only, run_series, slopes, summarize, Plan, RunResult, Summary, BIAS_Z, TIME_SLOPE_MIN_COUNTS, TIME_SLOPE_MIN_GROWTH,
     TIME_SLOPE_MIN_SPAN,
 };
 use crate::study::{csv, plot, sheet, Integral, IntegralSet};
@@ -42,10 +42,13 @@ Progress: a line per finished run on stderr (--quiet: none). Ctrl-C stops the st
 with the runs that finished (the run in flight is dropped), and the exit code is 130.
 
 Outputs in DIR: study.csv (one row per render: strategy,spp,seed,seconds,rays,mse,relmse,efficiency,
-camera_spp,light_samples), study.png (log-log MSE vs samples and vs seconds, mean over seeds, fitted
+camera_spp,light_samples,mean_ratio,mean_z), study.png (log-log MSE vs samples and vs seconds, mean over seeds, fitted
 slopes in the legend; the slope against seconds only for 3+ counts whose times span 4x and grow at least
 as n^0.5, else n/a), sheet.png with --sheet. relMSE = mean (x - ref)^2 / (ref^2 + 0.01) per channel;
-efficiency = 1 / (MSE x seconds), seconds being the render's own wall time.";
+efficiency = 1 / (MSE x seconds), seconds being the render's own wall time. mean/ref = the image's mean
+over the reference's; z = their difference over its standard error (from the pixels' spread; combined
+over seeds): rows past |z| > 5 are marked ! as biased (the render's or the reference's), which the MSE
+alone does not show.";
 
 #[derive(Args, Debug, Clone)]
 #[command(after_long_help = MAPPING_HELP)]
@@ -341,7 +344,15 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     let mut report = |r: &RunResult| {
         done += 1;
         if !a.quiet {
-            errln!("  run {done}/{total}: {} n={} seed {}: {:.3} s, mse {:.3e}", r.strategy, r.n, r.seed, r.seconds, r.mse);
+            errln!(
+                "  run {done}/{total}: {} n={} seed {}: {:.3} s, mse {:.3e}, mean/ref {:.4}",
+                r.strategy,
+                r.n,
+                r.seed,
+                r.seconds,
+                r.mse,
+                r.mean_ratio
+            );
         }
     };
     let series = run_series(&scene, &profile, &plan, &reference.image, a.sheet, &mut report).map_err(Failure::input)?;
@@ -376,7 +387,7 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
 /// `grid_floor`: the grid runs' light integral is a fixed grid (see [`fixed_light_grid`]).
 fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool) {
     outln!(
-        "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12}   (means over {} seeds; efficiency = 1 / (mean mse x mean seconds))",
+        "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12} {:>9} {:>8}   (means over {} seeds; efficiency = 1 / (mean mse x mean seconds))",
         "strategy",
         "spp",
         "seconds",
@@ -384,18 +395,35 @@ fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool) {
         "mse",
         "relmse",
         "efficiency",
+        "mean/ref",
+        "z",
         plan.seeds
     );
     for s in summary {
         outln!(
-            "{:<9} {:>6} {:>10.4} {:>12.0} {:>12.3e} {:>12.3e} {:>12.3e}",
+            "{:<9} {:>6} {:>10.4} {:>12.0} {:>12.3e} {:>12.3e} {:>12.3e} {:>9.4} {:>8.1}{}",
             s.strategy.name(),
             s.n,
             s.seconds,
             s.rays,
             s.mse,
             s.relmse,
-            s.efficiency
+            s.efficiency,
+            s.mean_ratio,
+            s.mean_z,
+            if s.biased() { " !" } else { "" }
+        );
+    }
+    if summary.iter().any(Summary::biased) {
+        outln!(
+            "  ! the image mean differs from the reference's by more than {BIAS_Z} standard errors (z: the difference over \
+             its standard error from the pixels' spread, combined over the seeds): a bias in these renders or in the \
+             reference, not noise; their MSE understates how far they are (a biased image can have the lower MSE){}",
+            if plan.strategies.contains(&Strategy::Grid) {
+                ". A grid's error at a given count is deterministic: a bias by nature"
+            } else {
+                ""
+            }
         );
     }
     outln!("\nfitted slope of log MSE against log samples / log seconds (wall time: noisy):");

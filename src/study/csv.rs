@@ -6,8 +6,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// The column names, in order.
-pub const COLUMNS: [&str; 10] =
-    ["strategy", "spp", "seed", "seconds", "rays", "mse", "relmse", "efficiency", "camera_spp", "light_samples"];
+pub const COLUMNS: [&str; 12] =
+    ["strategy", "spp", "seed", "seconds", "rays", "mse", "relmse", "efficiency", "camera_spp", "light_samples", "mean_ratio", "mean_z"];
 
 /// The CSV text (header and one line per run; floats in shortest round-trip form, `inf` for an
 /// infinite efficiency).
@@ -17,8 +17,19 @@ pub fn to_csv(runs: &[RunResult]) -> String {
     for r in runs {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{}",
-            r.strategy, r.n, r.seed, r.seconds, r.rays, r.mse, r.relmse, r.efficiency, r.camera_spp, r.light_samples
+            "{},{},{},{},{},{},{},{},{},{},{},{}",
+            r.strategy,
+            r.n,
+            r.seed,
+            r.seconds,
+            r.rays,
+            r.mse,
+            r.relmse,
+            r.efficiency,
+            r.camera_spp,
+            r.light_samples,
+            r.mean_ratio,
+            r.mean_z
         );
     }
     s

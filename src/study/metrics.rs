@@ -31,6 +31,34 @@ pub fn relmse(image: &[Vec3], reference: &[DVec3]) -> f64 {
     sum / (3 * image.len().max(1)) as f64
 }
 
+/// The image's mean against the reference's: their ratio (means over pixels and channels; NaN for a
+/// black reference) and a z-score of their difference, `(mean(x) - mean(ref)) / se`, with `se` the
+/// standard error of that difference estimated from the spread of the pixels' errors (each pixel's error
+/// averaged over its channels, which share paths). A render's pixels are independent streams, so with no
+/// bias in the render or the reference `z` is about standard normal; a bias the size of the noise of a
+/// few pixels gives a large `z` over a whole image, where the MSE hardly moves (or drops: a black
+/// image of a dim, noisy region). `z` is 0 for identical images, infinite for a uniform offset.
+pub fn mean_check(image: &[Vec3], reference: &[DVec3]) -> (f64, f64) {
+    assert_eq!(image.len(), reference.len(), "image and reference sizes differ");
+    let n = image.len() as f64;
+    let (mut sx, mut sr) = (0.0f64, 0.0f64);
+    for (x, r) in image.iter().zip(reference) {
+        sx += x.as_dvec3().element_sum();
+        sr += r.element_sum();
+    }
+    let ratio = if sr > 0.0 { sx / sr } else { f64::NAN };
+    if image.len() < 2 {
+        return (ratio, 0.0);
+    }
+    // Per-pixel errors (channel means): their mean and, in a second pass, their spread.
+    let e = |(x, r): (&Vec3, &DVec3)| (x.as_dvec3() - *r).element_sum() / 3.0;
+    let mean = image.iter().zip(reference).map(e).sum::<f64>() / n;
+    let var = image.iter().zip(reference).map(|p| (e(p) - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    let se = (var / n).sqrt();
+    let z = if mean == 0.0 { 0.0 } else { mean / se };
+    (ratio, z)
+}
+
 /// Efficiency `1 / (MSE x seconds)`: the inverse of the work needed for a given error (higher is better).
 /// Infinite for a zero error.
 pub fn efficiency(mse: f64, seconds: f64) -> f64 {

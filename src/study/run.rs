@@ -1,7 +1,7 @@
 //! The series of renders: for every strategy, sample count and seed, one render compared with the
 //! reference; and how a sample count maps onto the profile ([`configure`]).
 
-use super::metrics::{efficiency, fit_loglog, mse, relmse, LogLogFit};
+use super::metrics::{efficiency, fit_loglog, mean_check, mse, relmse, LogLogFit};
 use super::{Integral, IntegralSet};
 use crate::film::Film;
 use crate::render::{render_into, RenderJob};
@@ -110,6 +110,10 @@ pub struct RunResult {
     pub mse: f64,
     pub relmse: f64,
     pub efficiency: f64,
+    /// The image's mean over the reference's, and the z-score of their difference
+    /// ([`mean_check`]): a bias check that the MSE does not make.
+    pub mean_ratio: f64,
+    pub mean_z: f64,
 }
 
 /// What a series runs over.
@@ -204,6 +208,7 @@ pub fn run_series(
                 };
                 let img = film.to_rgb();
                 let e = mse(&img, reference);
+                let (mean_ratio, mean_z) = mean_check(&img, reference);
                 let r = RunResult {
                     strategy,
                     n,
@@ -215,6 +220,8 @@ pub fn run_series(
                     mse: e,
                     relmse: relmse(&img, reference),
                     efficiency: efficiency(e, seconds),
+                    mean_ratio,
+                    mean_z,
                 };
                 report(&r);
                 runs.push(r);
@@ -239,6 +246,21 @@ pub struct Summary {
     pub relmse: f64,
     /// `1 / (mean MSE x mean seconds)`.
     pub efficiency: f64,
+    /// The mean of the runs' image-mean ratios, and their z-scores combined (Stouffer's
+    /// `sum z / sqrt(k)`: standard normal over `k` seeds where the runs are unbiased).
+    pub mean_ratio: f64,
+    pub mean_z: f64,
+}
+
+/// Where `|z|` of the image mean against the reference's passes this, the table marks the row: a bias
+/// in the renders or in the reference rather than noise (about 6e-7 of unbiased rows).
+pub const BIAS_Z: f64 = 5.0;
+
+impl Summary {
+    /// Whether the image mean differs from the reference's by more than noise explains ([`BIAS_Z`]).
+    pub fn biased(&self) -> bool {
+        self.mean_z.abs() > BIAS_Z
+    }
 }
 
 /// Average the runs over seeds, in the order the (strategy, count) pairs first appear.
@@ -264,6 +286,8 @@ pub fn summarize(runs: &[RunResult]) -> Vec<Summary> {
                 mse: e,
                 relmse: mean(&|r| r.relmse),
                 efficiency: efficiency(e, seconds),
+                mean_ratio: mean(&|r| r.mean_ratio),
+                mean_z: g.iter().map(|r| r.mean_z).sum::<f64>() / k.sqrt(),
             }
         })
         .collect()
