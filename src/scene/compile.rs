@@ -431,25 +431,32 @@ impl Compiler<'_> {
                 }
             }
         }
-        // At most 8, then a count (a scene of thousands of equal glass spheres is one mistake).
-        const SHOWN: usize = 8;
-        for &(i, j) in pairs.iter().take(SHOWN) {
-            let ((span, field), other) = (self.prim_at[i].clone(), self.prim_at[j].1.clone());
-            self.warn(
-                span,
-                field,
+        self.warn_pairs(
+            &pairs,
+            |other| {
                 format!(
                     "a glass sphere surface of this shape coincides with one of `{other}`: a ray meets the two in an order that \
                      rounding decides pixel by pixel, so the media it enters and leaves speckle; make the inner medium slightly \
                      larger than the space it fills and give the container the higher `priority` (README, \"How to model a glass \
                      of water\")"
-                ),
-            );
+                )
+            },
+            |more| format!("and {more} more shapes from here on have glass sphere surfaces that coincide with another's"),
+        );
+    }
+
+    /// Warnings of coinciding pairs of prims `(later, earlier)`: at the later one, naming the earlier
+    /// (`says`), at most 8, then a count (`more`) at the ninth: a scene of thousands of equal shapes is
+    /// one mistake.
+    fn warn_pairs(&mut self, pairs: &[(usize, usize)], says: impl Fn(&str) -> String, more: impl Fn(usize) -> String) {
+        const SHOWN: usize = 8;
+        for &(i, j) in pairs.iter().take(SHOWN) {
+            let ((span, field), other) = (self.prim_at[i].clone(), self.prim_at[j].1.clone());
+            self.warn(span, field, says(&other));
         }
         if pairs.len() > SHOWN {
             let (span, field) = self.prim_at[pairs[SHOWN].0].clone();
-            let more = pairs.len() - SHOWN;
-            self.warn(span, field, format!("and {more} more shapes from here on have glass sphere surfaces that coincide with another's"));
+            self.warn(span, field, more(pairs.len() - SHOWN));
         }
     }
 
@@ -458,7 +465,7 @@ impl Compiler<'_> {
     /// the reflection's weights (multiple importance sampling) no longer sum to one and glossy and
     /// diffuse reflections of them come out a few percent off (4% in a trial, in every picking mode).
     /// Compared by the exact shape, as the file gives it (a quad given from another corner is not
-    /// caught). At the later light of each pair; at most 8, then a count.
+    /// caught). At the later light of each pair ([`Self::warn_pairs`]).
     fn coincident_emitters(&mut self) {
         if self.prim_at.len() != self.prims.len() {
             return;
@@ -474,24 +481,17 @@ impl Compiler<'_> {
                 }
             }
         }
-        const SHOWN: usize = 8;
-        for &(i, j) in pairs.iter().take(SHOWN) {
-            let ((span, field), other) = (self.prim_at[i].clone(), self.prim_at[j].1.clone());
-            self.warn(
-                span,
-                field,
+        self.warn_pairs(
+            &pairs,
+            |other| {
                 format!(
                     "this light's surface coincides with `{other}`'s: light samples reach both, but a reflected ray meets only \
                      one, so glossy and diffuse reflections of them come out a few percent off; make them one light with the \
                      summed radiance"
-                ),
-            );
-        }
-        if pairs.len() > SHOWN {
-            let (span, field) = self.prim_at[pairs[SHOWN].0].clone();
-            let more = pairs.len() - SHOWN;
-            self.warn(span, field, format!("and {more} more lights from here on coincide with another light"));
-        }
+                )
+            },
+            |more| format!("and {more} more lights from here on coincide with another light"),
+        );
     }
 
     /// The media the camera starts in ([`Scene::camera_media`]): every solid prim (sphere, ellipsoid, box,
