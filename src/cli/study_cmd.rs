@@ -42,13 +42,13 @@ Progress: a line per finished run on stderr (--quiet: none). Ctrl-C stops the st
 with the runs that finished (the run in flight is dropped), and the exit code is 130.
 
 Outputs in DIR: study.csv (one row per render: strategy,spp,seed,seconds,rays,mse,relmse,efficiency,
-camera_spp,light_samples,mean_ratio,mean_z), study.png (log-log MSE vs samples and vs seconds, mean over seeds, fitted
-slopes in the legend; the slope against seconds only for 3+ counts whose times span 4x and grow at least
-as n^0.5, else n/a), sheet.png with --sheet. relMSE = mean (x - ref)^2 / (ref^2 + 0.01) per channel;
-efficiency = 1 / (MSE x seconds), seconds being the render's own wall time. mean/ref = the image's mean
-over the reference's; z = their difference over its standard error (from the pixels' spread; combined
-over seeds): rows past |z| > 5 are marked ! as biased (the render's or the reference's), which the MSE
-alone does not show.";
+camera_spp,light_samples,mean_ratio,mean_z), study.png (log-log MSE vs samples and vs seconds, mean
+over seeds, fitted slopes in the legend; the slope against seconds only for 3+ counts whose times span
+4x and grow at least as n^0.5, else n/a), sheet.png with --sheet. relMSE = mean (x - ref)^2 / (ref^2 +
+0.01) per channel; efficiency = 1 / (MSE x seconds), seconds being the render's own wall time and its
+light selection's build. mean/ref = the image's mean over the reference's; z = their difference over
+its standard error (from the pixels' spread; combined over seeds): rows past |z| > 5 are marked ! as
+biased (the render's or the reference's), which the MSE alone does not show.";
 
 #[derive(Args, Debug, Clone)]
 #[command(after_long_help = MAPPING_HELP)]

@@ -104,7 +104,8 @@ pub struct RunResult {
     /// The profile's camera samples per pixel and light samples per shading point for this run.
     pub camera_spp: u32,
     pub light_samples: u32,
-    /// Wall seconds of the render (the renderer's own `RenderStats.seconds`).
+    /// Wall seconds of the render (the renderer's own `RenderStats.seconds`) and of its light selection
+    /// (`selection_seconds`: the power table or light tree it makes first).
     pub seconds: f64,
     pub rays: u64,
     pub mse: f64,
@@ -177,7 +178,9 @@ pub fn render_cancellable(
             errln!("warning: {w}");
         }
     }
-    Some((film, stats.seconds, stats.rays.total))
+    // (The light selection, a power table or a light tree, is made for each render before its clock:
+    // a cost of the run all the same, which a study of selection modes must weigh.)
+    Some((film, stats.seconds + stats.selection_seconds, stats.rays.total))
 }
 
 /// Run the whole series against `reference`. `report` is called after each run (progress output). If
