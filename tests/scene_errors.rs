@@ -558,9 +558,10 @@ fn coincident_glass_sphere_surfaces_are_warned_of() {
     assert!(w[8].contains("`shapes[9]`") && w[8].contains("and 11 more shapes from here on"), "{}", w[8]);
 }
 
-/// Area lights whose surfaces coincide (two equal disks, a quad given twice) are warned of at the later
-/// light, naming the other: a reflected ray meets only one of them. Lights apart, of another size, or
-/// points at one position (never met by a ray) are not.
+/// Area lights whose surfaces coincide (two equal disks, a quad given twice, also from its opposite
+/// corner) are warned of at the later light, naming the other: a ray meets only one of them. Lights
+/// apart, of another size, a quad facing the other way, or points at one position (never met by a ray)
+/// are not.
 #[test]
 fn coincident_emitters_are_warned_of() {
     let disk = |c: &str, r: &str| {
@@ -575,6 +576,21 @@ fn coincident_emitters_are_warned_of() {
         (format!("{}{}", disk("0, 3, 0", "0.5"), disk("0, 3.5, 0", "0.5")), None),
         (format!("{quad}{point}{quad}"), Some(("lights[2]", "lights[0]"))),
         (format!("{point}{point}"), None),
+        // The same quad from its opposite corner; and facing the other way (emitting downwards, not up).
+        (
+            format!(
+                "{quad}{}",
+                quad.replace("origin = [-1, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]", "origin = [1, 3, 1]\nu = [-2, 0, 0]\nv = [0, 0, -2]")
+            ),
+            Some(("lights[1]", "lights[0]")),
+        ),
+        (
+            format!(
+                "{quad}{}",
+                quad.replace("origin = [-1, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]", "origin = [-1, 3, -1]\nu = [0, 0, 2]\nv = [2, 0, 0]")
+            ),
+            None,
+        ),
     ];
     for (lights, want) in cases {
         let text = format!("{BASE}{sphere}{lights}");

@@ -668,10 +668,10 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
         String::new()
     };
     let selection = match job.settings.profile.light_selection {
-        LightSelection::Tree if scene.lights.len() > 1 => ", light tree",
-        LightSelection::All => "",
-        _ if scene.lights.len() > 1 => ", light table",
-        _ => "",
+        LightSelection::Tree if scene.lights.len() > 1 => format!(", light tree {:.3} s", s.selection_seconds),
+        LightSelection::All => String::new(),
+        _ if scene.lights.len() > 1 => format!(", light table {:.3} s", s.selection_seconds),
+        _ => String::new(),
     };
     wl!("  setup: {setup_seconds:.3} s before the render (read, parse, BVH{buffers}{selection})");
     let t = &s.stage_seconds;

@@ -47,8 +47,9 @@ over seeds, fitted slopes in the legend; the slope against seconds only for 3+ c
 4x and grow at least as n^0.5, else n/a), sheet.png with --sheet. relMSE = mean (x - ref)^2 / (ref^2 +
 0.01) per channel; efficiency = 1 / (MSE x seconds), seconds being the render's own wall time and its
 light selection's build. mean/ref = the image's mean over the reference's; z = their difference over
-its standard error (from the pixels' spread; combined over seeds): rows past |z| > 5 are marked ! as
-biased (the render's or the reference's), which the MSE alone does not show.";
+its standard error (from the pixels' spread; the mean over seeds): rows past |z| > 5 are marked ! as
+biased (the render's or the reference's), which the MSE alone does not show; a bias that changes sign
+across the image and averages out shows in the MSE's slope instead.";
 
 #[derive(Args, Debug, Clone)]
 #[command(after_long_help = MAPPING_HELP)]
@@ -414,16 +415,19 @@ fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool) {
             if s.biased() { " !" } else { "" }
         );
     }
+    outln!(
+        "  mean/ref: the image's mean over the reference's; z: their difference over its standard error (from the pixels' \
+         spread), the mean over the seeds"
+    );
+    if summary.iter().any(|s| !s.mean_ratio.is_finite()) {
+        outln!("  (mean/ref NaN: the reference is black)");
+    }
     if summary.iter().any(Summary::biased) {
+        let deterministic = plan.strategies.iter().any(|s| matches!(s, Strategy::Grid | Strategy::Center));
         outln!(
-            "  ! the image mean differs from the reference's by more than {BIAS_Z} standard errors (z: the difference over \
-             its standard error from the pixels' spread, combined over the seeds): a bias in these renders or in the \
-             reference, not noise; their MSE understates how far they are (a biased image can have the lower MSE){}",
-            if plan.strategies.contains(&Strategy::Grid) {
-                ". A grid's error at a given count is deterministic: a bias by nature"
-            } else {
-                ""
-            }
+            "  ! |z| > {BIAS_Z}: the image mean differs from the reference's by more than noise explains: a bias in these \
+             renders or in the reference; their MSE understates how far they are (a biased image can have the lower MSE){}",
+            if deterministic { ". `grid` and `center` are deterministic: their error at a given count is a bias by nature" } else { "" }
         );
     }
     outln!("\nfitted slope of log MSE against log samples / log seconds (wall time: noisy):");

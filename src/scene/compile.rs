@@ -460,12 +460,12 @@ impl Compiler<'_> {
         }
     }
 
-    /// Warn of area lights whose surfaces coincide (two equal disks in one place, a quad given twice):
-    /// next-event estimation samples both, but a reflected ray meets only one of the two surfaces, so
-    /// the reflection's weights (multiple importance sampling) no longer sum to one and glossy and
-    /// diffuse reflections of them come out a few percent off (4% in a trial, in every picking mode).
-    /// Compared by the exact shape, as the file gives it (a quad given from another corner is not
-    /// caught). At the later light of each pair ([`Self::warn_pairs`]).
+    /// Warn of area lights whose surfaces coincide (two equal disks in one place, a quad given twice,
+    /// from any corner): a ray meets only one of the two surfaces, so a camera ray sees one light's
+    /// radiance, not their sum (a user trial's doubled quad: 0.60 of the summed light's image), and
+    /// next-event estimation samples both while a reflected ray finds one, so the reflection's weights
+    /// (multiple importance sampling) no longer sum to one (glossy floors 1-12% dark). Compared by the
+    /// exact shape, as the file gives it. At the later light of each pair ([`Self::warn_pairs`]).
     fn coincident_emitters(&mut self) {
         if self.prim_at.len() != self.prims.len() {
             return;
@@ -473,8 +473,21 @@ impl Compiler<'_> {
         let mut first: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
         let mut pairs: Vec<(usize, usize)> = Vec::new();
         for (i, p) in self.prims.iter().enumerate().filter(|(_, p)| p.is_light) {
-            // (The shape's Debug text: every float in shortest round-trip form, so equal text is equal bits.)
-            match first.entry(format!("{:?}", p.shape)) {
+            // (The shape's Debug text: every float in shortest round-trip form, so equal text is equal bits;
+            // a quad by its corners, in f64 where their sums are exact, and its emitting side, so that
+            // one given from another corner is the same.)
+            let key = match p.shape {
+                Shape::Quad(q) => {
+                    let (o, u, v) = (q.origin.as_dvec3(), q.u.as_dvec3(), q.v.as_dvec3());
+                    let mut c = [o, o + u, o + v, o + u + v].map(|c| c.to_array().map(f64::to_bits));
+                    c.sort_unstable();
+                    let [a, b, d, _] = c.map(|c| glam::DVec3::from_array(c.map(f64::from_bits)));
+                    let side = u.cross(v).dot((b - a).cross(d - a)) > 0.0;
+                    format!("quad {c:?} {side}")
+                }
+                ref shape => format!("{shape:?}"),
+            };
+            match first.entry(key) {
                 std::collections::hash_map::Entry::Occupied(e) => pairs.push((i, *e.get())),
                 std::collections::hash_map::Entry::Vacant(e) => {
                     e.insert(i);
@@ -485,9 +498,9 @@ impl Compiler<'_> {
             &pairs,
             |other| {
                 format!(
-                    "this light's surface coincides with `{other}`'s: light samples reach both, but a reflected ray meets only \
-                     one, so glossy and diffuse reflections of them come out a few percent off; make them one light with the \
-                     summed radiance"
+                    "this light's surface coincides with `{other}`'s: a ray meets only one of the two, so seen directly the \
+                     surface shows one light's radiance, not their sum, and its reflections come out wrong too (12% dark on a \
+                     glossy floor in a trial); make them one light with the summed radiance"
                 )
             },
             |more| format!("and {more} more lights from here on coincide with another light"),
