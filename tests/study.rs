@@ -759,6 +759,15 @@ fn cli_study_warns_of_a_fixed_light_grid() {
     assert!(grid > -0.3 && jit < -1.0, "grid slope {grid}, jittered {jit}: {out}");
     let (out, err) = run(&["--spp", "1,4", "--light-samples-from-spp"]);
     assert!(!err.contains("warning") && !out.contains("bias floor"), "{err}{out}");
+    // `center` runs of several samples repeat one sample, as `render` warns; the study passes it on,
+    // and marks their (deterministic) rows as such.
+    let centre = ["study", "scenes/soft_shadows.toml", "--strategies", "center", "--spp", "1,4", "--seeds", "1", "--quiet", "--out", d];
+    let o = strata().args(centre).output().unwrap();
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("warning: center n = 4: spp 4: every integral this scene uses is sampled at `center`"), "{err}");
+    assert!(!err.contains("center n = 1:"), "{err}");
+    assert!(out.contains("mean/ref: the image's mean over the reference's"), "{out}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -182,7 +182,8 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
             let p = configure(&profile, &integrals, s, n, a.light_samples_from_spp).map_err(|e| Failure::input(format!("--spp: {e}")))?;
             crate::render::check_render_size(scene.width, scene.height, &(0..p.spp))
                 .map_err(|e| Failure::input(format!("--spp {n}: {e}")))?;
-            for w in super::render_cmd::sampling_warnings(&scene, &p) {
+            let identical = super::render_cmd::identical_samples_warning(&scene, &p);
+            for w in super::render_cmd::sampling_warnings(&scene, &p).into_iter().chain(identical) {
                 if !warned.contains(&w) {
                     errln!("warning: {} n = {n}: {w}", s.name());
                     warned.push(w);
@@ -317,7 +318,7 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     };
     outln!("  sampling: {}{pick}", describe_mapping(&plan));
     if !a.quiet {
-        errln!("reference: preparing...");
+        errln!("  reference: preparing...");
     }
     let reference = match obtain(&source, &scene, &profile, &plan, &a.out) {
         Ok(r) => r,
