@@ -569,28 +569,29 @@ fn coincident_emitters_are_warned_of() {
     };
     let quad = "[[lights]]\ntype = \"quad\"\norigin = [-1, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]\nradiance = [2, 2, 2]\n";
     let point = "[[lights]]\ntype = \"point\"\nposition = [0, 3, 0]\nintensity = [5, 5, 5]\n";
+    let quad_as =
+        |o: &str, u: &str, v: &str| format!("[[lights]]\ntype = \"quad\"\norigin = {o}\nu = {u}\nv = {v}\nradiance = [2, 2, 2]\n");
     let sphere = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\n";
     let cases = [
         (format!("{}{}", disk("0, 3, 0", "0.5"), disk("0, 3, 0", "0.5")), Some(("lights[1]", "lights[0]"))),
         (format!("{}{}", disk("0, 3, 0", "0.5"), disk("0, 3, 0", "0.25")), None),
         (format!("{}{}", disk("0, 3, 0", "0.5"), disk("0, 3.5, 0", "0.5")), None),
+        (format!("{}{}", disk("0, 3, 0", "0.5"), disk("-0.0, 3, -0.0", "0.5")), Some(("lights[1]", "lights[0]"))),
         (format!("{quad}{point}{quad}"), Some(("lights[2]", "lights[0]"))),
         (format!("{point}{point}"), None),
-        // The same quad from its opposite corner; and facing the other way (emitting downwards, not up).
+        // The same quad from its opposite corner, from an adjacent one, and with negative zeros; facing
+        // the other way (emitting downwards, not up) it is another light.
+        (format!("{quad}{}", quad_as("[1, 3, 1]", "[-2, 0, 0]", "[0, 0, -2]")), Some(("lights[1]", "lights[0]"))),
+        (format!("{quad}{}", quad_as("[1, 3, -1]", "[0, 0, 2]", "[-2, 0, 0]")), Some(("lights[1]", "lights[0]"))),
         (
             format!(
-                "{quad}{}",
-                quad.replace("origin = [-1, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]", "origin = [1, 3, 1]\nu = [-2, 0, 0]\nv = [0, 0, -2]")
+                "{}{}",
+                quad_as("[0, 3, 0]", "[2, 0, 0]", "[0, 0, 2]"),
+                quad_as("[-0.0, 3, -0.0]", "[2, -0.0, -0.0]", "[-0.0, -0.0, 2]")
             ),
             Some(("lights[1]", "lights[0]")),
         ),
-        (
-            format!(
-                "{quad}{}",
-                quad.replace("origin = [-1, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]", "origin = [-1, 3, -1]\nu = [0, 0, 2]\nv = [2, 0, 0]")
-            ),
-            None,
-        ),
+        (format!("{quad}{}", quad_as("[-1, 3, -1]", "[0, 0, 2]", "[2, 0, 0]")), None),
     ];
     for (lights, want) in cases {
         let text = format!("{BASE}{sphere}{lights}");

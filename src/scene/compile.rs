@@ -473,17 +473,28 @@ impl Compiler<'_> {
         let mut first: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
         let mut pairs: Vec<(usize, usize)> = Vec::new();
         for (i, p) in self.prims.iter().enumerate().filter(|(_, p)| p.is_light) {
-            // (The shape's Debug text: every float in shortest round-trip form, so equal text is equal bits;
-            // a quad by its corners, in f64 where their sums are exact, and its emitting side, so that
-            // one given from another corner is the same.)
+            // (Each shape by the bits of what it is made of, -0.0 as 0.0; a quad by its corners, in f64
+            // where their sums are exact, and its emitting side, so that one given from another corner is
+            // the same.)
             let key = match p.shape {
                 Shape::Quad(q) => {
                     let (o, u, v) = (q.origin.as_dvec3(), q.u.as_dvec3(), q.v.as_dvec3());
-                    let mut c = [o, o + u, o + v, o + u + v].map(|c| c.to_array().map(f64::to_bits));
+                    // (`+ 0.0`: -0.0 and 0.0 alike.)
+                    let mut c = [o, o + u, o + v, o + u + v].map(|c| (c + 0.0).to_array().map(f64::to_bits));
                     c.sort_unstable();
                     let [a, b, d, _] = c.map(|c| glam::DVec3::from_array(c.map(f64::from_bits)));
                     let side = u.cross(v).dot((b - a).cross(d - a)) > 0.0;
                     format!("quad {c:?} {side}")
+                }
+                // (Exact bits, -0.0 as 0.0.)
+                Shape::Disk(d) => format!(
+                    "disk {:?} {:?} {}",
+                    (d.center + 0.0).to_array().map(f32::to_bits),
+                    (d.normal + 0.0).to_array().map(f32::to_bits),
+                    d.radius.to_bits()
+                ),
+                Shape::Sphere { center, radius } => {
+                    format!("sphere {:?} {}", (center + 0.0).to_array().map(f32::to_bits), radius.to_bits())
                 }
                 ref shape => format!("{shape:?}"),
             };
