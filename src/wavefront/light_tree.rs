@@ -40,7 +40,8 @@
 //! that minimises the sum over both sides of `Phi x (surface area + diagonal^2 / 20) x M(theta_o)` (the
 //! surface-area-orientation heuristic of pbrt-v4, `M` the measure of the directions the cone's lights
 //! emit into). Past depth 32 the splits are at the median (each halves a group at least), so that no tree of fewer
-//! than 2^32 lights is deeper than 64 levels.
+//! than 2^32 lights is deeper than 64 levels. The lights are sorted along each axis once, and each split
+//! partitions the three orders stably, so that no group is sorted again (O(n log n) sorting in all).
 
 use super::pick::{COS_FLOOR, D2_FLOOR};
 use crate::simd::{f32x8, Vec3x8};
@@ -272,12 +273,14 @@ impl LightTree {
     pub fn build(lights: &[LightBounds]) -> LightTree {
         let items: Vec<u32> = (0..lights.len() as u32).filter(|&i| lights[i as usize].phi > 0.0).collect();
         let mut tree = LightTree { nodes: Vec::new(), parent: Vec::new(), leaf: vec![(EMPTY, 0); lights.len()] };
-        tree.node(lights, items, 0, (EMPTY, 0));
+        let mut left = vec![false; lights.len()];
+        tree.node(lights, Group::new(lights, items), 0, (EMPTY, 0), &mut left);
         tree
     }
 
     /// Builds the node over `items` (its index returned).
-    fn node(&mut self, lights: &[LightBounds], items: Vec<u32>, depth: usize, parent: (u32, u8)) -> u32 {
+    /// (`left`: scratch flags per light for [`split_group`], all false between calls.)
+    fn node(&mut self, lights: &[LightBounds], items: Group, depth: usize, parent: (u32, u8), left: &mut [bool]) -> u32 {
         let me = self.nodes.len() as u32;
         let none = f32x8::ZERO;
         self.nodes.push(Node {
@@ -303,22 +306,23 @@ impl LightTree {
                 break;
             };
             let group = std::mem::take(&mut groups[g]);
-            let (a, b) = split_group(lights, group, depth >= MAX_DEPTH / 2);
+            let (a, b) = split_group(lights, group, depth >= MAX_DEPTH / 2, left);
             groups[g] = a;
             groups.insert(g + 1, b);
         }
         let mut slot = [Slot::EMPTY; 8];
         let mut child = [EMPTY; 8];
         for (k, group) in groups.into_iter().enumerate() {
-            if group.is_empty() {
+            if group.len() == 0 {
                 continue;
             }
-            slot[k] = Slot::of(lights, &group);
+            slot[k] = Slot::of(lights, group.items());
             child[k] = if group.len() == 1 {
-                self.leaf[group[0] as usize] = (me, k as u8);
-                LIGHT | group[0]
+                let l = group.items()[0];
+                self.leaf[l as usize] = (me, k as u8);
+                LIGHT | l
             } else {
-                self.node(lights, group, depth + 1, (me, k as u8))
+                self.node(lights, group, depth + 1, (me, k as u8), left)
             };
         }
         let lane = |f: &dyn Fn(&Slot) -> f32| f32x8::from(std::array::from_fn::<f32, 8, _>(|k| f(&slot[k])));
@@ -509,15 +513,54 @@ impl LightTree {
     }
 }
 
-/// Splits `items` in two (see the module docs): at the heuristic's best position, or at the median
-/// (`median`, or where no position is better than another).
-fn split_group(lights: &[LightBounds], mut items: Vec<u32>, median: bool) -> (Vec<u32>, Vec<u32>) {
-    let n = items.len();
-    let centre = |i: u32, a: usize| lights[i as usize].centre[a] as f64;
+/// A group of lights while building: its lights in order of centre along each axis (ties by index),
+/// so that a split sweeps them without sorting, and the axis of the split that made it (`None`: as
+/// given), whose order its bounds are gathered in.
+#[derive(Default)]
+struct Group {
+    by: [Vec<u32>; 3],
+    last: Option<usize>,
+    /// The lights as given (the root's group, which no split made).
+    given: Vec<u32>,
+}
+
+impl Group {
+    fn new(lights: &[LightBounds], items: Vec<u32>) -> Group {
+        let order = |a: usize| {
+            let mut v = items.clone();
+            v.sort_by(|&x, &y| centre(lights, x, a).total_cmp(&centre(lights, y, a)).then(x.cmp(&y)));
+            v
+        };
+        let by = [order(0), order(1), order(2)];
+        Group { by, last: None, given: items }
+    }
+
+    fn len(&self) -> usize {
+        self.by[0].len()
+    }
+
+    /// The lights in the order of the split that made the group.
+    fn items(&self) -> &[u32] {
+        match self.last {
+            Some(a) => &self.by[a],
+            None => &self.given,
+        }
+    }
+}
+
+fn centre(lights: &[LightBounds], i: u32, a: usize) -> f64 {
+    lights[i as usize].centre[a] as f64
+}
+
+/// Splits `group` in two (see the module docs): at the heuristic's best position, or at the median
+/// (`median`, or where no position is better than another). `left`: scratch flags per light, all false
+/// between calls.
+fn split_group(lights: &[LightBounds], group: Group, median: bool, left: &mut [bool]) -> (Group, Group) {
+    let n = group.len();
     let mut best: Option<(f64, usize, usize)> = None;
     if !median {
         for axis in 0..3 {
-            items.sort_by(|&x, &y| centre(x, axis).total_cmp(&centre(y, axis)).then(x.cmp(&y)));
+            let items = &group.by[axis];
             let mut suffix = vec![Agg::EMPTY; n + 1];
             for i in (0..n).rev() {
                 suffix[i] = suffix[i + 1].add(Agg::of(&lights[items[i] as usize]));
@@ -538,17 +581,22 @@ fn split_group(lights: &[LightBounds], mut items: Vec<u32>, median: bool) -> (Ve
     let (axis, at) = match best {
         Some((_, axis, at)) => (axis, at),
         None => {
-            let ext = |a: usize| {
-                let (lo, hi) =
-                    items.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &i| (lo.min(centre(i, a)), hi.max(centre(i, a))));
-                hi - lo
-            };
+            let ext = |a: usize| centre(lights, group.by[a][n - 1], a) - centre(lights, group.by[a][0], a);
             ((0..3).max_by(|&a, &b| ext(a).total_cmp(&ext(b))).unwrap_or(0), n / 2)
         }
     };
-    items.sort_by(|&x, &y| centre(x, axis).total_cmp(&centre(y, axis)).then(x.cmp(&y)));
-    let b = items.split_off(at);
-    (items, b)
+    // The first `at` along the axis go left; every order keeps its own (a stable partition).
+    for &i in &group.by[axis][..at] {
+        left[i as usize] = true;
+    }
+    let (mut a, mut b) = (Group { last: Some(axis), ..Group::default() }, Group { last: Some(axis), ..Group::default() });
+    for k in 0..3 {
+        (a.by[k], b.by[k]) = group.by[k].iter().partition(|&&i| left[i as usize]);
+    }
+    for &i in &group.by[axis][..at] {
+        left[i as usize] = false;
+    }
+    (a, b)
 }
 
 #[cfg(test)]
