@@ -9,9 +9,9 @@ use strata::film::Film;
 use strata::sample::Strategy;
 use strata::scene::{load_scene, parse_scene, Profile, Scene};
 use strata::study::analytic::{gauss_legendre, polygon_irradiance, Footprint, QuadIrradiance};
-use strata::study::metrics::{efficiency, fit_loglog, mean_check, mse, relmse};
+use strata::study::metrics::{efficiency, fit_loglog, mean_check, mean_check_f64, mse, relmse};
 use strata::study::reference::{obtain, ReferenceSource};
-use strata::study::run::{configure, render_once, run_series, slopes, summarize, time_slope_meaningful, Plan, RunResult, Summary};
+use strata::study::run::{configure, render_once, run_series, slopes, summarize, time_slope_meaningful, Plan, Summary};
 use strata::study::{Integral, IntegralSet};
 
 fn root() -> PathBuf {
@@ -98,33 +98,39 @@ fn mean_check_finds_offsets_that_noise_does_not_explain() {
     }
 }
 
-/// A row's z is the mean of its seeds' z-scores, not a sum over sqrt(k): the seeds share one reference
-/// (its noise is in every run's difference), so 400 runs each one standard error off (as a reference's
-/// own noise puts them) stay at z = 1, where Stouffer's sum would read 20 and mark them biased.
+/// A row's bias check is that of the mean of its seeds' images: the seeds share one reference, whose
+/// own noise is in every run, and the mean image counts it once. Seeded noise about a truth of 0.5 per
+/// channel (uniform +-0.2 per run, +-0.05 in the reference: a 16x reference), 3,000 pixels:
+/// - 1,000 unbiased seeds: |z| < 4, where Stouffer's `sum z / sqrt(k)` of the runs' own z-scores reads
+///   far past 5 (the reference's noise, common to all, added up k times);
+/// - 25 seeds biased by 2.5 single-run standard errors: z > 5 (about 7), where the mean of the runs'
+///   z-scores stays near 2 (a mean never grows with the seeds).
 #[test]
-fn seeds_do_not_multiply_the_bias_check() {
-    let run = |seed: u64, z: f64| RunResult {
-        strategy: Strategy::Jittered,
-        n: 4,
-        seed,
-        camera_spp: 4,
-        light_samples: 1,
-        seconds: 0.01,
-        rays: 100,
-        mse: 0.01,
-        relmse: 0.01,
-        efficiency: 1e4,
-        mean_ratio: 1.0 + 1e-3 * z,
-        mean_z: z,
+fn a_row_is_checked_on_the_mean_of_its_seeds() {
+    use rand_core::{Rng, SeedableRng};
+    let n = 3000;
+    let noise = |seed: u64, half: f64| -> Vec<DVec3> {
+        let mut r = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+        let mut u = move || ((r.next_u32() >> 8) as f64 / (1u32 << 24) as f64 * 2.0 - 1.0) * half;
+        (0..n).map(|_| DVec3::new(u(), u(), u())).collect()
     };
-    let runs: Vec<RunResult> = (1..=400).map(|s| run(s, 1.0)).collect();
-    let sum = &summarize(&runs)[0];
-    assert_eq!((sum.seeds, sum.mean_z), (400, 1.0));
-    assert!(!sum.biased() && (sum.mean_ratio - 1.001).abs() < 1e-12);
-    // A constant bias: every run's z past the threshold, and so the row's.
-    let runs: Vec<RunResult> = (1..=3).map(|s| run(s, 6.0 + s as f64)).collect();
-    let sum = &summarize(&runs)[0];
-    assert!(sum.biased() && sum.mean_z == 8.0);
+    // (A pixel's channel mean has deviation 0.2 / 3 in a run, 0.05 / 3 in the reference: the standard
+    // errors of their image means. The reference's noise is set to leave its mean one standard error
+    // high, as a reference's noise typically does.)
+    let (se1, se_ref) = (0.2 / 3.0 / (n as f64).sqrt(), 0.05 / 3.0 / (n as f64).sqrt());
+    let e_ref = noise(9999, 0.05);
+    let off = e_ref.iter().map(|e| e.element_sum() / 3.0).sum::<f64>() / n as f64;
+    let reference: Vec<DVec3> = e_ref.into_iter().map(|e| DVec3::splat(0.5 - off + se_ref) + e).collect();
+    let check = |k: u64, bias: f64| {
+        let runs: Vec<Vec<DVec3>> = (1..=k).map(|s| noise(s, 0.2).into_iter().map(|e| DVec3::splat(0.5 + bias) + e).collect()).collect();
+        let zs: Vec<f64> = runs.iter().map(|x| mean_check_f64(x, &reference).1).collect();
+        let mean: Vec<DVec3> = (0..n).map(|p| runs.iter().map(|x| x[p]).sum::<DVec3>() / k as f64).collect();
+        (mean_check_f64(&mean, &reference).1, zs.iter().sum::<f64>() / (k as f64).sqrt(), zs.iter().sum::<f64>() / k as f64)
+    };
+    let (z, stouffer, _) = check(1000, 0.0);
+    assert!(z.abs() < 4.0 && stouffer.abs() > 5.0, "unbiased: row z {z}, Stouffer {stouffer}");
+    let (z, _, mean_z) = check(25, 2.5 * se1);
+    assert!(z > 5.0 && mean_z < 3.0, "biased: row z {z}, mean of the runs' z {mean_z}");
 }
 
 #[test]
@@ -283,7 +289,7 @@ fn analytic_reference_has_no_error_floor() {
     };
     let reference = obtain(&ReferenceSource::Analytic, &scene, &base, &plan, &dir).ok().unwrap();
     let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
-    let summary = summarize(&series.runs);
+    let summary = summarize(&series.runs, &series.rows);
     for s in &summary {
         println!("{:>8} {:>5} mse {:.3e}", s.strategy.name(), s.n, s.mse);
     }
@@ -326,7 +332,7 @@ fn soft_shadow_slopes_random_and_jittered() {
     };
     let reference = obtain(&ReferenceSource::Samples(16384), &scene, &base, &plan, &dir).ok().unwrap();
     let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
-    let summary = summarize(&series.runs);
+    let summary = summarize(&series.runs, &series.rows);
     let (r, _) = slopes(&summary, Strategy::Random);
     let (j, _) = slopes(&summary, Strategy::Jittered);
     let (r, j) = (r.unwrap().slope, j.unwrap().slope);
@@ -371,7 +377,7 @@ fn study_strategy_drives_wavelength_and_diffuse_dimensions() {
         let run = series.runs.iter().find(|r| r.strategy == strategy && r.n == 4 && r.seed == 1).unwrap();
         assert_eq!(run.mse, independent, "{strategy}: the study's run is not `render --strategy {strategy}`");
     }
-    let summary = summarize(&series.runs);
+    let summary = summarize(&series.runs, &series.rows);
     let r = slopes(&summary, Strategy::Random).0.unwrap().slope;
     println!("prism, all integrals: random slope {r:.3}");
     // Independent samples: MSE = s^2 / n + the reference's s^2 / 256, a slope of -0.98 over 1..16; the
@@ -760,14 +766,14 @@ fn cli_study_warns_of_a_fixed_light_grid() {
     let (out, err) = run(&["--spp", "1,4", "--light-samples-from-spp"]);
     assert!(!err.contains("warning") && !out.contains("bias floor"), "{err}{out}");
     // `center` runs of several samples repeat one sample, as `render` warns; the study passes it on,
-    // and marks their (deterministic) rows as such.
+    // and notes that such rows are deterministic.
     let centre = ["study", "scenes/soft_shadows.toml", "--strategies", "center", "--spp", "1,4", "--seeds", "1", "--quiet", "--out", d];
     let o = strata().args(centre).output().unwrap();
     let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
     assert!(o.status.success(), "{err}");
     assert!(err.contains("warning: center n = 4: spp 4: every integral this scene uses is sampled at `center`"), "{err}");
     assert!(!err.contains("center n = 1:"), "{err}");
-    assert!(out.contains("mean/ref: the image's mean over the reference's"), "{out}");
+    assert!(out.contains("`grid` and `center` are deterministic"), "{out}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

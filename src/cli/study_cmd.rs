@@ -47,9 +47,9 @@ over seeds, fitted slopes in the legend; the slope against seconds only for 3+ c
 4x and grow at least as n^0.5, else n/a), sheet.png with --sheet. relMSE = mean (x - ref)^2 / (ref^2 +
 0.01) per channel; efficiency = 1 / (MSE x seconds), seconds being the render's own wall time and its
 light selection's build. mean/ref = the image's mean over the reference's; z = their difference over
-its standard error (from the pixels' spread; the mean over seeds): rows past |z| > 5 are marked ! as
-biased (the render's or the reference's), which the MSE alone does not show; a bias that changes sign
-across the image and averages out shows in the MSE's slope instead.";
+its standard error (from the pixels' spread), both of the mean of the seeds' images: rows past |z| > 5
+are marked ! as biased (the render's or the reference's), which the MSE alone does not show; a bias that
+changes sign across the image and averages out shows in the MSE's slope instead.";
 
 #[derive(Args, Debug, Clone)]
 #[command(after_long_help = MAPPING_HELP)]
@@ -358,7 +358,7 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
         }
     };
     let series = run_series(&scene, &profile, &plan, &reference.image, a.sheet, &mut report).map_err(Failure::input)?;
-    let summary = summarize(&series.runs);
+    let summary = summarize(&series.runs, &series.rows);
     print_table(&summary, &plan, fixed_light_grid(&scene, &profile, &plan).is_some());
 
     let unit = if light_only(&plan.integrals) { "light samples" } else { "spp" };
@@ -417,19 +417,20 @@ fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool) {
         );
     }
     outln!(
-        "  mean/ref: the image's mean over the reference's; z: their difference over its standard error (from the pixels' \
-         spread), the mean over the seeds"
+        "  mean/ref, z: the mean of the seeds' images over the reference's mean, and their difference over its standard \
+         error (from the pixels' spread)"
     );
     if summary.iter().any(|s| !s.mean_ratio.is_finite()) {
         outln!("  (mean/ref NaN: the reference is black)");
     }
     if summary.iter().any(Summary::biased) {
-        let deterministic = plan.strategies.iter().any(|s| matches!(s, Strategy::Grid | Strategy::Center));
         outln!(
             "  ! |z| > {BIAS_Z}: the image mean differs from the reference's by more than noise explains: a bias in these \
-             renders or in the reference; their MSE understates how far they are (a biased image can have the lower MSE){}",
-            if deterministic { ". `grid` and `center` are deterministic: their error at a given count is a bias by nature" } else { "" }
+             renders or in the reference; their MSE understates how far they are (a biased image can have the lower MSE)"
         );
+    }
+    if plan.strategies.iter().any(|s| matches!(s, Strategy::Grid | Strategy::Center)) {
+        outln!("  `grid` and `center` are deterministic: their error at a given count is a bias by nature, which z measures");
     }
     outln!("\nfitted slope of log MSE against log samples / log seconds (wall time: noisy):");
     let mut omitted = false;

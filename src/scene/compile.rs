@@ -470,34 +470,41 @@ impl Compiler<'_> {
         if self.prim_at.len() != self.prims.len() {
             return;
         }
-        let mut first: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
+        let mut first: std::collections::HashMap<[u64; 14], usize> = std::collections::HashMap::new();
         let mut pairs: Vec<(usize, usize)> = Vec::new();
+        // (The bits of f32 numbers, -0.0 as 0.0, into `key` from `at`.)
+        let put = |key: &mut [u64; 14], at: usize, xs: &[f32]| {
+            for (k, x) in xs.iter().enumerate() {
+                key[at + k] = (x + 0.0).to_bits() as u64;
+            }
+        };
         for (i, p) in self.prims.iter().enumerate().filter(|(_, p)| p.is_light) {
-            // (Each shape by the bits of what it is made of, -0.0 as 0.0; a quad by its corners, in f64
-            // where their sums are exact, and its emitting side, so that one given from another corner is
-            // the same.)
-            let key = match p.shape {
+            // (Each shape by the bits of what it is made of, its kind in the last word; a quad by its
+            // corners, in f64 where their sums are exact, and its emitting side, so that one given from
+            // another corner with the same numbers is the same.)
+            let mut key = [0u64; 14];
+            match p.shape {
                 Shape::Quad(q) => {
                     let (o, u, v) = (q.origin.as_dvec3(), q.u.as_dvec3(), q.v.as_dvec3());
                     // (`+ 0.0`: -0.0 and 0.0 alike.)
                     let mut c = [o, o + u, o + v, o + u + v].map(|c| (c + 0.0).to_array().map(f64::to_bits));
                     c.sort_unstable();
                     let [a, b, d, _] = c.map(|c| glam::DVec3::from_array(c.map(f64::from_bits)));
-                    let side = u.cross(v).dot((b - a).cross(d - a)) > 0.0;
-                    format!("quad {c:?} {side}")
+                    key[..12].copy_from_slice(c.as_flattened());
+                    key[12] = (u.cross(v).dot((b - a).cross(d - a)) > 0.0) as u64;
+                    key[13] = 1;
                 }
-                // (Exact bits, -0.0 as 0.0.)
-                Shape::Disk(d) => format!(
-                    "disk {:?} {:?} {}",
-                    (d.center + 0.0).to_array().map(f32::to_bits),
-                    (d.normal + 0.0).to_array().map(f32::to_bits),
-                    d.radius.to_bits()
-                ),
+                Shape::Disk(d) => {
+                    put(&mut key, 0, &[d.center.x, d.center.y, d.center.z, d.normal.x, d.normal.y, d.normal.z, d.radius]);
+                    key[13] = 2;
+                }
                 Shape::Sphere { center, radius } => {
-                    format!("sphere {:?} {}", (center + 0.0).to_array().map(f32::to_bits), radius.to_bits())
+                    put(&mut key, 0, &[center.x, center.y, center.z, radius]);
+                    key[13] = 3;
                 }
-                ref shape => format!("{shape:?}"),
-            };
+                // (Area lights are the three above.)
+                _ => continue,
+            }
             match first.entry(key) {
                 std::collections::hash_map::Entry::Occupied(e) => pairs.push((i, *e.get())),
                 std::collections::hash_map::Entry::Vacant(e) => {

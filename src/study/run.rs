@@ -1,7 +1,7 @@
 //! The series of renders: for every strategy, sample count and seed, one render compared with the
 //! reference; and how a sample count maps onto the profile ([`configure`]).
 
-use super::metrics::{efficiency, fit_loglog, mean_check, mse, relmse, LogLogFit};
+use super::metrics::{efficiency, fit_loglog, mean_check, mean_check_f64, mse, relmse, LogLogFit};
 use super::{Integral, IntegralSet};
 use crate::film::Film;
 use crate::render::{render_into, RenderJob};
@@ -146,6 +146,29 @@ pub struct Series {
     /// The series was cancelled: `runs` holds only the runs that finished (an unfinished render is
     /// dropped, never measured).
     pub interrupted: bool,
+    /// Per (strategy, count): the bias check of the mean of its seeds' images.
+    pub rows: Vec<RowCheck>,
+}
+
+/// The bias check of one (strategy, count): [`mean_check_f64`] of the mean of its seeds' images. (Not
+/// a combination of the runs' own z-scores: the seeds share one reference, whose noise is in every
+/// run's difference, so Stouffer's `sum z / sqrt(k)` grew with the seeds (a user trial's 1,000 unbiased
+/// seeds read -6.1, caustics' skewed errors -6.4), and their mean would not grow with a real bias.)
+#[derive(Clone, Debug, PartialEq)]
+pub struct RowCheck {
+    pub strategy: Strategy,
+    pub n: u32,
+    pub mean_ratio: f64,
+    pub mean_z: f64,
+}
+
+impl RowCheck {
+    /// The check of the mean of `count` images summed in `sum`.
+    fn of(strategy: Strategy, n: u32, sum: &[DVec3], count: usize, reference: &[DVec3]) -> RowCheck {
+        let mean: Vec<DVec3> = sum.iter().map(|s| *s / count as f64).collect();
+        let (mean_ratio, mean_z) = mean_check_f64(&mean, reference);
+        RowCheck { strategy, n, mean_ratio, mean_z }
+    }
 }
 
 /// Render one image with `profile` and `seed`; returns the linear image, seconds and rays.
@@ -195,6 +218,7 @@ pub fn run_series(
 ) -> Result<Series, String> {
     let mut runs = Vec::new();
     let mut images = Vec::new();
+    let mut rows = Vec::new();
     // One unmeasured render first: the first render of a process pays for page faults and cold caches,
     // which would otherwise be charged to the first run's seconds.
     let cancel = plan.cancel.as_deref();
@@ -204,12 +228,19 @@ pub fn run_series(
     for &strategy in &plan.strategies {
         for &n in &plan.counts {
             let profile = configure(base, &plan.integrals, strategy, n, plan.light_from_spp)?;
+            let mut sum = vec![DVec3::ZERO; reference.len()];
             for seed in 1..=plan.seeds as u64 {
                 let done = if plan.cancelled() { None } else { render_cancellable(scene, profile.clone(), seed, plan.threads, cancel) };
                 let Some((film, seconds, rays)) = done else {
-                    return Ok(Series { runs, images, interrupted: true });
+                    if seed > 1 {
+                        rows.push(RowCheck::of(strategy, n, &sum, seed as usize - 1, reference));
+                    }
+                    return Ok(Series { runs, images, interrupted: true, rows });
                 };
                 let img = film.to_rgb();
+                for (s, x) in sum.iter_mut().zip(&img) {
+                    *s += x.as_dvec3();
+                }
                 let e = mse(&img, reference);
                 let (mean_ratio, mean_z) = mean_check(&img, reference);
                 let r = RunResult {
@@ -232,9 +263,10 @@ pub fn run_series(
                     images.push((strategy, n, img));
                 }
             }
+            rows.push(RowCheck::of(strategy, n, &sum, plan.seeds as usize, reference));
         }
     }
-    Ok(Series { runs, images, interrupted: false })
+    Ok(Series { runs, images, interrupted: false, rows })
 }
 
 /// The runs of one (strategy, count) averaged over seeds.
@@ -249,17 +281,13 @@ pub struct Summary {
     pub relmse: f64,
     /// `1 / (mean MSE x mean seconds)`.
     pub efficiency: f64,
-    /// The means of the runs' image-mean ratios and of their z-scores. (The mean of the z's, not
-    /// Stouffer's `sum z / sqrt(k)`, which assumes independent runs: the seeds share one reference, whose
-    /// own noise is in every run's difference, and skewed errors (caustics) or deterministic runs would
-    /// grow it with the seed count; a user trial's 1,000 unbiased seeds reached -6.1. A constant bias
-    /// gives each run about the same z, so the mean keeps it.)
+    /// The bias check of the mean of the seeds' images ([`RowCheck`]; NaN where no check was given).
     pub mean_ratio: f64,
     pub mean_z: f64,
 }
 
-/// Where `|z|` of the image mean against the reference's passes this, the table marks the row: a bias
-/// in the renders or in the reference rather than noise (about 6e-7 of unbiased rows).
+/// Where `|z|` of a row's image mean against the reference's passes this, the table marks the row: a
+/// bias in the renders or in the reference rather than noise (about 6e-7 of unbiased rows).
 pub const BIAS_Z: f64 = 5.0;
 
 impl Summary {
@@ -269,8 +297,9 @@ impl Summary {
     }
 }
 
-/// Average the runs over seeds, in the order the (strategy, count) pairs first appear.
-pub fn summarize(runs: &[RunResult]) -> Vec<Summary> {
+/// Average the runs over seeds, in the order the (strategy, count) pairs first appear, with each pair's
+/// bias check from `rows`.
+pub fn summarize(runs: &[RunResult], rows: &[RowCheck]) -> Vec<Summary> {
     let mut keys: Vec<(Strategy, u32)> = Vec::new();
     for r in runs {
         if !keys.contains(&(r.strategy, r.n)) {
@@ -283,6 +312,7 @@ pub fn summarize(runs: &[RunResult]) -> Vec<Summary> {
             let k = g.len() as f64;
             let mean = |f: &dyn Fn(&RunResult) -> f64| g.iter().map(|r| f(r)).sum::<f64>() / k;
             let (seconds, e) = (mean(&|r| r.seconds), mean(&|r| r.mse));
+            let check = rows.iter().find(|c| c.strategy == strategy && c.n == n);
             Summary {
                 strategy,
                 n,
@@ -292,8 +322,8 @@ pub fn summarize(runs: &[RunResult]) -> Vec<Summary> {
                 mse: e,
                 relmse: mean(&|r| r.relmse),
                 efficiency: efficiency(e, seconds),
-                mean_ratio: mean(&|r| r.mean_ratio),
-                mean_z: mean(&|r| r.mean_z),
+                mean_ratio: check.map_or(f64::NAN, |c| c.mean_ratio),
+                mean_z: check.map_or(f64::NAN, |c| c.mean_z),
             }
         })
         .collect()

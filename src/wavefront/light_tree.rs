@@ -514,14 +514,13 @@ impl LightTree {
 }
 
 /// A group of lights while building: its lights in order of centre along each axis (ties by index),
-/// so that a split sweeps them without sorting, and the axis of the split that made it (`None`: as
-/// given), whose order its bounds are gathered in.
+/// so that a split sweeps them without sorting, and the axis of the split that made it, whose order
+/// its bounds are gathered in (the root's group, which no split made, is always split unless it holds
+/// one light or none).
 #[derive(Default)]
 struct Group {
     by: [Vec<u32>; 3],
-    last: Option<usize>,
-    /// The lights as given (the root's group, which no split made).
-    given: Vec<u32>,
+    last: usize,
 }
 
 impl Group {
@@ -531,8 +530,7 @@ impl Group {
             v.sort_by(|&x, &y| centre(lights, x, a).total_cmp(&centre(lights, y, a)).then(x.cmp(&y)));
             v
         };
-        let by = [order(0), order(1), order(2)];
-        Group { by, last: None, given: items }
+        Group { by: [order(0), order(1), order(2)], last: 0 }
     }
 
     fn len(&self) -> usize {
@@ -541,10 +539,7 @@ impl Group {
 
     /// The lights in the order of the split that made the group.
     fn items(&self) -> &[u32] {
-        match self.last {
-            Some(a) => &self.by[a],
-            None => &self.given,
-        }
+        &self.by[self.last]
     }
 }
 
@@ -589,7 +584,7 @@ fn split_group(lights: &[LightBounds], group: Group, median: bool, left: &mut [b
     for &i in &group.by[axis][..at] {
         left[i as usize] = true;
     }
-    let (mut a, mut b) = (Group { last: Some(axis), ..Group::default() }, Group { last: Some(axis), ..Group::default() });
+    let (mut a, mut b) = (Group { last: axis, ..Group::default() }, Group { last: axis, ..Group::default() });
     for k in 0..3 {
         (a.by[k], b.by[k]) = group.by[k].iter().partition(|&&i| left[i as usize]);
     }
