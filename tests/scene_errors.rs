@@ -537,18 +537,7 @@ fn coincident_glass_sphere_surfaces_are_warned_of() {
         (format!("{}{}", sphere("3, 0, 0", "0.5", "glass"), sphere("3, 0, 0", "0.5", "m")), None),
     ];
     for (shapes, want) in cases {
-        let text = format!("{BASE}{mats}{shapes}");
-        let s = parse_scene(Path::new("g.toml"), &text).unwrap();
-        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("coincides with one of")).collect();
-        match want {
-            None => assert!(w.is_empty(), "{shapes}: {w:?}"),
-            Some((at, other)) => {
-                assert_eq!(w.len(), 1, "{shapes}: {:?}", s.warnings);
-                let line = text.lines().enumerate().filter(|(_, l)| *l == "[[shapes]]").nth(1).unwrap().0 + 1;
-                assert!(w[0].starts_with(&format!("g.toml:{line}:")), "{}", w[0]);
-                assert!(w[0].contains(&format!("`{at}`")) && w[0].contains(&format!("`{other}`")), "{}", w[0]);
-            }
-        }
+        check_pair_warning(&format!("{BASE}{mats}{shapes}"), "coincides with one of", "[[shapes]]", want);
     }
     // Twenty equal glass spheres: 19 shapes coincide with an earlier one; 8 are named, then a count.
     let text = format!("{BASE}{mats}{}", sphere("3, 0, 0", "0.5", "glass").repeat(20));
@@ -594,18 +583,24 @@ fn coincident_emitters_are_warned_of() {
         (format!("{quad}{}", quad_as("[-1, 3, -1]", "[0, 0, 2]", "[2, 0, 0]")), None),
     ];
     for (lights, want) in cases {
-        let text = format!("{BASE}{sphere}{lights}");
-        let s = parse_scene(Path::new("e.toml"), &text).unwrap();
-        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("surface coincides with")).collect();
-        match want {
-            None => assert!(w.is_empty(), "{lights}: {w:?}"),
-            Some((at, other)) => {
-                assert_eq!(w.len(), 1, "{lights}: {:?}", s.warnings);
-                let n: usize = at[7..at.len() - 1].parse().unwrap();
-                let line = text.lines().enumerate().filter(|(_, l)| *l == "[[lights]]").nth(n).unwrap().0 + 1;
-                assert!(w[0].starts_with(&format!("e.toml:{line}:")), "{}", w[0]);
-                assert!(w[0].contains(&format!("`{at}`")) && w[0].contains(&format!("`{other}`")), "{}", w[0]);
-            }
+        check_pair_warning(&format!("{BASE}{sphere}{lights}"), "surface coincides with", "[[lights]]", want);
+    }
+}
+
+/// The scene `text` warns (`needle`) of one coinciding pair `want` = (later, earlier entry), at the later
+/// entry's `header` line and naming both, or of none.
+fn check_pair_warning(text: &str, needle: &str, header: &str, want: Option<(&str, &str)>) {
+    let s = parse_scene(Path::new("c.toml"), text).unwrap();
+    let w: Vec<_> = s.warnings.iter().filter(|w| w.contains(needle)).collect();
+    match want {
+        None => assert!(w.is_empty(), "{text}: {w:?}"),
+        Some((at, other)) => {
+            assert_eq!(w.len(), 1, "{text}: {:?}", s.warnings);
+            // (`shapes[1]`: the second `[[shapes]]` header.)
+            let n: usize = at[at.find('[').unwrap() + 1..at.len() - 1].parse().unwrap();
+            let line = text.lines().enumerate().filter(|(_, l)| *l == header).nth(n).unwrap().0 + 1;
+            assert!(w[0].starts_with(&format!("c.toml:{line}:")), "{}", w[0]);
+            assert!(w[0].contains(&format!("`{at}`")) && w[0].contains(&format!("`{other}`")), "{}", w[0]);
         }
     }
 }
