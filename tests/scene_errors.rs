@@ -604,3 +604,41 @@ fn check_pair_warning(text: &str, needle: &str, header: &str, want: Option<(&str
         }
     }
 }
+
+/// A glass CSG solid is one medium: two glasses among its leaves (a hole of another glass, a union of
+/// two, a thin glass beside a solid one, through a named solid) are an error at the second glass's leaf,
+/// naming both. One glass with opaque leaves (a painted hole), two thin glasses, and a material on the
+/// solid that overrides its children's are valid.
+#[test]
+fn a_glass_csg_solid_of_two_glasses_is_an_error() {
+    let glasses = "[materials.g]\ntype = \"dielectric\"\nior = 1.5\n[materials.h]\ntype = \"dielectric\"\nior = 1.5\n\
+                   [materials.t]\ntype = \"dielectric\"\nior = 1.5\nthin = true\n[materials.u]\ntype = \"dielectric\"\nior = 1.3\nthin = true\n";
+    let solid = |op: &str, a: &str, b: &str, node: &str| {
+        format!(
+            "{glasses}[[shapes]]\ntype = \"csg\"\nop = \"{op}\"\n{node}children = [\n  \
+             {{ type = \"box\", min = [-1, -1, -1], max = [1, 1, 1], material = \"{a}\" }},\n  \
+             {{ type = \"sphere\", center = [0, 0, 0], radius = 0.5, material = \"{b}\" }},\n]\n"
+        )
+    };
+    let named = format!(
+        "{glasses}[solids.bead]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.5\nmaterial = \"h\"\n\
+         [[shapes]]\ntype = \"group\"\nchildren = [\n  {{ type = \"box\", min = [-1, -1, -1], max = [1, 1, 1], material = \"g\" }},\n  \
+         {{ use = \"bead\", hole = true }},\n]\n"
+    );
+    let cases = [
+        (solid("difference", "g", "h", ""), "shapes[0].children[1].material", "type = \"sphere\""),
+        (solid("union", "g", "h", ""), "shapes[0].children[1].material", "type = \"sphere\""),
+        (solid("intersection", "t", "g", ""), "shapes[0].children[0].material", "type = \"box\""),
+        (named.clone(), "solids.bead.material", "[solids.bead]"),
+    ];
+    for (text, field, needle) in &cases {
+        let (line, f, msg) = fail(text);
+        assert_eq!((f.as_str(), line), (*field, line_of(text, needle)), "{msg}");
+        assert!(msg.contains("mixes the glasses") && msg.contains("one medium") && msg.contains("priority"), "{msg}");
+    }
+    let (_, _, msg) = fail(&cases[0].0);
+    assert!(msg.contains("`g` (shapes[0].children[0])") && msg.contains("`h` (here)"), "{msg}");
+    for ok in [solid("difference", "g", "m", ""), solid("union", "t", "u", ""), solid("difference", "g", "h", "material = \"g\"\n")] {
+        parse_scene(Path::new("ok.toml"), &format!("{BASE}{ok}")).unwrap_or_else(|e| panic!("{e}\n{ok}"));
+    }
+}

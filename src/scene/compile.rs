@@ -74,6 +74,7 @@ pub fn parse_scene_sized(path: &Path, text: &str, size: Option<(u32, u32)>) -> R
         warnings: Vec::new(),
         checkers: Default::default(),
         prim_at: Vec::new(),
+        leaf_sites: Vec::new(),
     };
     c.compile(hash_text(text))
 }
@@ -106,6 +107,9 @@ struct Compiler<'a> {
     checkers: std::cell::RefCell<Vec<(Range<usize>, String, f32)>>,
     /// Where each prim was given (its definition's span and field), by prim id: for warnings that name a prim.
     prim_at: Vec<(Range<usize>, String)>,
+    /// The leaves `csg_tree` made since the last top-level solid began: each one's material, span and
+    /// field (to name the leaves of a glass solid of several glasses).
+    leaf_sites: Vec<(u32, Range<usize>, String)>,
 }
 
 impl Compiler<'_> {
@@ -526,10 +530,10 @@ impl Compiler<'_> {
     }
 
     /// The media the camera starts in ([`Scene::camera_media`]): every solid prim (sphere, ellipsoid, box,
-    /// CSG solid of one material) of a non-thin dielectric that contains the camera's position at shutter
-    /// open, outermost (largest bounds) first. Warns where that cannot hold for every camera ray: a
-    /// medium the camera leaves or enters during the shutter, or whose surface the lens aperture
-    /// crosses, a CSG solid of several materials around the camera, more media than a ray's stack keeps.
+    /// CSG solid with a glass: its one medium) of a non-thin dielectric that contains the camera's position
+    /// at shutter open, outermost (largest bounds) first. Warns where that cannot hold for every camera
+    /// ray: a medium the camera leaves or enters during the shutter, or whose surface the lens aperture
+    /// crosses, more media than a ray's stack keeps.
     fn camera_media(&mut self, camera: &Camera, def: &S<CameraDef>) -> Vec<u32> {
         let pos = camera.position;
         // The aperture's rim, where it crosses the surface the lens centre is inside of.
@@ -543,18 +547,13 @@ impl Compiler<'_> {
         let name = |c: &Self, m: u32| c.material_ids.iter().find(|(_, &id)| id == m).map_or_else(|| format!("#{m}"), |(n, _)| n.clone());
         for p in &self.prims {
             let material = match p.shape {
+                // A solid's medium is its one glass (`one_medium`); opaque leaves are surfaces in or on it.
                 Shape::Csg { solid } => {
-                    let mut ms = self.csg.solid_leaves(solid).map(|k| self.csg.leaf(k).material);
-                    let first = ms.next().unwrap_or(p.material);
-                    if ms.any(|m| m != first) {
-                        let medium = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
-                        if self.csg.inside(solid, pos) && self.csg.solid_leaves(solid).any(|k| medium(self.csg.leaf(k).material)) {
-                            notes
-                                .push("a CSG solid of several materials contains it: camera rays take none of them as their medium".into());
-                        }
-                        continue;
+                    let medium = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
+                    match self.csg.solid_leaves(solid).map(|k| self.csg.leaf(k).material).find(|&m| medium(m)) {
+                        Some(m) => m,
+                        None => continue,
                     }
-                    first
                 }
                 Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_) => p.material,
                 _ => continue,
@@ -987,7 +986,9 @@ impl Compiler<'_> {
         };
         // Everything else is a CSG solid (a single cylinder, cone or torus is a one-leaf solid).
         let mut stack = Vec::new();
+        self.leaf_sites.clear();
         let tree = self.csg_tree(def, field, Affine3A::IDENTITY, material, 0, &mut stack)?;
+        self.one_medium(field)?;
         let _ = t; // the transform was applied inside csg_tree (it reads the def's own transform)
         let solid = self.csg.add_solid(&tree).map_err(|e| match (e, self.unbounded_by.take()) {
             (csg::program::CsgError::Unbounded, Some((span, at, what))) => self.err(
@@ -1045,6 +1046,36 @@ impl Compiler<'_> {
         self.prims.push(Prim { shape, material: material.unwrap_or(0), motion, is_light: false });
         self.prim_at.push((def.span(), field.to_string()));
         Ok(())
+    }
+
+    /// A CSG solid is one medium: a ray that enters it through the surface of one glass and leaves
+    /// through that of another would keep the first as its medium (and leave a medium it never
+    /// entered), so its image would be wrong with no sign of it. Where any leaf of the solid just made
+    /// (`leaf_sites`) is a non-thin dielectric, every dielectric leaf must be of that one material
+    /// (opaque leaves, such as a painted hole, are surfaces inside or on it and may differ).
+    fn one_medium(&self, field: &str) -> R<()> {
+        let dielectric = |m: u32| match &self.materials[m as usize] {
+            Material::Dielectric(d) => Some(!d.thin),
+            _ => None,
+        };
+        let Some(first) = self.leaf_sites.iter().find(|s| dielectric(s.0) == Some(true)) else {
+            return Ok(());
+        };
+        let Some(other) = self.leaf_sites.iter().find(|s| s.0 != first.0 && dielectric(s.0).is_some()) else {
+            return Ok(());
+        };
+        let name = |m: u32| self.material_ids.iter().find(|(_, &id)| id == m).map_or_else(|| format!("#{m}"), |(n, _)| n.clone());
+        let (a, b) = (name(first.0), name(other.0));
+        Err(self.err(
+            other.1.clone(),
+            format!("{}.material", other.2),
+            format!(
+                "the CSG solid `{field}` mixes the glasses `{a}` ({}) and `{b}` (here), but a solid is one medium: a ray \
+                 entering through one and leaving through the other would stay inside the first. Give the solid one \
+                 material (a `material` on the solid overrides its children's), or make separate solids ranked by `priority`",
+                first.2
+            ),
+        ))
     }
 
     fn simple_shape(&self, def: &S<ShapeDef>, field: &str, kind: &str, t: Affine3A) -> R<Shape> {
@@ -1222,7 +1253,7 @@ impl Compiler<'_> {
         };
         let sp = def.span();
         let leaf = |shape: csg::Shape, place: Affine3A, m: u32| CsgTree::Leaf(csg::Leaf::new(shape, t * place, m));
-        Ok(match kind {
+        let tree = match kind {
             "sphere" => {
                 self.check_fields(def, field, kind, &["center", "radius", "motion", "hole"])?;
                 let c = self.vec3(self.req(&s.center, sp.clone(), &f("center"))?, &f("center"))?;
@@ -1338,7 +1369,11 @@ impl Compiler<'_> {
                     format!("unknown shape type `{other}` (sphere, plane, box, quad, disk, cylinder, cone, torus, csg, group; halfspace inside CSG)"),
                 ))
             }
-        })
+        };
+        if let CsgTree::Leaf(l) = &tree {
+            self.leaf_sites.push((l.material, sp, field.to_string()));
+        }
+        Ok(tree)
     }
 
     fn light(&mut self, def: &S<LightDef>, field: &str) -> R<()> {

@@ -18,7 +18,7 @@
 //! A fifth nested medium does not fit the stack: its entry is lost (counted as [`Crossing::lost`]) and
 //! both its surfaces are null crossings for that ray, which stays in the medium it was in. A ray that
 //! leaves a medium it never entered on a stack with room (the camera inside a medium it does not start
-//! in: a CSG solid of several materials, an aperture or shutter across a surface) is taken to have been
+//! in: an aperture or shutter across a surface) is taken to have been
 //! inside it. Camera rays start with the media around the camera (`Scene::camera_media`).
 
 use super::queues::MediumStack;
