@@ -686,7 +686,7 @@ fn identical_samples_are_warned_about() {
         assert_eq!(w.contains(&format!("pixel grid of {n} samples is")), strips, "spp {n}: {w}");
         let (w, _) = render("gl.exr", &["--spp", "1", "--strategy", "grid", "--light-samples", n]);
         assert_eq!(w.contains(&format!("light grid of {n} samples is")), strips, "light samples {n}: {w}");
-        // Jittered sets of such counts take n strata of a covering grid (`jitter_shape`): no strips.
+        // Jittered sets of such counts take n equal-area strata in rows (`jitter_rows`): no strips.
         let (w, _) = render("js.exr", &["--spp", n, "--strategy", "jittered", "--light-samples", n]);
         assert!(!w.contains("strips"), "jittered {n}: {w}");
     }

@@ -432,8 +432,8 @@ pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
 /// Samples that do not sample what their integral asks: one light sample on a `grid` (the light's centre
 /// for every camera sample: a hard shadow at any spp), 2D grids whose count has no near-square
 /// factorisation (`grid_shape` gives strips more than 4 times longer than wide, e.g. 1 x 7 for a prime:
-/// the integral is sampled along one axis; jittered sets of such counts take strata of a covering grid,
-/// `jitter_shape`), and a shutter of zero length in a scene with motion.
+/// the integral is sampled along one axis; jittered sets of such counts take equal-area strata in rows,
+/// `jitter_rows`), and a shutter of zero length in a scene with motion.
 pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     let mut out = Vec::new();
     let [t0, t1] = scene.camera.shutter;

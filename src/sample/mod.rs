@@ -18,8 +18,8 @@
 //! - `grid`: the centres of an `nx x ny` grid of sub-squares (1D: `(k + 0.5) / n`); no randomness in the
 //!   *set* of points, identical for every stream: a midpoint quadrature rule.
 //! - `random`: independent uniform points (the hash of the inputs).
-//! - `jittered`: one uniform point in each of the `nx x ny` strata (in `n` distinct strata of a covering
-//!   grid for counts without near-square factors, below; 1D: `(k + u) / n`).
+//! - `jittered`: one uniform point in each of the `nx x ny` strata (in each of `n` equal-area strata in
+//!   rows for counts without near-square factors, below; 1D: `(k + u) / n`).
 //! - `sobol`: Owen-scrambled Sobol (0,2)-sequence by hash-based nested uniform scrambling (Burley 2020),
 //!   scrambled per `(seed, stream, dim)`, with the index also shuffled per `(seed, stream, dim)`. The
 //!   first `2^m` points of any sequence are a (0,m,2)-net; best with `n` a power of two, but any `n`
@@ -28,13 +28,12 @@
 //! Non-square `n` (grid, jittered): `nx` is the largest divisor of `n` that is `<= sqrt(n)` and
 //! `ny = n / nx` ([`grid_shape`]), so there are always exactly `n` strata (a prime `n` gives `1 x n`
 //! strips, `n = 8` gives `2 x 4`). Jittered sets whose factorisation is such strips (more than 4 times
-//! longer than wide) use the smallest near-square grid of `m >= n` strata instead ([`jitter_shape`]:
-//! 7 -> 2 x 4, 17 -> 4 x 5) and take `n` distinct strata of it, always through the permutation and
-//! an independent rotation (unbiased: each stratum's chance is exactly `n / m`). The stratum of sample
-//! `index` is `permute(index, m, key)` (`m = n` but for those jittered sets)
+//! longer than wide) take `n` equal-area strata in `r = floor(sqrt(n))` rows instead ([`jitter_rows`]:
+//! a row of `k` cells is `k / n` high, each cell `1 / k` wide; 7 -> rows of 4 and 3, 17 -> 5, 4, 4, 4),
+//! each once. The stratum of sample `index` is `permute(index, n, key)`
 //! ([`permute`], after Kensler 2013), with `key` from `(seed, stream, dim)`: the pixel-area, lens and
 //! time samples of one pixel sample land in unrelated strata. Stratum `s` is column `s % nx`, row
-//! `s / nx`.
+//! `s / nx` (in rows, the `s`-th cell counted row by row).
 //!
 //! # Conventions
 //! - Every sample is in `[0, 1)`, never NaN, never 1.0. Random, jittered and sobol coordinates are
@@ -62,5 +61,5 @@ pub mod warp;
 pub use filter::{sample_filter, sample_filter_pdf, sample_filter_x8, Filter};
 pub use hash::{hash_combine, hash_u32, mix64, permute, random_2d_keyed, random_f32, random_f32_keyed, stream_key, ONE_MINUS_EPSILON};
 pub use sobol::{sobol_owen_1d, sobol_owen_2d};
-pub use strategy::{grid_shape, jitter_shape, sample_1d, sample_1d_keyed, sample_2d, sample_2d_keyed, Sampler2d, Strategy};
+pub use strategy::{grid_shape, jitter_rows, sample_1d, sample_1d_keyed, sample_2d, sample_2d_keyed, JitterRows, Sampler2d, Strategy};
 pub use warp::{sample_disk_concentric, sample_disk_concentric_pdf, sample_disk_concentric_x8};
