@@ -219,7 +219,8 @@ fn outputs_never_replace_each_other_or_an_input() {
     let twice = format!("{}/./clash.exr", dir.display());
     let refused: [(Vec<String>, &str); 4] = [
         (vec!["-o".into(), s(&tmp("clash.png")), "--stats-json".into(), s(&scene)], "the scene file"),
-        (vec!["-o".into(), s(&tmp("clash.exr")), "--film".into(), twice.clone()], "both name"),
+        // (A film named as an image is refused as such, before the clash.)
+        (vec!["-o".into(), s(&tmp("clash.exr")), "--film".into(), twice.clone()], "a film is not an image"),
         (vec!["-o".into(), s(&tmp("clash.png")), "--profile".into(), s(&profile), "--stats-json".into(), s(&profile)], "the profile file"),
         (vec!["-o".into(), s(&tmp("clash.exr")), "--stats-json".into(), twice], "both name"),
     ];
@@ -603,6 +604,85 @@ fn interrupt_writes_what_was_done_and_says_so() {
     assert!((1..10).contains(&done), "{done}");
     assert!(stdout.contains(&format!("  interrupted: {done} of 10 work units of samples 0..10 of 10")), "{stdout}");
     assert!(!stdout.contains("  samples 0..10 of 10"), "{stdout}");
+}
+
+/// An image that cannot be written after the render (its directory removed meanwhile) still leaves the
+/// render in the film and the statistics asked for, says how to make the image from the film, and
+/// exits 1. (Interrupted, so that the test is quick: the film is then incomplete, `--allow-gaps`.)
+#[cfg(unix)]
+#[test]
+fn an_image_that_cannot_be_written_leaves_the_film_and_stats() {
+    let gone = tmp("gone");
+    std::fs::create_dir_all(&gone).unwrap();
+    let (film, json) = (tmp("kept.film"), tmp("kept.json"));
+    let png = gone.join("x.png");
+    let args = ["-o", png.to_str().unwrap(), "--film", film.to_str().unwrap(), "--stats-json", json.to_str().unwrap()];
+    let (mut child, mut lines) = slow_render("gone", &args);
+    read_until(&mut lines, "work units");
+    std::fs::remove_dir_all(&gone).unwrap();
+    sigint(&child);
+    let rest: String = lines.map(|l| l.unwrap() + "\n").collect();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(1), "{rest}");
+    assert!(
+        rest.contains(&format!("the render is kept in the film {}", film.display())) && rest.contains("--allow-gaps -o IMAGE"),
+        "{rest}"
+    );
+    assert!(film.exists() && json.exists() && !png.exists(), "{rest}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(v["work_units"]["done"].as_u64().unwrap() >= 1, "{v}");
+    // The film gives the image.
+    let out = tmp("from_kept.png");
+    let m = strata().args(["merge", film.to_str().unwrap(), "--allow-gaps", "-o", out.to_str().unwrap()]).output().unwrap();
+    assert!(m.status.success() && out.exists(), "{}", String::from_utf8_lossy(&m.stderr));
+    // A film is not named as an image.
+    for cmd in
+        [&["render", "scenes/showcase.toml", "--film", "f.png"][..], &["merge", film.to_str().unwrap(), "-o", "x.png", "--film", "f.EXR"]]
+    {
+        let o = strata().args(cmd).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.code() == Some(2) && err.contains("a film is not an image"), "{cmd:?}: {err}");
+    }
+}
+
+/// Ctrl-C while the scene is being read (200,000 spheres: ~1 s of parsing and BVH here) quits at once
+/// with a message, exit 130, writing nothing. (A signal that lands before the process has installed its
+/// handler, or after setup on a very fast machine, is retried with another delay.)
+#[cfg(unix)]
+#[test]
+fn interrupt_during_setup_says_nothing_was_written() {
+    use std::fmt::Write as _;
+    let scene = tmp("setup_int.toml");
+    let mut text = String::from(
+        "[image]\nwidth = 16\nheight = 16\n[camera]\nposition = [0, 0, 50]\nlook_at = [0, 0, 0]\nfov = 40\n\
+         [materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n",
+    );
+    // (Compact lines: a scene file may hold 16 MiB.)
+    for i in 0..200_000i32 {
+        let (x, y, z) = (i % 100 - 50, (i / 100) % 100 - 50, i / 10_000 - 10);
+        write!(text, "[[shapes]]\ntype=\"sphere\"\ncenter=[{x},{y},{z}]\nradius=0.1\nmaterial=\"m\"\n").unwrap();
+    }
+    std::fs::write(&scene, text).unwrap();
+    let png = tmp("setup_int.png");
+    for delay_ms in [400u64, 150, 800, 50] {
+        let child = strata()
+            .args(["render", scene.to_str().unwrap(), "-o", png.to_str().unwrap(), "--spp", "1"])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        sigint(&child);
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        if out.status.code() == Some(130) && err.contains("interrupted while setting up the render") {
+            assert!(err.contains("nothing was written") && !png.exists(), "{err}");
+            return;
+        }
+        eprintln!("delay {delay_ms} ms: status {:?}, stderr {err}: retried", out.status);
+        let _ = std::fs::remove_file(&png);
+    }
+    panic!("no interrupt landed during setup");
 }
 
 /// Ctrl-C twice: the second, while the unit in flight (~0.5 s) finishes, quits at once and says that

@@ -95,8 +95,30 @@ pub fn check_distinct_files(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)],
     Ok(())
 }
 
+/// What a signal (Ctrl-C, SIGINT, SIGTERM) does now: the command's handler once it has set one
+/// ([`on_signal`]). `ctrlc` takes one handler per process, so that one, installed first thing, calls
+/// this; until a command sets its own, a signal ends the process with a message and exit 130.
+type SignalAction = Box<dyn FnMut() + Send>;
+static ON_SIGNAL: std::sync::Mutex<Option<SignalAction>> = std::sync::Mutex::new(None);
+
+/// Make `f` what a signal does from now on (see [`ON_SIGNAL`]).
+pub(crate) fn on_signal(f: impl FnMut() + Send + 'static) {
+    *ON_SIGNAL.lock().unwrap_or_else(|e| e.into_inner()) = Some(Box::new(f));
+}
+
+fn install_signal_dispatch() {
+    let _ = ctrlc::set_handler(|| match ON_SIGNAL.lock().unwrap_or_else(|e| e.into_inner()).as_mut() {
+        Some(f) => f(),
+        None => {
+            errln!("interrupted: nothing was written");
+            std::process::exit(130);
+        }
+    });
+}
+
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    install_signal_dispatch();
     let r = match cli.command {
         Command::Render(a) => render_cmd::run(a),
         Command::Study(a) => study_cmd::run(a),

@@ -171,6 +171,11 @@ fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
 }
 
 pub fn run(a: RenderArgs) -> Result<u8, Failure> {
+    // Until the render's own handler: a signal during setup (reading the scene, its BVH) quits at once.
+    super::on_signal(|| {
+        errln!("interrupted while setting up the render: no sample was rendered, nothing was written");
+        std::process::exit(130);
+    });
     let size = a.size.as_deref().map(parse_size).transpose()?;
     let setup = Instant::now();
     let scene = load_scene_sized(&a.scene, size).map_err(Failure::input)?;
@@ -306,12 +311,53 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
     let header = FilmHeader { completed, ..header.clone() };
     progress.finish();
+    if !stats.completed && header.units_done() == resumed_units {
+        // Interrupted before a work unit finished (while the light selection was made): nothing to add
+        // to what the outputs hold, so they are left as they were.
+        let resume = match &a.resume {
+            Some(r) => format!("; {} is as it was", r.display()),
+            None => String::new(),
+        };
+        errln!("interrupted before any work unit finished: nothing was written ({} untouched{resume})", out.display());
+        return Ok(130);
+    }
 
-    write_image(&out, film.width, film.height, &film.to_rgb()).map_err(Failure::runtime)?;
+    let image = write_image(&out, film.width, film.height, &film.to_rgb());
     // An interrupted render always leaves its film, so that it can be resumed.
     let film_out = film_path.clone().or_else(|| (!stats.completed).then(|| interrupt_film_path(&out)));
     if let Some(f) = &film_out {
-        write_film(f, &header, &film).map_err(Failure::runtime)?;
+        write_film(f, &header, &film).map_err(|e| match &image {
+            Ok(()) => Failure::runtime(e),
+            Err(i) => Failure::runtime(format!("{i}; {e}")),
+        })?;
+    }
+    let write_stats = || -> Result<(), Failure> {
+        let Some(j) = &a.stats_json else { return Ok(()) };
+        let json = StatsJson {
+            stats: &stats,
+            // (The summary's setup: the light selection's making included.)
+            setup_seconds: setup_seconds + stats.selection_seconds,
+            work_units: WorkUnitsJson { done: header.units_done(), total: n_units, resumed: resumed_units },
+            filter: job.settings.profile.filter.name(),
+            strategies: UsedStrategies(used_strategies(&scene, &job.settings.profile)),
+        };
+        let text = serde_json::to_string_pretty(&json).map_err(Failure::runtime)?;
+        crate::film::output::write_atomic(j, |tmp| std::fs::write(tmp, text).map_err(|e| e.to_string())).map_err(Failure::runtime)
+    };
+    if let Err(e) = image {
+        // The image could not be written (its directory removed, a full disk): what was rendered is
+        // still kept wherever it can be, in the film and the statistics asked for.
+        let _ = write_stats();
+        let kept = match &film_out {
+            Some(f) => format!(
+                "; the render is kept in the film {}: `strata merge {}{} -o IMAGE` writes its image",
+                f.display(),
+                f.display(),
+                if header.is_complete() { "" } else { " --allow-gaps" }
+            ),
+            None => String::new(),
+        };
+        return Err(Failure::runtime(format!("{e}{kept}")));
     }
     if !a.quiet {
         print_summary(&a.scene, &scene, &job, &stats, setup_seconds + stats.selection_seconds, &out);
@@ -328,18 +374,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             outln!("  wrote film {}", f.display());
         }
     }
-    if let Some(j) = &a.stats_json {
-        let json = StatsJson {
-            stats: &stats,
-            // (The summary's setup: the light selection's making included.)
-            setup_seconds: setup_seconds + stats.selection_seconds,
-            work_units: WorkUnitsJson { done: header.units_done(), total: n_units, resumed: resumed_units },
-            filter: job.settings.profile.filter.name(),
-            strategies: UsedStrategies(used_strategies(&scene, &job.settings.profile)),
-        };
-        let text = serde_json::to_string_pretty(&json).map_err(Failure::runtime)?;
-        crate::film::output::write_atomic(j, |tmp| std::fs::write(tmp, text).map_err(|e| e.to_string())).map_err(Failure::runtime)?;
-    }
+    write_stats()?;
     crate::film::warn_discarded(stats.nonfinite_samples);
     crate::film::warn_lost_media(stats.lost_media);
     crate::film::warn_dim(&film, scene.has_light());
@@ -524,7 +559,7 @@ fn install_interrupt_handler(
         None => errln!("{m}"),
     };
     let first = std::sync::OnceLock::new();
-    let _ = ctrlc::set_handler(move || match state.compare_exchange(RUNNING, STOPPING, Ordering::SeqCst, Ordering::SeqCst) {
+    super::on_signal(move || match state.compare_exchange(RUNNING, STOPPING, Ordering::SeqCst, Ordering::SeqCst) {
         Ok(_) => {
             let _ = first.set(std::time::Instant::now());
             cancel.store(true, Ordering::SeqCst);

@@ -293,7 +293,7 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
         // A second Ctrl-C while stopping exits at once (one within the render's debounce is the same
         // interrupt delivered twice, as GNU `timeout` does).
         let first = std::sync::OnceLock::new();
-        let _ = ctrlc::set_handler(move || {
+        super::on_signal(move || {
             if !c.swap(true, Ordering::SeqCst) {
                 let _ = first.set(std::time::Instant::now());
             } else if first.get().is_none_or(|t: &std::time::Instant| t.elapsed() >= super::render_cmd::DEBOUNCE) {
