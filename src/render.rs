@@ -51,6 +51,24 @@ pub struct RenderStats {
     /// Seconds spent making the light selection (`light_selection` other than `all`: the power table,
     /// the light tree) before the render's clock started: setup, not in `seconds`.
     pub selection_seconds: f64,
+    /// A pass of some work unit outgrew [`crate::wavefront::MAX_PASS_RAYS`]: the render stopped, that
+    /// unit not done ([`overflow_message`] says why). (Not in `--stats-json`: such a render is an error.)
+    #[serde(skip)]
+    pub overflow: bool,
+}
+
+/// The error of a render that stopped because a pass outgrew [`crate::wavefront::MAX_PASS_RAYS`].
+pub fn overflow_message(job: &RenderJob) -> String {
+    let p = &job.settings.profile;
+    format!(
+        "the rays of one bounce of a work unit passed {} ({} per camera path): with branching = \"split\", \
+         throughput_cutoff = {:e} and max_depth = {} let the ray tree grow without bound; raise throughput_cutoff \
+         (1e-3 is usual), lower max_depth, or use branching = \"roulette\"",
+        job.max_pass_rays,
+        job.max_pass_rays / WAVEFRONT_PATHS as usize,
+        p.throughput_cutoff,
+        p.max_depth
+    )
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -79,6 +97,9 @@ pub struct RenderJob<'a> {
     pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
     /// Periodic consistent snapshots of the film.
     pub checkpoint: Option<Checkpoint<'a>>,
+    /// Most rays one pass of a work unit may hold (default [`crate::wavefront::MAX_PASS_RAYS`]); past
+    /// it the render stops (`RenderStats::overflow`).
+    pub max_pass_rays: usize,
 }
 
 /// Every `every`, a worker pauses the others between units and calls `write(film, completed)` with a
@@ -93,7 +114,17 @@ pub struct Checkpoint<'a> {
 impl<'a> RenderJob<'a> {
     pub fn new(scene: &'a Scene, settings: Settings) -> Self {
         let spp = settings.profile.spp;
-        RenderJob { scene, settings, threads: 0, samples: 0..spp, tile: TILE, cancel: None, progress: None, checkpoint: None }
+        RenderJob {
+            scene,
+            settings,
+            threads: 0,
+            samples: 0..spp,
+            tile: TILE,
+            cancel: None,
+            progress: None,
+            checkpoint: None,
+            max_pass_rays: crate::wavefront::MAX_PASS_RAYS,
+        }
     }
 }
 
@@ -215,6 +246,7 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
     let next_checkpoint = Mutex::new(job.checkpoint.map(|c| Instant::now() + c.every));
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
+    let overflow = AtomicBool::new(false);
     let totals = Mutex::new((Counters::default(), StageTimes::default()));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool");
     // The light selection is made once for all the workers, before the clock (setup, like the BVH).
@@ -229,7 +261,7 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
         crate::wavefront::pick::LightPick::install(scene, &job.settings.profile, pick.clone());
         let mut wf = Wavefront::new(&scene.features);
         loop {
-            if job.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+            if job.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) || overflow.load(Ordering::Relaxed) {
                 break;
             }
             let k = next.fetch_add(1, Ordering::Relaxed);
@@ -246,7 +278,10 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
             }
             {
                 let _unit = gate.read().unwrap_or_else(|e| e.into_inner());
-                render_unit(scene, &job.settings, &units.get(i), &mut wf, &film);
+                if !render_unit(scene, &job.settings, &units.get(i), &mut wf, &film, job.max_pass_rays) {
+                    overflow.store(true, Ordering::Relaxed);
+                    break;
+                }
                 flags[i].store(true, Ordering::Relaxed);
             }
             let d = done.fetch_add(1, Ordering::Relaxed) + 1;
@@ -299,6 +334,7 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
         completed: completed.iter().all(|&c| c),
         features: scene.features,
         selection_seconds,
+        overflow: overflow.into_inner(),
     };
     (film, completed, stats)
 }

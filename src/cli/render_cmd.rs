@@ -311,6 +311,9 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
     let header = FilmHeader { completed, ..header.clone() };
     progress.finish();
+    if stats.overflow {
+        return Err(Failure::runtime(format!("{}; nothing was written", crate::render::overflow_message(&job))));
+    }
     if !stats.completed && header.units_done() == resumed_units {
         // Interrupted before a work unit finished (while the light selection was made): nothing to add
         // to what the outputs hold, so they are left as they were.

@@ -188,6 +188,11 @@ pub fn render_cancellable(
     job.threads = threads;
     job.cancel = cancel;
     let (film, stats) = render_into(&job, Film::new(scene.width, scene.height));
+    if stats.overflow {
+        // (The same settings overflow every seed and count above: nothing of the study can be measured.)
+        errln!("error: {}", crate::render::overflow_message(&job));
+        std::process::exit(1);
+    }
     if !stats.completed {
         return None;
     }

@@ -40,8 +40,22 @@ macro_rules! timed {
     }};
 }
 
-/// Render one work unit with the worker's wavefront and add it to the film.
-pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut Wavefront, film: &Mutex<Film>) {
+/// Most rays one pass of a work unit may hold (`branching = "split"` lets the ray tree grow until
+/// `throughput_cutoff` and `max_depth` stop it; a tiny cutoff lets it grow past any memory): 4,096 per
+/// camera path of a 4,096-path unit, about 1.5 GB of queues.
+pub const MAX_PASS_RAYS: usize = 1 << 24;
+
+/// Render one work unit with the worker's wavefront and add it to the film. False (and nothing added)
+/// where a pass outgrew `max_pass_rays` ([`MAX_PASS_RAYS`] by default).
+#[must_use]
+pub fn render_unit(
+    scene: &Scene,
+    settings: &Settings,
+    unit: &WorkUnit,
+    wf: &mut Wavefront,
+    film: &Mutex<Film>,
+    max_pass_rays: usize,
+) -> bool {
     let (profile, seed) = (&settings.profile, settings.seed);
     let Wavefront { rays, hits, csg, csg_arena, nee, paths, order, counters, times } = wf;
     paths.clear();
@@ -74,12 +88,18 @@ pub fn render_unit(scene: &Scene, settings: &Settings, unit: &WorkUnit, wf: &mut
         counters.shadow_rays += traced;
         counters.shadow_cleared += cleared;
         counters.secondary_rays += next.len() as u64;
+        if next.len() > max_pass_rays {
+            rays[0].clear();
+            rays[1].clear();
+            return false;
+        }
     }
     rays[0].clear();
     rays[1].clear();
 
     let mut film = film.lock().unwrap_or_else(|e| e.into_inner());
     counters.nonfinite_samples += timed!(times.accumulate, accumulate(paths, &mut film));
+    true
 }
 
 /// Most passes of the bounce loop: max_depth + 1 bounces plus room for null crossings.
