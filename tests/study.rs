@@ -670,7 +670,7 @@ fn reference_cache_is_reused_only_when_fresh() {
 fn cli_input_errors_exit_2_with_a_message() {
     let dir = tmp_dir("errors");
     let d = dir.to_str().unwrap();
-    let cases: [(&[&str], &str); 11] = [
+    let cases: [(&[&str], &str); 15] = [
         (&["--strategies", "random,magic"], "unknown strategy `magic`"),
         (&["--spp", ","], "--spp: the list is empty"),
         (&["--spp", "4,zero"], "is not a sample count"),
@@ -682,6 +682,12 @@ fn cli_input_errors_exit_2_with_a_message() {
         (&["--reference", "analytic"], "Lambert plane lit by one quad light"),
         (&["--integrals", "pixel", "--light-samples-from-spp"], "--light-samples-from-spp needs `light`"),
         (&["--integrals", "light", "--light-samples-from-spp"], "--light-samples-from-spp needs `light`"),
+        // Fields every run sets: a --set of them would be dropped (light_samples is the profile's where the
+        // light is studied beside other integrals without --light-samples-from-spp).
+        (&["--set", "spp=64"], "sets spp itself for each run (the counts of --spp)"),
+        (&["--set", "glossy_strategy=sobol"], "sets glossy_strategy itself"),
+        (&["--integrals", "light", "--set", "light_samples=4"], "sets light_samples itself for each run (the light counts"),
+        (&["--integrals", "pixel", "--set", "light_samples=4"], "(1: the light integral is not studied)"),
     ];
     for (extra, msg) in cases {
         let mut a = vec!["study", "scenes/soft_shadows.toml", "--out", d];

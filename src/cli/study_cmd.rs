@@ -164,6 +164,16 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
             if light_only(&integrals) { "with `light` alone the count already is light samples" } else { "the light is not studied" }
         )));
     }
+    // A `--set` of a field every run sets would be silently dropped.
+    let studied = crate::study::run::fields_set_by_study(&integrals, a.light_samples_from_spp);
+    for kv in &a.set {
+        let key = kv.split('=').next().unwrap_or("").trim();
+        if let Some((_, by)) = studied.iter().find(|(f, _)| *f == key) {
+            return Err(Failure::input(format!(
+                "--set {kv}: `strata study` sets {key} itself for each run ({by}), so this would change nothing"
+            )));
+        }
+    }
     // One light is picked per camera path: with `light` alone (one path per pixel) every one of a pixel's
     // n light samples goes to the one light it picked, and no count converges.
     if light_only(&integrals) && profile.light_selection != crate::scene::LightSelection::All && scene.lights.len() > 1 {

@@ -94,6 +94,25 @@ pub fn configure(base: &Profile, integrals: &IntegralSet, strategy: Strategy, n:
     Ok(p)
 }
 
+/// The profile fields [`configure`] sets for every run of a study of `integrals` (so a `--set` of one
+/// would change nothing), each with what sets it.
+pub fn fields_set_by_study(integrals: &IntegralSet, light_from_spp: bool) -> Vec<(&'static str, &'static str)> {
+    let strategies = "--strategies for the studied integrals, `center` for the others";
+    let mut out = vec![("spp", "the counts of --spp"), ("strategy", strategies)];
+    for f in ["pixel_strategy", "lens_strategy", "time_strategy", "glossy_strategy", "diffuse_strategy", "wavelength_strategy", "light_strategy"] {
+        out.push((f, strategies));
+    }
+    if light_only(integrals) {
+        out[0].1 = "the passes of the light counts of --spp";
+        out.push(("light_samples", "the light counts of --spp"));
+    } else if light_from_spp {
+        out.push(("light_samples", "--light-samples-from-spp: the counts of --spp"));
+    } else if !integrals.contains(Integral::Light) {
+        out.push(("light_samples", "1: the light integral is not studied"));
+    }
+    out
+}
+
 /// One render of the series.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunResult {
