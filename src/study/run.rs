@@ -99,7 +99,9 @@ pub fn configure(base: &Profile, integrals: &IntegralSet, strategy: Strategy, n:
 pub fn fields_set_by_study(integrals: &IntegralSet, light_from_spp: bool) -> Vec<(&'static str, &'static str)> {
     let strategies = "--strategies for the studied integrals, `center` for the others";
     let mut out = vec![("spp", "the counts of --spp"), ("strategy", strategies)];
-    for f in ["pixel_strategy", "lens_strategy", "time_strategy", "glossy_strategy", "diffuse_strategy", "wavelength_strategy", "light_strategy"] {
+    for f in
+        ["pixel_strategy", "lens_strategy", "time_strategy", "glossy_strategy", "diffuse_strategy", "wavelength_strategy", "light_strategy"]
+    {
         out.push((f, strategies));
     }
     if light_only(integrals) {
