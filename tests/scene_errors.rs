@@ -121,6 +121,12 @@ fn camera_errors() {
     let bad = BASE.replace("position = [0, 1, 5]", "position = [0, 1, 1e20]").replace("look_at = [0, 0, 0]", "look_at = [0, 0, -1e20]");
     let e = parse_scene(Path::new("c.toml"), &bad).unwrap_err();
     assert!(e.field == "camera.position" && e.message.contains("1e15"), "{}", e.message);
+    // A shutter time beyond f32's range is said as such, not as an unordered shutter.
+    for (shutter, says) in [("[0.0, 1e39]", "beyond f32's range"), ("[1.0, 0.5]", "open <= close")] {
+        let bad = BASE.replace("fov = 40", &format!("fov = 40\nshutter = {shutter}"));
+        let e = parse_scene(Path::new("c.toml"), &bad).unwrap_err();
+        assert!(e.field == "camera.shutter" && e.message.contains(says), "{shutter}: {}", e.message);
+    }
 }
 
 #[test]
@@ -403,6 +409,23 @@ fn a_csg_solid_emptied_by_its_hole_is_warned_about() {
             assert!(s.warnings.is_empty(), "{children}: {:?}", s.warnings);
         }
     }
+    // A box with walls 0.005 thick, open on top: kept unwarned at the origin; at x = 1000 its walls are
+    // thinner than the tolerance (1e-2), merge away for the probe, and the warning names the tolerance
+    // as a cause beside a hole as large as its part (a user trial found it named the hole alone).
+    for (x, warned) in [(0.0, false), (1000.0, true)] {
+        let extra = solid(&format!(
+            "{{ type = \"box\", min = [{}, -1, -1], max = [{}, 1, 1] }}, {{ type = \"box\", min = [{}, -0.995, -0.995], max = [{}, 1.5, 0.995] }}",
+            x - 1.0,
+            x + 1.0,
+            x - 0.995,
+            x + 0.995
+        ));
+        let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
+        assert_eq!(s.warnings.len(), usize::from(warned), "x = {x}: {:?}", s.warnings);
+        if warned {
+            assert!(s.warnings[0].contains("coincidence tolerance, 1.00e-2, 1e-5 of its farthest coordinate 1.00e3"), "{:?}", s.warnings);
+        }
+    }
 }
 
 /// Nesting beyond the TOML reader's own limit (about 80 levels of `[[shapes.children...]]` headers) is
@@ -448,7 +471,7 @@ fn a_csg_solid_whose_scale_swallows_its_detail_is_warned_about() {
         let extra = solid(far);
         let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
         assert_eq!(s.prims.len(), 1);
-        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("coincidence tolerance")).collect();
+        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("its detail may be lost")).collect();
         assert_eq!(w.len(), warned as usize, "sphere at {far}: {:?}", s.warnings);
         if warned {
             let at = format!("e.toml:{}:", line_of(&extra, "type = \"csg\"") - 1);

@@ -657,7 +657,14 @@ impl Compiler<'_> {
         let shutter = match &c.shutter {
             Some(s) => {
                 let [a, b] = s.get_ref().0;
-                if !(a.is_finite() && b.is_finite() && a <= b) {
+                if !(a.is_finite() && b.is_finite()) {
+                    return Err(self.err(
+                        s.span(),
+                        "camera.shutter",
+                        format!("must be two finite times, got [{a}, {b}] (a value beyond f32's range, about 3.4e38, reads as infinite)"),
+                    ));
+                }
+                if a > b {
                     return Err(self.err(s.span(), "camera.shutter", "must be [open, close] with open <= close"));
                 }
                 [a, b]
@@ -1007,22 +1014,26 @@ impl Compiler<'_> {
             self.warn(def.span(), field, "this CSG solid is empty (an intersection of solids that do not overlap?): it is left out");
             return Ok(());
         }
+        // The coincidence tolerance is relative to the solid's scale L (its farthest coordinate): a leaf
+        // far from the rest (a part at 1e5 in a union with one at the origin) widens it for every leaf.
+        let scale = self.csg.scale(solid);
+        let tol = crate::csg::merge::COINCIDENT_EPS * scale;
         if !crate::csg::reference::probe_finds_volume(&self.csg, solid, EMPTY_PROBE_GRID) {
-            // Kept (the probe can miss a solid thinner than its spacing), but most likely a mistake.
+            // Kept (the probe can miss a solid thinner than its spacing), but most likely a mistake; or its
+            // walls are thinner than the tolerance (a thin shell far from the origin), which merges them
+            // away for the probe's rays as for the render's.
             let rays = 3 * EMPTY_PROBE_GRID * EMPTY_PROBE_GRID;
             self.warn(
                 def.span(),
                 field,
                 format!(
                     "this CSG solid looks empty: none of {rays} rays across its bounds met it (is a hole as large as its \
-                         part?); it is kept"
+                         part? or are its walls thinner than its coincidence tolerance, {tol:.2e}, 1e-5 of its farthest \
+                         coordinate {scale:.2e}? such walls merge away, in part or whole: move the scene nearer the \
+                         origin); it is kept"
                 ),
             );
         }
-        // The coincidence tolerance is relative to the solid's scale L (its farthest coordinate): a leaf
-        // far from the rest (a part at 1e5 in a union with one at the origin) widens it for every leaf.
-        let scale = self.csg.scale(solid);
-        let tol = crate::csg::merge::COINCIDENT_EPS * scale;
         let thinnest = self
             .csg
             .solid_leaves(solid)

@@ -249,7 +249,8 @@ impl Profile {
             return Err(("diffuse_depth", format!("must not exceed max_depth ({}), got {}", self.max_depth, self.diffuse_depth)));
         }
         if !(self.throughput_cutoff.is_finite() && (0.0..1.0).contains(&self.throughput_cutoff)) {
-            return Err(("throughput_cutoff", format!("must be in [0, 1), got {}", self.throughput_cutoff)));
+            let rounded = if self.throughput_cutoff == 1.0 { " (as an f32: a value this close to 1 rounds to 1)" } else { "" };
+            return Err(("throughput_cutoff", format!("must be in [0, 1), got {}{rounded}", self.throughput_cutoff)));
         }
         if self.throughput_cutoff == 0.0 && self.branching == Branching::Split {
             return Err((
@@ -422,6 +423,9 @@ mod tests {
         p.set_all([("throughput_cutoff", "0"), ("branching", "roulette")]).unwrap();
         assert!(p.set("branching", "split").is_err());
         assert!(Profile::builtin("final").set("throughput_cutoff", "-0").is_err());
+        // A value below 1 that rounds to 1 in f32 says so.
+        let e = Profile::builtin("final").set("throughput_cutoff", "0.99999999999").unwrap_err();
+        assert!(e.contains("got 1 (as an f32"), "{e}");
         p.set("throughput_cutoff", "1e-9").unwrap();
         p.set("branching", "split").unwrap();
     }
