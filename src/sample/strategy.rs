@@ -140,6 +140,27 @@ impl JitterRows {
         [jitter_in_cell(col, k, (h >> 32) as u32), jitter_in_span(c0, k, self.n, h as u32)]
     }
 
+    /// [`JitterRows::jitter`] for `s < n <= 2^24` in f64, bit for bit: every value is an integer held
+    /// exactly, and each quotient is taken as in [`jitter_in_cell_div`] (the row's by
+    /// [`quotient_below_2_24`]; the span's `(b (k 2^24 + 1 - n)) >> 24`, which can pass 2^53, as
+    /// `b k - ceil(b (n - 1) / 2^24)`, whose terms stay below 2^48).
+    #[inline(always)]
+    fn jitter_f64(&self, s: f64, h: u64) -> [f32; 2] {
+        const ONE: f64 = (1u64 << 24) as f64;
+        let (n, q) = (self.n as f64, self.q as f64);
+        let big = self.rem as f64 * (q + 1.0);
+        let low = s < big;
+        let (t, k) = if low { (s, q + 1.0) } else { (s - big, q) };
+        let row = quotient_below_2_24(t, k);
+        let col = t - row * k;
+        let c0 = if low { row * k } else { big + row * k };
+        let x = jitter_in_cell_div(col, k, (h >> 32) as u32);
+        let b = ((h as u32) >> 8) as f64;
+        let t = (n - 1.0) + b * k - ((b * (n - 1.0) + (ONE - 1.0)) * (1.0 / ONE)).trunc();
+        let y = ((c0 * ONE + t) / n).trunc();
+        [x, y.min(ONE - 1.0) as f32 * (1.0 / ONE as f32)]
+    }
+
     /// The centre of stratum `s` (for tests).
     pub fn centre(&self, s: u32) -> [f64; 2] {
         let (col, k, c0) = self.cell(s);
@@ -386,12 +407,19 @@ impl Sampler2d {
             return super::sobol::sobol_owen_2d_x8(keys, index);
         }
         let mut u = [[0.0f32; LANES]; 2];
-        if self.strategy == Strategy::Jittered && self.rows.is_none() && self.n <= 1 << 24 && index.iter().all(|&i| i < self.n) {
+        if self.strategy == Strategy::Jittered && self.n <= 1 << 24 && index.iter().all(|&i| i < self.n) {
             // Other counts (48, 100, 1000 spp): the same strata and jitter as `sample_impl`, with the
             // cycle-walking permutation in 8 lanes and the integer divisions as f64 ones (exact here,
-            // see `jitter_in_cell_div`), which vectorise where the integer ones do not. (Counts in
-            // rows, 5, 17, 31, take the scalar sampler per lane below.)
+            // see `jitter_in_cell_div`), which vectorise where the integer ones do not.
             let s = if permuted { permute_x8(index, &PermuteShape::new(self.n), &keys.map(perm_key)) } else { *index };
+            if let Some(rows) = &self.rows {
+                // Counts in rows (5, 17, 31): `JitterRows::jitter`, its divisions likewise in f64.
+                for l in 0..LANES {
+                    let h = random_bits(keys[l], index[l]);
+                    [u[0][l], u[1][l]] = rows.jitter_f64(s[l] as f64, h);
+                }
+                return [f32x8::from(u[0]), f32x8::from(u[1])];
+            }
             let (nx, ny) = (self.nx as f64, self.ny as f64);
             for l in 0..LANES {
                 let sl = s[l] as f64;
@@ -519,8 +547,34 @@ mod tests {
     #[test]
     fn sample_x8_matches_scalar() {
         for strategy in Strategy::ALL {
-            for n in [1u32, 2, 3, 4, 5, 6, 8, 12, 16, 48, 64, 100, 256, 1000, 4095, 1 << 20, (1 << 24) - 1, 1 << 24, (1 << 24) + 1, 1 << 25]
-            {
+            for n in [
+                1u32,
+                2,
+                3,
+                4,
+                5,
+                6,
+                7,
+                8,
+                12,
+                16,
+                17,
+                31,
+                48,
+                64,
+                67,
+                100,
+                256,
+                1000,
+                4095,
+                1_000_003,
+                1 << 20,
+                (1 << 24) - 3,
+                (1 << 24) - 1,
+                1 << 24,
+                (1 << 24) + 1,
+                1 << 25,
+            ] {
                 let s = Sampler2d::new(strategy, n);
                 for round in 0..40u64 {
                     let keys = std::array::from_fn(|l| crate::sample::hash::mix64(round * 8 + l as u64 + n as u64));
@@ -689,6 +743,16 @@ mod tests {
                     let first = (jitter_in_span(c0, k, n, 0) * 16_777_216.0) as u64;
                     let last = (jitter_in_span(c0, k, n, u32::MAX) * 16_777_216.0) as u64;
                     assert_eq!((first, last), ((c0 as u64 * (1 << 24)).div_ceil(n as u64), (((c0 + k) as u64) * (1 << 24) - 1) / n as u64));
+                }
+            }
+        }
+        // The f64 form of the 8-lane path equals the integer one, bit for bit, at the bits' extremes.
+        for n in [5u32, 7, 17, 31, 67, 4099, 1_000_003, (1 << 24) - 3] {
+            let r = jitter_rows(n).unwrap();
+            let strata: Vec<u32> = if n < 5000 { (0..n).collect() } else { vec![0, 1, n / 3, n / 2, n - 2, n - 1] };
+            for s in strata {
+                for h in [0u64, 255, 256, u64::MAX, u64::MAX - 255, 0x8000_0000_8000_0000, 0x1234_5678_9abc_def0] {
+                    assert_eq!(r.jitter_f64(s as f64, h).map(f32::to_bits), r.jitter(s, h).map(f32::to_bits), "n={n} s={s} h={h:#x}");
                 }
             }
         }
