@@ -574,7 +574,9 @@ impl Compiler<'_> {
             let at_open = inside(pos, camera.shutter[0]);
             if at_open != inside(pos, camera.shutter[1]) {
                 notes.push(format!(
-                    "the moving `{}` solid {} the camera during the shutter: camera rays take the media at shutter open",
+                    "the moving `{}` solid {} the camera during the shutter: camera rays take the media at shutter open, \
+                     so those of the other times are wrong (a ball of absorbing glass that leaves the camera darkens \
+                     every ray after it has gone); keep a medium around the camera still during the shutter",
                     name(self, material),
                     if at_open { "leaves" } else { "reaches" }
                 ));
