@@ -51,21 +51,20 @@ pub struct RenderStats {
     /// Seconds spent making the light selection (`light_selection` other than `all`: the power table,
     /// the light tree) before the render's clock started: setup, not in `seconds`.
     pub selection_seconds: f64,
-    /// A pass of some work unit outgrew [`crate::wavefront::MAX_PASS_RAYS`]: the render stopped, that
+    /// A pass of some work unit outgrew its ray limit (`RenderJob::max_rays_per_path`): the render stopped, that
     /// unit not done ([`overflow_message`] says why). (Not in `--stats-json`: such a render is an error.)
     #[serde(skip)]
     pub overflow: bool,
 }
 
-/// The error of a render that stopped because a pass outgrew [`crate::wavefront::MAX_PASS_RAYS`].
+/// The error of a render that stopped because a pass outgrew its ray limit (`RenderJob::max_rays_per_path`).
 pub fn overflow_message(job: &RenderJob) -> String {
     let p = &job.settings.profile;
     format!(
-        "the rays of one bounce of a work unit passed {} ({} per camera path): with branching = \"split\", \
+        "the rays of one bounce of a work unit passed {} per camera path: with branching = \"split\", \
          throughput_cutoff = {:e} and max_depth = {} let the ray tree grow without bound; raise throughput_cutoff \
-         (1e-3 is usual), lower max_depth, or use branching = \"roulette\"",
-        job.max_pass_rays,
-        job.max_pass_rays / WAVEFRONT_PATHS as usize,
+         (at 1e-3 a glass ray tree holds about 1,000 rays per path at one bounce at most), lower max_depth, or use branching = \"roulette\"",
+        job.max_rays_per_path,
         p.throughput_cutoff,
         p.max_depth
     )
@@ -97,9 +96,9 @@ pub struct RenderJob<'a> {
     pub progress: Option<&'a (dyn Fn(usize, usize) + Sync)>,
     /// Periodic consistent snapshots of the film.
     pub checkpoint: Option<Checkpoint<'a>>,
-    /// Most rays one pass of a work unit may hold (default [`crate::wavefront::MAX_PASS_RAYS`]); past
-    /// it the render stops (`RenderStats::overflow`).
-    pub max_pass_rays: usize,
+    /// Most rays one pass of a work unit may hold per camera path of the unit (default
+    /// [`crate::wavefront::MAX_RAYS_PER_PATH`]); past it the render stops (`RenderStats::overflow`).
+    pub max_rays_per_path: usize,
 }
 
 /// Every `every`, a worker pauses the others between units and calls `write(film, completed)` with a
@@ -123,7 +122,7 @@ impl<'a> RenderJob<'a> {
             cancel: None,
             progress: None,
             checkpoint: None,
-            max_pass_rays: crate::wavefront::MAX_PASS_RAYS,
+            max_rays_per_path: crate::wavefront::MAX_RAYS_PER_PATH,
         }
     }
 }
@@ -278,7 +277,7 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
             }
             {
                 let _unit = gate.read().unwrap_or_else(|e| e.into_inner());
-                if !render_unit(scene, &job.settings, &units.get(i), &mut wf, &film, job.max_pass_rays) {
+                if !render_unit(scene, &job.settings, &units.get(i), &mut wf, &film, job.max_rays_per_path) {
                     overflow.store(true, Ordering::Relaxed);
                     break;
                 }

@@ -635,7 +635,17 @@ fn an_image_that_cannot_be_written_leaves_the_film_and_stats() {
     let out = tmp("from_kept.png");
     let m = strata().args(["merge", film.to_str().unwrap(), "--allow-gaps", "-o", out.to_str().unwrap()]).output().unwrap();
     assert!(m.status.success() && out.exists(), "{}", String::from_utf8_lossy(&m.stderr));
-    // A film is not named as an image.
+    // A film being resumed keeps any name (older versions wrote `.exr` films): refused here only as a
+    // film of another render.
+    let renamed = tmp("kept_as.exr");
+    std::fs::copy(&film, &renamed).unwrap();
+    let o = strata()
+        .args(["render", "scenes/showcase.toml", "--resume", renamed.to_str().unwrap(), "-o", tmp("r.png").to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.code() == Some(2) && err.contains("cannot resume") && !err.contains("not an image"), "{err}");
+    // A new film is not named as an image.
     for cmd in
         [&["render", "scenes/showcase.toml", "--film", "f.png"][..], &["merge", film.to_str().unwrap(), "-o", "x.png", "--film", "f.EXR"]]
     {

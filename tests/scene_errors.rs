@@ -628,10 +628,11 @@ fn check_pair_warning(text: &str, needle: &str, header: &str, want: Option<(&str
     }
 }
 
-/// A glass CSG solid is one medium: two glasses among its leaves (a hole of another glass, a union of
-/// two, a thin glass beside a solid one, through a named solid) are an error at the second glass's leaf,
-/// naming both. One glass with opaque leaves (a painted hole), two thin glasses, and a material on the
-/// solid that overrides its children's are valid.
+/// A glass CSG solid is one medium where its parts meet: two glasses among leaves whose bounds overlap
+/// (a hole of another glass, a union of two, a thin glass beside a solid one, through a named solid, a
+/// material inherited from a node or given where a named solid is used) are an error where the second
+/// glass is given, naming both. One glass with opaque leaves (a painted hole), two thin glasses, beads of
+/// two glasses apart in one union, and a material on the solid that overrides its children's are valid.
 #[test]
 fn a_glass_csg_solid_of_two_glasses_is_an_error() {
     let glasses = "[materials.g]\ntype = \"dielectric\"\nior = 1.5\n[materials.h]\ntype = \"dielectric\"\nior = 1.5\n\
@@ -643,25 +644,40 @@ fn a_glass_csg_solid_of_two_glasses_is_an_error() {
              {{ type = \"sphere\", center = [0, 0, 0], radius = 0.5, material = \"{b}\" }},\n]\n"
         )
     };
-    let named = format!(
-        "{glasses}[solids.bead]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.5\nmaterial = \"h\"\n\
-         [[shapes]]\ntype = \"group\"\nchildren = [\n  {{ type = \"box\", min = [-1, -1, -1], max = [1, 1, 1], material = \"g\" }},\n  \
-         {{ use = \"bead\", hole = true }},\n]\n"
+    let named = |use_site: &str, def_material: &str| {
+        format!(
+            "{glasses}[solids.bead]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.5\n{def_material}\
+             [[shapes]]\ntype = \"group\"\nchildren = [\n  {{ type = \"box\", min = [-1, -1, -1], max = [1, 1, 1], material = \"g\" }},\n  \
+             {{ use = \"bead\", hole = true{use_site} }},\n]\n"
+        )
+    };
+    let node = format!(
+        "{glasses}[[shapes]]\ntype = \"csg\"\nop = \"difference\"\nchildren = [\n  \
+         {{ type = \"box\", min = [-1, -1, -1], max = [1, 1, 1], material = \"g\" }},\n  \
+         {{ type = \"csg\", op = \"union\", material = \"h\", children = [{{ type = \"sphere\", center = [0, 0, 0], radius = 0.5 }}] }},\n]\n"
     );
     let cases = [
         (solid("difference", "g", "h", ""), "shapes[0].children[1].material", "type = \"sphere\""),
         (solid("union", "g", "h", ""), "shapes[0].children[1].material", "type = \"sphere\""),
-        (solid("intersection", "t", "g", ""), "shapes[0].children[0].material", "type = \"box\""),
-        (named.clone(), "solids.bead.material", "[solids.bead]"),
+        (solid("intersection", "t", "g", ""), "shapes[0].children[1].material", "type = \"sphere\""),
+        (named("", "material = \"h\"\n"), "solids.bead.material", "material = \"h\""),
+        (named(", material = \"h\"", ""), "shapes[0].children[1].material", "use = \"bead\""),
+        (node, "shapes[0].children[1].material", "op = \"union\", material = \"h\""),
     ];
     for (text, field, needle) in &cases {
         let (line, f, msg) = fail(text);
         assert_eq!((f.as_str(), line), (*field, line_of(text, needle)), "{msg}");
-        assert!(msg.contains("mixes the glasses") && msg.contains("one medium") && msg.contains("priority"), "{msg}");
+        assert!(msg.contains("joins the glasses") && msg.contains("one medium") && msg.contains("priority"), "{msg}");
     }
     let (_, _, msg) = fail(&cases[0].0);
-    assert!(msg.contains("`g` (shapes[0].children[0])") && msg.contains("`h` (here)"), "{msg}");
-    for ok in [solid("difference", "g", "m", ""), solid("union", "t", "u", ""), solid("difference", "g", "h", "material = \"g\"\n")] {
+    assert!(msg.contains("`g` (given at shapes[0].children[0].material)") && msg.contains("`h` (here)"), "{msg}");
+    let beads = format!(
+        "{glasses}[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [\n  \
+         {{ type = \"sphere\", center = [-2, 0, 0], radius = 0.5, material = \"g\" }},\n  \
+         {{ type = \"sphere\", center = [2, 0, 0], radius = 0.5, material = \"h\" }},\n]\n"
+    );
+    for ok in [solid("difference", "g", "m", ""), solid("union", "t", "u", ""), solid("difference", "g", "h", "material = \"g\"\n"), beads]
+    {
         parse_scene(Path::new("ok.toml"), &format!("{BASE}{ok}")).unwrap_or_else(|e| panic!("{e}\n{ok}"));
     }
 }

@@ -39,6 +39,7 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     let out = a.output.clone().expect("clap requires -o without --status");
     check_writable(&out).map_err(Failure::input)?;
     if let Some(f) = &a.film {
+        crate::film::file::check_film_name(f).map_err(Failure::input)?;
         check_film_writable(f).map_err(Failure::input)?;
     }
     let mut outputs: Vec<(&str, &Path)> = vec![("-o", &out)];

@@ -212,6 +212,9 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
     // Where the film goes: --film, else back into the film being resumed.
     let film_path = a.film.clone().or_else(|| a.resume.clone());
+    if let Some(f) = &a.film {
+        crate::film::file::check_film_name(f).map_err(Failure::input)?;
+    }
     if let Some(f) = &film_path {
         check_film_writable(f).map_err(Failure::input)?;
     }
@@ -312,7 +315,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     let header = FilmHeader { completed, ..header.clone() };
     progress.finish();
     if stats.overflow {
-        return Err(Failure::runtime(format!("{}; nothing was written", crate::render::overflow_message(&job))));
+        return Err(Failure::runtime(format!("{}; no image or film was written", crate::render::overflow_message(&job))));
     }
     if !stats.completed && header.units_done() == resumed_units {
         // Interrupted before a work unit finished (while the light selection was made): nothing to add
@@ -328,12 +331,6 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     let image = write_image(&out, film.width, film.height, &film.to_rgb());
     // An interrupted render always leaves its film, so that it can be resumed.
     let film_out = film_path.clone().or_else(|| (!stats.completed).then(|| interrupt_film_path(&out)));
-    if let Some(f) = &film_out {
-        write_film(f, &header, &film).map_err(|e| match &image {
-            Ok(()) => Failure::runtime(e),
-            Err(i) => Failure::runtime(format!("{i}; {e}")),
-        })?;
-    }
     let write_stats = || -> Result<(), Failure> {
         let Some(j) = &a.stats_json else { return Ok(()) };
         let json = StatsJson {
@@ -349,8 +346,11 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     };
     if let Err(e) = image {
         // The image could not be written (its directory removed, a full disk): what was rendered is
-        // still kept wherever it can be, in the film and the statistics asked for.
+        // still kept wherever it can be, in the statistics and the film asked for.
         let _ = write_stats();
+        if let Some(f) = &film_out {
+            write_film(f, &header, &film).map_err(|f| Failure::runtime(format!("{e}; {f}")))?;
+        }
         let kept = match &film_out {
             Some(f) => format!(
                 "; the render is kept in the film {}: `strata merge {}{} -o IMAGE` writes its image",
@@ -361,6 +361,9 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             None => String::new(),
         };
         return Err(Failure::runtime(format!("{e}{kept}")));
+    }
+    if let Some(f) = &film_out {
+        write_film(f, &header, &film).map_err(Failure::runtime)?;
     }
     if !a.quiet {
         print_summary(&a.scene, &scene, &job, &stats, setup_seconds + stats.selection_seconds, &out);

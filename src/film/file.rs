@@ -306,14 +306,19 @@ pub fn write_film(path: &Path, header: &FilmHeader, film: &Film) -> Result<(), S
     })
 }
 
+/// A new film (`--film`) named as an image is a slip: another program would take it for an image and
+/// fail. (A film being resumed keeps whatever name it has.)
+pub fn check_film_name(path: &Path) -> Result<(), String> {
+    match path.extension().and_then(|e| e.to_str()).filter(|e| ["png", "exr"].contains(&e.to_ascii_lowercase().as_str())) {
+        Some(ext) => Err(format!("{}: a film is not an image (`.{ext}`): name it `.film`", path.display())),
+        None => Ok(()),
+    }
+}
+
 /// Check before rendering that a film can be written at `path` (its directory exists and is writable).
 pub fn check_film_writable(path: &Path) -> Result<(), String> {
     if path.file_name().is_none() || path.is_dir() {
         return Err(format!("{}: not a file name", path.display()));
-    }
-    // (An image's name for a film is a slip: another program would take it for an image and fail.)
-    if let Some(ext) = path.extension().and_then(|e| e.to_str()).filter(|e| ["png", "exr"].contains(&e.to_ascii_lowercase().as_str())) {
-        return Err(format!("{}: a film is not an image (`.{ext}`): name it `.film`", path.display()));
     }
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,

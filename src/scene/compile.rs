@@ -75,6 +75,7 @@ pub fn parse_scene_sized(path: &Path, text: &str, size: Option<(u32, u32)>) -> R
         checkers: Default::default(),
         prim_at: Vec::new(),
         leaf_sites: Vec::new(),
+        material_from: None,
     };
     c.compile(hash_text(text))
 }
@@ -107,9 +108,20 @@ struct Compiler<'a> {
     checkers: std::cell::RefCell<Vec<(Range<usize>, String, f32)>>,
     /// Where each prim was given (its definition's span and field), by prim id: for warnings that name a prim.
     prim_at: Vec<(Range<usize>, String)>,
-    /// The leaves `csg_tree` made since the last top-level solid began: each one's material, span and
-    /// field (to name the leaves of a glass solid of several glasses).
-    leaf_sites: Vec<(u32, Range<usize>, String)>,
+    /// The leaves `csg_tree` made since the last top-level solid began: each one's material, where that
+    /// material was given (span and field: the leaf's own, an enclosing node's or a `use`'s) and the
+    /// leaf's world bounds (`None`: a half-space): to name the leaves of a glass solid of several glasses.
+    leaf_sites: Vec<LeafSite>,
+    /// While `csg_tree` descends: where the material in force was given (span and field).
+    material_from: Option<(Range<usize>, String)>,
+}
+
+/// A leaf of the solid being built (see `Compiler::leaf_sites`).
+struct LeafSite {
+    material: u32,
+    span: Range<usize>,
+    field: String,
+    bounds: Option<(Vec3, Vec3)>,
 }
 
 impl Compiler<'_> {
@@ -240,6 +252,7 @@ impl Compiler<'_> {
             if !self.used_solids.contains(name) {
                 self.solid_definition(name, def)?;
                 self.lenient_material = true;
+                self.material_from = None;
                 self.csg_tree(def, &format!("solids.{name}"), Affine3A::IDENTITY, None, 1, &mut vec![name.clone()])?;
                 self.lenient_material = false;
             }
@@ -550,8 +563,10 @@ impl Compiler<'_> {
                 // A solid's medium is its one glass (`one_medium`); opaque leaves are surfaces in or on it.
                 Shape::Csg { solid } => {
                     let medium = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
-                    match self.csg.solid_leaves(solid).map(|k| self.csg.leaf(k).material).find(|&m| medium(m)) {
-                        Some(m) => m,
+                    // (Glasses apart in one solid: the one around the camera, if any.)
+                    let leaves = || self.csg.solid_leaves(solid).map(|k| self.csg.leaf(k)).filter(|l| medium(l.material));
+                    match leaves().find(|l| l.inside(pos)).or_else(|| leaves().next()) {
+                        Some(l) => l.material,
                         None => continue,
                     }
                 }
@@ -996,8 +1011,8 @@ impl Compiler<'_> {
         // Everything else is a CSG solid (a single cylinder, cone or torus is a one-leaf solid).
         let mut stack = Vec::new();
         self.leaf_sites.clear();
+        self.material_from = s.material.as_ref().map(|m| (m.span(), format!("{field}.material")));
         let tree = self.csg_tree(def, field, Affine3A::IDENTITY, material, 0, &mut stack)?;
-        self.one_medium(field)?;
         let _ = t; // the transform was applied inside csg_tree (it reads the def's own transform)
         let solid = self.csg.add_solid(&tree).map_err(|e| match (e, self.unbounded_by.take()) {
             (csg::program::CsgError::Unbounded, Some((span, at, what))) => self.err(
@@ -1016,6 +1031,7 @@ impl Compiler<'_> {
             self.warn(def.span(), field, "this CSG solid is empty (an intersection of solids that do not overlap?): it is left out");
             return Ok(());
         }
+        self.one_medium(field)?;
         // The coincidence tolerance is relative to the solid's scale L (its farthest coordinate): a leaf
         // far from the rest (a part at 1e5 in a union with one at the origin) widens it for every leaf.
         let scale = self.csg.scale(solid);
@@ -1061,34 +1077,45 @@ impl Compiler<'_> {
         Ok(())
     }
 
-    /// A CSG solid is one medium: a ray that enters it through the surface of one glass and leaves
-    /// through that of another would keep the first as its medium (and leave a medium it never
-    /// entered), so its image would be wrong with no sign of it. Where any leaf of the solid just made
-    /// (`leaf_sites`) is a non-thin dielectric, every dielectric leaf must be of that one material
-    /// (opaque leaves, such as a painted hole, are surfaces inside or on it and may differ).
+    /// A CSG solid is one medium where its parts meet: a ray that enters through the surface of one
+    /// glass and leaves through that of another would keep the first as its medium (and leave a medium
+    /// it never entered), so its image would be wrong with no sign of it. Two leaves of the solid just
+    /// made (`leaf_sites`) of different dielectrics, one of them not thin, whose bounds overlap (or one
+    /// of them a half-space) are an error; leaves apart (beads of two glasses in one union) are not, nor
+    /// are opaque leaves (a painted hole in glass: surfaces inside or on it).
     fn one_medium(&self, field: &str) -> R<()> {
         let dielectric = |m: u32| match &self.materials[m as usize] {
             Material::Dielectric(d) => Some(!d.thin),
             _ => None,
         };
-        let Some(first) = self.leaf_sites.iter().find(|s| dielectric(s.0) == Some(true)) else {
-            return Ok(());
+        let overlap = |a: &LeafSite, b: &LeafSite| match (a.bounds, b.bounds) {
+            (Some((alo, ahi)), Some((blo, bhi))) => alo.cmple(bhi).all() && blo.cmple(ahi).all(),
+            _ => true,
         };
-        let Some(other) = self.leaf_sites.iter().find(|s| s.0 != first.0 && dielectric(s.0).is_some()) else {
-            return Ok(());
-        };
-        let name = |m: u32| self.material_ids.iter().find(|(_, &id)| id == m).map_or_else(|| format!("#{m}"), |(n, _)| n.clone());
-        let (a, b) = (name(first.0), name(other.0));
-        Err(self.err(
-            other.1.clone(),
-            format!("{}.material", other.2),
-            format!(
-                "the CSG solid `{field}` mixes the glasses `{a}` ({}) and `{b}` (here), but a solid is one medium: a ray \
-                 entering through one and leaving through the other would stay inside the first. Give the solid one \
-                 material (a `material` on the solid overrides its children's), or make separate solids ranked by `priority`",
-                first.2
-            ),
-        ))
+        let sites = &self.leaf_sites;
+        for (j, other) in sites.iter().enumerate() {
+            let Some(other_solid) = dielectric(other.material) else { continue };
+            let clash = sites[..j].iter().find(|first| {
+                first.material != other.material
+                    && dielectric(first.material).is_some_and(|solid| solid || other_solid)
+                    && overlap(first, other)
+            });
+            let Some(first) = clash else { continue };
+            let name = |m: u32| self.material_ids.iter().find(|(_, &id)| id == m).map_or_else(|| format!("#{m}"), |(n, _)| n.clone());
+            let (a, b) = (name(first.material), name(other.material));
+            return Err(self.err(
+                other.span.clone(),
+                other.field.clone(),
+                format!(
+                    "the CSG solid `{field}` joins the glasses `{a}` (given at {}) and `{b}` (here) where its parts meet, but a \
+                     solid is one medium: a ray entering through one and leaving through the other would stay inside the \
+                     first. Give the solid one material (a `material` on the solid overrides its children's), or make \
+                     separate solids ranked by `priority`",
+                    first.field
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn simple_shape(&self, def: &S<ShapeDef>, field: &str, kind: &str, t: Affine3A) -> R<Shape> {
@@ -1220,9 +1247,13 @@ impl Compiler<'_> {
             }
         }
         // Outermost material wins: a node's material overrides its descendants.
+        let saved_from = self.material_from.clone();
         let material = match (material, &s.material) {
             (Some(m), _) => Some(m),
-            (None, Some(m)) => Some(self.material_ref(m, &f("material"))?),
+            (None, Some(m)) => {
+                self.material_from = Some((m.span(), f("material")));
+                Some(self.material_ref(m, &f("material"))?)
+            }
             (None, None) => None,
         };
         if let Some(u) = &s.use_solid {
@@ -1251,6 +1282,7 @@ impl Compiler<'_> {
             uses.push(name.clone());
             let r = self.csg_tree(target, &format!("solids.{name}"), t, material, depth + 1, uses);
             uses.pop();
+            self.material_from = saved_from;
             return r;
         }
         let kind_s = self.req(&s.kind, def.span(), &f("type"))?;
@@ -1384,8 +1416,10 @@ impl Compiler<'_> {
             }
         };
         if let CsgTree::Leaf(l) = &tree {
-            self.leaf_sites.push((l.material, sp, field.to_string()));
+            let (span, field) = self.material_from.clone().unwrap_or((sp, f("material")));
+            self.leaf_sites.push(LeafSite { material: l.material, span, field, bounds: l.bounds() });
         }
+        self.material_from = saved_from;
         Ok(tree)
     }
 

@@ -19,7 +19,7 @@ pub mod shade;
 pub mod shadow;
 pub mod transmit;
 
-pub use pipeline::{render_unit, Settings, WorkUnit, MAX_PASS_RAYS};
+pub use pipeline::{render_unit, Settings, WorkUnit, MAX_RAYS_PER_PATH};
 pub use queues::{CsgCandidates, HitQueue, MediumStack, NeeQueue, PathTable, RayItem, RayQueue};
 
 use crate::csg::CsgArena;

@@ -40,13 +40,16 @@ macro_rules! timed {
     }};
 }
 
-/// Most rays one pass of a work unit may hold (`branching = "split"` lets the ray tree grow until
-/// `throughput_cutoff` and `max_depth` stop it; a tiny cutoff lets it grow past any memory): 4,096 per
-/// camera path of a 4,096-path unit, about 1.5 GB of queues.
-pub const MAX_PASS_RAYS: usize = 1 << 24;
+/// Most rays one pass of a work unit may hold per camera path of the unit (`branching = "split"` lets
+/// the ray tree grow until `throughput_cutoff` and `max_depth` stop it; a tiny cutoff lets it grow past
+/// any memory): a unit of 4,096 paths may hold 2^24 rays, about 1.5 GB of queues. With a cutoff `c`, a
+/// glass ray tree's rays at one bounce share the path's throughput (R + T = 1), so there are at most
+/// about `1 / c` of them (more where roulette or dispersion weighs a path above 1): a cutoff of 1e-3
+/// stays far below the limit.
+pub const MAX_RAYS_PER_PATH: usize = 4096;
 
 /// Render one work unit with the worker's wavefront and add it to the film. False (and nothing added)
-/// where a pass outgrew `max_pass_rays` ([`MAX_PASS_RAYS`] by default).
+/// where a pass outgrew `max_rays_per_path` ([`MAX_RAYS_PER_PATH`] by default) times the unit's camera paths.
 #[must_use]
 pub fn render_unit(
     scene: &Scene,
@@ -54,7 +57,7 @@ pub fn render_unit(
     unit: &WorkUnit,
     wf: &mut Wavefront,
     film: &Mutex<Film>,
-    max_pass_rays: usize,
+    max_rays_per_path: usize,
 ) -> bool {
     let (profile, seed) = (&settings.profile, settings.seed);
     let Wavefront { rays, hits, csg, csg_arena, nee, paths, order, counters, times } = wf;
@@ -88,7 +91,7 @@ pub fn render_unit(
         counters.shadow_rays += traced;
         counters.shadow_cleared += cleared;
         counters.secondary_rays += next.len() as u64;
-        if next.len() > max_pass_rays {
+        if next.len() > max_rays_per_path.saturating_mul(paths.len()) {
             rays[0].clear();
             rays[1].clear();
             return false;

@@ -176,8 +176,8 @@ fn infinite_hall_terminates_at_max_depth() {
 /// A split ray tree that `throughput_cutoff` does not bound (1e-30 over 40 bounces between two glass
 /// slabs) stops the render at the pass limit (`RenderStats::overflow`, no unit done, nothing in the
 /// film) instead of growing until memory runs out; the usual cutoff (1e-3) renders the same scene
-/// with the same limit, its passes far below it. (A limit of 20,000 rays per pass, against the
-/// default 2^24, keeps the test small; the CLI's message is `overflow_message`.)
+/// with the same limit, its passes far below it. (A limit of 400 rays per camera path, against the
+/// default 4,096, keeps the test small; the CLI's message is `overflow_message`.)
 #[test]
 fn an_unbounded_split_tree_stops_at_the_pass_limit() {
     let text = "[image]\nwidth = 8\nheight = 6\n[camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\nfov = 30\n\
@@ -189,13 +189,13 @@ fn an_unbounded_split_tree_stops_at_the_pass_limit() {
         let p = profile(&[("max_depth", "40"), ("branching", "split"), ("throughput_cutoff", cutoff), ("spp", "1")]);
         let mut job = strata::render::RenderJob::new(&scene, strata::wavefront::Settings { profile: p, seed: SEED });
         job.threads = 2;
-        job.max_pass_rays = 20_000;
+        job.max_rays_per_path = 400;
         let (film, stats) = strata::render::render_into(&job, strata::film::Film::new(scene.width, scene.height));
         (stats, film.total_samples(), strata::render::overflow_message(&job))
     };
     let (stats, samples, msg) = run("1e-30");
     assert!(stats.overflow && !stats.completed && samples == 0, "{stats:?}");
-    assert!(msg.contains("passed 20000") && msg.contains("throughput_cutoff = 1e-30") && msg.contains("roulette"), "{msg}");
+    assert!(msg.contains("passed 400 per camera path") && msg.contains("throughput_cutoff = 1e-30") && msg.contains("roulette"), "{msg}");
     let (stats, samples, _) = run("1e-3");
     assert!(!stats.overflow && stats.completed && samples == 48, "{stats:?}");
 }
