@@ -344,13 +344,18 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         let text = serde_json::to_string_pretty(&json).map_err(Failure::runtime)?;
         crate::film::output::write_atomic(j, |tmp| std::fs::write(tmp, text).map_err(|e| e.to_string())).map_err(Failure::runtime)
     };
-    if let Err(e) = image {
-        // The image could not be written (its directory removed, a full disk): what was rendered is
-        // still kept wherever it can be, in the statistics and the film asked for.
+    // If the image could not be written (its directory removed, a full disk), what was rendered is still
+    // kept wherever it can be, in the statistics and the film asked for (the statistics first).
+    if image.is_err() {
         let _ = write_stats();
-        if let Some(f) = &film_out {
-            write_film(f, &header, &film).map_err(|f| Failure::runtime(format!("{e}; {f}")))?;
-        }
+    }
+    if let Some(f) = &film_out {
+        write_film(f, &header, &film).map_err(|fe| match &image {
+            Ok(()) => Failure::runtime(fe),
+            Err(e) => Failure::runtime(format!("{e}; {fe}")),
+        })?;
+    }
+    if let Err(e) = image {
         let kept = match &film_out {
             Some(f) => format!(
                 "; the render is kept in the film {}: `strata merge {}{} -o IMAGE` writes its image",
@@ -361,9 +366,6 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             None => String::new(),
         };
         return Err(Failure::runtime(format!("{e}{kept}")));
-    }
-    if let Some(f) = &film_out {
-        write_film(f, &header, &film).map_err(Failure::runtime)?;
     }
     if !a.quiet {
         print_summary(&a.scene, &scene, &job, &stats, setup_seconds + stats.selection_seconds, &out);

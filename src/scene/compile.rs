@@ -557,7 +557,6 @@ impl Compiler<'_> {
         };
         let mut found: Vec<(f32, u32)> = Vec::new();
         let mut notes: Vec<String> = Vec::new();
-        let name = |c: &Self, m: u32| c.material_ids.iter().find(|(_, &id)| id == m).map_or_else(|| format!("#{m}"), |(n, _)| n.clone());
         for p in &self.prims {
             let material = match p.shape {
                 // A solid's medium is its one glass (`one_medium`); opaque leaves are surfaces in or on it.
@@ -592,14 +591,14 @@ impl Compiler<'_> {
                     "the moving `{}` solid {} the camera during the shutter: camera rays take the media at shutter open, \
                      so those of the other times are wrong (a ball of absorbing glass that leaves the camera darkens \
                      every ray after it has gone); keep a medium around the camera still during the shutter",
-                    name(self, material),
+                    self.material_name(material),
                     if at_open { "leaves" } else { "reaches" }
                 ));
             }
             if rim.iter().any(|&x| inside(x, camera.shutter[0]) != at_open) {
                 notes.push(format!(
                     "the lens aperture crosses the surface of a `{}` solid: camera rays take the media at the lens centre",
-                    name(self, material)
+                    self.material_name(material)
                 ));
             }
             if at_open {
@@ -1077,6 +1076,11 @@ impl Compiler<'_> {
         Ok(())
     }
 
+    /// The name a material was defined under (`#id` for one made by a light).
+    fn material_name(&self, m: u32) -> String {
+        self.material_ids.iter().find(|(_, &id)| id == m).map_or_else(|| format!("#{m}"), |(n, _)| n.clone())
+    }
+
     /// A CSG solid is one medium where its parts meet: a ray that enters through the surface of one
     /// glass and leaves through that of another would keep the first as its medium (and leave a medium
     /// it never entered), so its image would be wrong with no sign of it. Two leaves of the solid just
@@ -1101,8 +1105,7 @@ impl Compiler<'_> {
                     && overlap(first, other)
             });
             let Some(first) = clash else { continue };
-            let name = |m: u32| self.material_ids.iter().find(|(_, &id)| id == m).map_or_else(|| format!("#{m}"), |(n, _)| n.clone());
-            let (a, b) = (name(first.material), name(other.material));
+            let (a, b) = (self.material_name(first.material), self.material_name(other.material));
             return Err(self.err(
                 other.span.clone(),
                 other.field.clone(),
