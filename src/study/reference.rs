@@ -168,8 +168,9 @@ fn rendered(scene: &Scene, profile: &Profile, plan: &Plan, n: u32, out_dir: &Pat
             }
         }
     }
-    let (film, seconds, _) =
-        render_cancellable(scene, ref_profile, REFERENCE_SEED, plan.threads, plan.cancel.as_deref()).ok_or(RefError::Interrupted)?;
+    let (film, seconds, _) = render_cancellable(scene, ref_profile, REFERENCE_SEED, plan.threads, plan.cancel.as_deref())
+        .map_err(RefError::Runtime)?
+        .ok_or(RefError::Interrupted)?;
     let rgb = film.to_rgb();
     // The image first, then the sidecar: an interrupted write leaves no sidecar, so no stale reuse.
     let _ = std::fs::remove_file(&txt);

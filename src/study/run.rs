@@ -194,28 +194,29 @@ impl RowCheck {
 
 /// Render one image with `profile` and `seed`; returns the linear image, seconds and rays.
 pub fn render_once(scene: &Scene, profile: Profile, seed: u64, threads: usize) -> (Film, f64, u64) {
-    render_cancellable(scene, profile, seed, threads, None).expect("a render without a cancel flag completes")
+    render_cancellable(scene, profile, seed, threads, None)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .expect("a render without a cancel flag completes")
 }
 
-/// [`render_once`] that stops when `cancel` is set: None if the render did not complete.
+/// [`render_once`] that stops when `cancel` is set: None if the render did not complete; an error where a
+/// pass outgrew its ray limit (the same settings would at every seed: nothing can be measured).
 pub fn render_cancellable(
     scene: &Scene,
     profile: Profile,
     seed: u64,
     threads: usize,
     cancel: Option<&AtomicBool>,
-) -> Option<(Film, f64, u64)> {
+) -> Result<Option<(Film, f64, u64)>, String> {
     let mut job = RenderJob::new(scene, Settings { profile, seed });
     job.threads = threads;
     job.cancel = cancel;
     let (film, stats) = render_into(&job, Film::new(scene.width, scene.height));
     if stats.overflow {
-        // (The same settings overflow every seed and count above: nothing of the study can be measured.)
-        errln!("error: {}", crate::render::overflow_message(&job));
-        std::process::exit(1);
+        return Err(crate::render::overflow_message(&job));
     }
     if !stats.completed {
-        return None;
+        return Ok(None);
     }
     // (Discarded samples would bias every error measured from this image.)
     crate::film::warn_discarded(stats.nonfinite_samples);
@@ -229,7 +230,7 @@ pub fn render_cancellable(
     }
     // (The light selection, a power table or a light tree, is made for each render before its clock:
     // a cost of the run all the same, which a study of selection modes must weigh.)
-    Some((film, stats.seconds + stats.selection_seconds, stats.rays.total))
+    Ok(Some((film, stats.seconds + stats.selection_seconds, stats.rays.total)))
 }
 
 /// Run the whole series against `reference`. `report` is called after each run (progress output). If
@@ -249,14 +250,14 @@ pub fn run_series(
     // which would otherwise be charged to the first run's seconds.
     let cancel = plan.cancel.as_deref();
     if let (Some(&s), Some(&n)) = (plan.strategies.first(), plan.counts.first()) {
-        render_cancellable(scene, configure(base, &plan.integrals, s, n, plan.light_from_spp)?, 0, plan.threads, cancel);
+        render_cancellable(scene, configure(base, &plan.integrals, s, n, plan.light_from_spp)?, 0, plan.threads, cancel)?;
     }
     for &strategy in &plan.strategies {
         for &n in &plan.counts {
             let profile = configure(base, &plan.integrals, strategy, n, plan.light_from_spp)?;
             let mut sum = vec![DVec3::ZERO; reference.len()];
             for seed in 1..=plan.seeds as u64 {
-                let done = if plan.cancelled() { None } else { render_cancellable(scene, profile.clone(), seed, plan.threads, cancel) };
+                let done = if plan.cancelled() { None } else { render_cancellable(scene, profile.clone(), seed, plan.threads, cancel)? };
                 let Some((film, seconds, rays)) = done else {
                     if seed > 1 {
                         rows.push(RowCheck::of(strategy, n, &sum, seed as usize - 1, reference));
