@@ -263,6 +263,96 @@ pub fn permute_x8(i: &[u32; 8], sh: &PermuteShape, keys: &[u32; 8]) -> [u32; 8] 
     std::array::from_fn(|l| k[l].rotate(cur[l], n))
 }
 
+/// The most elements per lane [`permute_runs`] takes.
+pub const RUN_MAX: usize = 16;
+
+/// [`permute`] of runs of indices, one run per lane: lane `l`'s element `m` (for `m < count[l] <=
+/// RUN_MAX`) is index `base[l] + m step`, permuted by `keys[l]`, into `out[m][l]` (every index below `n`).
+/// Rows of `out` past a lane's count are left as they were.
+///
+/// One vector's cycle-walk waits for the slowest of its 8 lanes (a set of 17 in a word of 32 takes 1.9
+/// rounds on average and 4 for the slowest of 8), and each round on the one before (three dependent
+/// multiplications). Here each lane goes on to its next element as soon as its current one lands in
+/// range, so that a lane's rounds are the sum of its elements' (about 1.9 m), and a run of 2 or more is
+/// split into parts walked side by side (one per element up to 4, then 4), whose chains overlap.
+#[inline(never)]
+pub fn permute_runs(base: &[u32; 8], step: u32, count: &[u32; 8], sh: &PermuteShape, keys: &[u32; 8], out: &mut [[u32; 8]; RUN_MAX]) {
+    debug_assert!(count.iter().all(|&c| c as usize <= RUN_MAX));
+    debug_assert!((0..8).all(|l| count[l] == 0 || base[l] as u64 + (count[l] as u64 - 1) * step as u64 <= (sh.n - 1) as u64));
+    match count.iter().max().copied().unwrap_or(0) {
+        0 => {}
+        1 => {
+            let index: [u32; 8] = std::array::from_fn(|l| if count[l] == 1 { base[l] } else { 0 });
+            let p = permute_x8(&index, sh, keys);
+            for l in 0..8 {
+                out[0][l] = if count[l] == 1 { p[l] } else { out[0][l] };
+            }
+        }
+        2 => walk_runs::<2>(base, step, count, sh, keys, out),
+        3 => walk_runs::<3>(base, step, count, sh, keys, out),
+        _ => walk_runs::<4>(base, step, count, sh, keys, out),
+    }
+}
+
+/// [`permute_runs`] with the runs split into `G` parts.
+#[inline(always)]
+fn walk_runs<const G: usize>(
+    base: &[u32; 8],
+    step: u32,
+    count: &[u32; 8],
+    sh: &PermuteShape,
+    keys: &[u32; 8],
+    out: &mut [[u32; 8]; RUN_MAX],
+) {
+    const SPARE: u32 = RUN_MAX as u32;
+    let k: [PermuteKey; 8] = std::array::from_fn(|l| PermuteKey::new(keys[l]));
+    let n = sh.n;
+    // Part g takes elements lo..hi of each lane; `m`, its current one; `cur`, where its walk is.
+    let mut m = [[0u32; 8]; G];
+    let mut hi = [[0u32; 8]; G];
+    let mut cur = [[0u32; 8]; G];
+    for g in 0..G {
+        for l in 0..8 {
+            m[g][l] = count[l] * g as u32 / G as u32;
+            hi[g][l] = count[l] * (g as u32 + 1) / G as u32;
+            cur[g][l] = base[l].wrapping_add(m[g][l].wrapping_mul(step));
+        }
+    }
+    // (Landed values go to row `m` of their lane, written every round: a lane that has not landed
+    // writes its walk's value there, overwritten when it lands; a finished lane writes to the spare row.)
+    let mut rows = [[0u32; 8]; RUN_MAX + 1];
+    loop {
+        let mut any = 0;
+        for g in 0..G {
+            // (The lanes' arithmetic in one loop, which vectorises, and their stores in another.)
+            let mut next = [0u32; 8];
+            let mut row = [0u32; 8];
+            for l in 0..8 {
+                next[l] = k[l].scramble(cur[g][l], sh);
+                let active = m[g][l] < hi[g][l];
+                row[l] = if active { m[g][l] } else { SPARE };
+                let go = active & (next[l] < n);
+                m[g][l] += go as u32;
+                cur[g][l] = if go { base[l].wrapping_add(m[g][l].wrapping_mul(step)) } else { next[l] };
+                any |= (m[g][l] < hi[g][l]) as u32;
+            }
+            for l in 0..8 {
+                rows[row[l].min(SPARE) as usize][l] = next[l];
+            }
+        }
+        if any == 0 {
+            break;
+        }
+    }
+    let most = count.iter().max().copied().unwrap_or(0) as usize;
+    for (r, (o, row)) in out.iter_mut().zip(&rows).enumerate().take(most) {
+        for l in 0..8 {
+            let v = k[l].rotate(row[l], n);
+            o[l] = if (r as u32) < count[l] { v } else { o[l] };
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -280,6 +370,40 @@ mod tests {
                 let got = permute_x8(&i, &sh, &keys);
                 for l in 0..8 {
                     assert_eq!(got[l], permute(i[l], n, keys[l]), "n={n} key={} i={}", keys[l], i[l]);
+                }
+            }
+        }
+    }
+
+    /// `permute_runs` equals `permute` element by element: sizes with long and short walks, runs of 0 to
+    /// `RUN_MAX` elements per lane (lanes of different lengths), steps 1 and 8, and rows past a lane's
+    /// run left alone.
+    #[test]
+    fn permute_runs_equals_permute() {
+        for n in [1u32, 2, 3, 5, 17, 31, 33, 100, 272, 1000, 4097, (1 << 20) + 1, (1 << 24) - 1] {
+            let sh = PermuteShape::new(n);
+            for round in 0..24u32 {
+                let keys: [u32; 8] = std::array::from_fn(|l| mix32((round * 8 + l as u32) ^ n));
+                let step = if round % 2 == 0 { 1 } else { 8 };
+                let count: [u32; 8] = std::array::from_fn(|l| {
+                    let most = if n as usize >= RUN_MAX * step as usize { RUN_MAX as u32 } else { (n - 1) / step + 1 };
+                    if round % 3 == 0 {
+                        most
+                    } else {
+                        mix32(keys[l]) % (most + 1)
+                    }
+                });
+                let base: [u32; 8] = std::array::from_fn(|l| {
+                    let room = n - (count[l].max(1) - 1) * step;
+                    mix32(keys[l] ^ 0x77) % room
+                });
+                let mut out = [[u32::MAX; 8]; RUN_MAX];
+                permute_runs(&base, step, &count, &sh, &keys, &mut out);
+                for l in 0..8 {
+                    for m in 0..RUN_MAX as u32 {
+                        let want = if m < count[l] { permute(base[l] + m * step, n, keys[l]) } else { u32::MAX };
+                        assert_eq!(out[m as usize][l], want, "n={n} round={round} lane {l} element {m}");
+                    }
                 }
             }
         }

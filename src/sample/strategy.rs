@@ -2,8 +2,8 @@
 //! semantics and conventions).
 
 use super::hash::{
-    permute, permute_pow2, permute_x8, random_2d_keyed, random_bits, random_f32_keyed, stream_key, PermutePow2, PermuteShape,
-    ONE_MINUS_EPSILON,
+    permute, permute_pow2, permute_runs, permute_x8, random_2d_keyed, random_bits, random_f32_keyed, stream_key, PermutePow2, PermuteShape,
+    ONE_MINUS_EPSILON, RUN_MAX,
 };
 use super::sobol::{sobol_owen_1d, sobol_owen_2d};
 use crate::simd::{f32x8, LANES};
@@ -408,27 +408,9 @@ impl Sampler2d {
         }
         let mut u = [[0.0f32; LANES]; 2];
         if self.strategy == Strategy::Jittered && self.n <= 1 << 24 && index.iter().all(|&i| i < self.n) {
-            // Other counts (48, 100, 1000 spp): the same strata and jitter as `sample_impl`, with the
-            // cycle-walking permutation in 8 lanes and the integer divisions as f64 ones (exact here,
-            // see `jitter_in_cell_div`), which vectorise where the integer ones do not.
+            // Other counts (48, 100, 1000 spp): the cycle-walking permutation in 8 lanes.
             let s = if permuted { permute_x8(index, &PermuteShape::new(self.n), &keys.map(perm_key)) } else { *index };
-            if let Some(rows) = &self.rows {
-                // Counts in rows (5, 17, 31): `JitterRows::jitter`, its divisions likewise in f64.
-                for l in 0..LANES {
-                    let h = random_bits(keys[l], index[l]);
-                    [u[0][l], u[1][l]] = rows.jitter_f64(s[l] as f64, h);
-                }
-                return [f32x8::from(u[0]), f32x8::from(u[1])];
-            }
-            let (nx, ny) = (self.nx as f64, self.ny as f64);
-            for l in 0..LANES {
-                let sl = s[l] as f64;
-                let sy = quotient_below_2_24(sl, nx);
-                let sx = sl - sy * nx;
-                let h = random_bits(keys[l], index[l]);
-                u[0][l] = jitter_in_cell_div(sx, nx, (h >> 32) as u32);
-                u[1][l] = jitter_in_cell_div(sy, ny, h as u32);
-            }
+            return self.jitter_strata_x8(keys, index, &s);
         } else if self.strategy == Strategy::Grid && !permuted && index.iter().all(|&i| i == index[0]) {
             // An unpermuted grid sample depends on its index alone (no key): one for all lanes (the
             // light samples of a grid, sample j at every shading point of a chunk).
@@ -452,6 +434,77 @@ impl Sampler2d {
             }
         }
         [f32x8::from(u[0]), f32x8::from(u[1])]
+    }
+
+    /// The jittered samples in strata `s` (`s[l] < n <= 2^24`) of samples `index` of the sets keyed by
+    /// `keys`: the same strata and jitter as `sample_impl`, the integer divisions as f64 ones (exact
+    /// here, see `jitter_in_cell_div`), which vectorise where the integer ones do not.
+    #[inline(always)]
+    fn jitter_strata_x8(&self, keys: &[u64; LANES], index: &[u32; LANES], s: &[u32; LANES]) -> [f32x8; 2] {
+        let mut u = [[0.0f32; LANES]; 2];
+        if let Some(rows) = &self.rows {
+            // Counts in rows (5, 17, 31): `JitterRows::jitter`, its divisions likewise in f64.
+            for l in 0..LANES {
+                let h = random_bits(keys[l], index[l]);
+                [u[0][l], u[1][l]] = rows.jitter_f64(s[l] as f64, h);
+            }
+            return [f32x8::from(u[0]), f32x8::from(u[1])];
+        }
+        let (nx, ny) = (self.nx as f64, self.ny as f64);
+        for l in 0..LANES {
+            let sl = s[l] as f64;
+            let sy = quotient_below_2_24(sl, nx);
+            let sx = sl - sy * nx;
+            let h = random_bits(keys[l], index[l]);
+            u[0][l] = jitter_in_cell_div(sx, nx, (h >> 32) as u32);
+            u[1][l] = jitter_in_cell_div(sy, ny, h as u32);
+        }
+        [f32x8::from(u[0]), f32x8::from(u[1])]
+    }
+
+    /// Whether [`Sampler2d::sample_x8_run`] gains over one [`Sampler2d::sample_x8`] per vector: a
+    /// jittered set of another size than a power of two (up to 2^24), whose permutation walks cycles.
+    #[inline(always)]
+    pub fn runs(&self) -> bool {
+        self.strategy == Strategy::Jittered && !self.n.is_power_of_two() && self.n <= 1 << 24
+    }
+
+    /// [`Sampler2d::sample_x8`] of a run of index vectors under the same 8 keys: `out[m]` is
+    /// `sample_x8(keys, &index, permuted)` with `index[l] = base[l] + m step`, bit for bit, for `m <
+    /// count <= RUN_MAX` (a chunk's light samples `j..j + count`, step 1; a pixel's samples, step 8).
+    /// Where the set's permutation walks cycles (a size other than a power of two), each lane walks its
+    /// run's elements one after another ([`permute_runs`]) instead of every vector waiting for its
+    /// slowest lane.
+    #[inline(never)]
+    pub fn sample_x8_run(
+        &self,
+        keys: &[u64; LANES],
+        base: &[u32; LANES],
+        step: u32,
+        count: usize,
+        permuted: bool,
+        out: &mut [[f32x8; 2]; RUN_MAX],
+    ) {
+        assert!(count <= RUN_MAX);
+        let index = |m: usize| -> [u32; LANES] { std::array::from_fn(|l| base[l].wrapping_add(m as u32 * step)) };
+        let last = (count as u64).saturating_sub(1) * step as u64;
+        if !(self.runs() && base.iter().all(|&b| b as u64 + last < self.n as u64)) {
+            for (m, o) in out.iter_mut().enumerate().take(count) {
+                *o = self.sample_x8(keys, &index(m), permuted);
+            }
+            return;
+        }
+        let mut s = [[0u32; LANES]; RUN_MAX];
+        if permuted {
+            permute_runs(base, step, &[count as u32; LANES], &PermuteShape::new(self.n), &keys.map(perm_key), &mut s);
+        } else {
+            for (m, s) in s.iter_mut().enumerate().take(count) {
+                *s = index(m);
+            }
+        }
+        for m in 0..count {
+            out[m] = self.jitter_strata_x8(keys, &index(m), &s[m]);
+        }
     }
 
     #[inline(always)]
@@ -537,6 +590,50 @@ mod tests {
                 // n distinct strata: all of them (a jittered 7 in rows of 4 and 3 cells).
                 if matches!(strategy, Strategy::Grid | Strategy::Jittered) {
                     assert!(cells.iter().all(|&c| c <= 1) && cells.iter().sum::<u32>() == n, "{strategy:?} n={n}: {cells:?}");
+                }
+            }
+        }
+    }
+
+    /// A run of index vectors against one `sample_x8` per vector, bit for bit: every strategy, sizes with
+    /// long and short walks, runs of 1 to `RUN_MAX` vectors, steps 1 and 8, permuted or not, and indices
+    /// past the set (the per-vector fallback).
+    #[test]
+    fn sample_x8_run_matches_sample_x8() {
+        use crate::sample::hash::{mix32, mix64};
+        for strategy in Strategy::ALL {
+            for n in [1u32, 3, 5, 16, 17, 31, 48, 67, 100, 272, 1000, 4095, 1_000_003, (1 << 24) - 1] {
+                let s = Sampler2d::new(strategy, n);
+                for count in 1..=RUN_MAX {
+                    for round in 0..6u64 {
+                        let keys = std::array::from_fn(|l| mix64(round * 8 + l as u64 + n as u64 * 31));
+                        let step = if round % 2 == 0 { 1 } else { 8 };
+                        let span = (count as u32 - 1) * step;
+                        // The last round's runs pass the end of the set.
+                        let base = std::array::from_fn(|l| {
+                            let b = mix32((round * 64 + count as u64) as u32 + l as u32);
+                            if round == 5 || span >= n {
+                                b % (n + 8)
+                            } else {
+                                b % (n - span)
+                            }
+                        });
+                        for permuted in [true, false] {
+                            let mut out = [[f32x8::ZERO; 2]; RUN_MAX];
+                            s.sample_x8_run(&keys, &base, step, count, permuted, &mut out);
+                            for (m, got) in out.iter().enumerate().take(count) {
+                                let index = std::array::from_fn(|l| base[l] + m as u32 * step);
+                                let want = s.sample_x8(&keys, &index, permuted);
+                                for d in 0..2 {
+                                    assert_eq!(
+                                        got[d].to_array().map(f32::to_bits),
+                                        want[d].to_array().map(f32::to_bits),
+                                        "{strategy:?} n={n} count={count} step={step} m={m} permuted={permuted}"
+                                    );
+                                }
+                            }
+                        }
+                    }
                 }
             }
         }

@@ -7,6 +7,7 @@
 use super::dims;
 use super::queues::{MediumStack, PathTable, RayQueue, RayRows};
 use crate::optics::{sample_wavelength, sample_wavelength_pdf, wavelength_to_rgb};
+use crate::sample::hash::RUN_MAX;
 use crate::sample::{sample_1d_keyed, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
 use crate::scene::{Profile, Scene};
 use crate::simd::{f32x8, LANES};
@@ -70,6 +71,8 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     // read (as vectors) one packet after it was filled, when its scalar stores have long reached the
     // cache (read at once, each vector load would wait for the stores it overlaps).
     let mut bufs = [Lanes::default(); 2];
+    let runs = area.runs() || (f.lens && lens_set.runs());
+    let mut run = [[[f32x8::ZERO; 2]; RUN_MAX]; 2];
     let mut cur = 0;
     let mut pending = false;
     let mut k = 0;
@@ -78,7 +81,8 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     let media = scene.camera_media.iter().fold(MediumStack::default(), |s, &m| s.push(m));
     // Rays (and their path ids, from `next_path` on) for the first `k` lanes of `b`; `one`: its lanes are
     // one pixel's samples (one key per dimension, in lane 0).
-    let emit = |k: usize, b: &Lanes, one: bool, next_path: &mut u32, rays: &mut RayQueue| {
+    // `made`: the packet's pixel and lens samples, where they were made beforehand (`Sampler2d::sample_x8_run`).
+    let emit = |k: usize, b: &Lanes, one: bool, made: Option<[[f32x8; 2]; 2]>, next_path: &mut u32, rays: &mut RayQueue| {
         let (keys, index, first) = (&b.keys, &b.index, *next_path);
         *next_path += k as u32;
         let sample = |set: &Sampler2d, keys: &[u64; LANES]| {
@@ -88,8 +92,10 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 set.sample_x8(keys, index, true)
             }
         };
-        let off = filter_offsets(profile.filter, sample(&area, &keys[0]));
-        let lens = if f.lens { sample_disk_concentric_x8(sample(&lens_set, &keys[1])) } else { [f32x8::ZERO; 2] };
+        let [pixel_u, lens_u] =
+            made.unwrap_or_else(|| [sample(&area, &keys[0]), if f.lens { sample(&lens_set, &keys[1]) } else { [f32x8::ZERO; 2] }]);
+        let off = filter_offsets(profile.filter, pixel_u);
+        let lens = if f.lens { sample_disk_concentric_x8(lens_u) } else { [f32x8::ZERO; 2] };
         let (o, d) = cam.rays_x8(f32x8::from(b.cx) + off[0], f32x8::from(b.cy) + off[1], lens);
         // New paths: branch, depth, bounce counts and flags start empty (zero); media, the camera's.
         let mut rows = RayRows {
@@ -131,9 +137,12 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         let mut first = samples.start;
         if k == 0 && samples.end - first >= LANES as u32 && pending {
             // (In order: the waiting packet's rays come first.)
-            emit(LANES, &bufs[cur ^ 1], false, &mut next_path, rays);
+            emit(LANES, &bufs[cur ^ 1], false, None, &mut next_path, rays);
             pending = false;
         }
+        // (Sets whose permutation walks cycles: the samples of up to `RUN_MAX` whole packets made at
+        // once, each lane walking its packets' samples one after another.)
+        let (mut run_at, mut run_len) = (0, 0);
         while k == 0 && samples.end - first >= LANES as u32 {
             let whole = Lanes {
                 cx: [x as f32 + 0.5; LANES],
@@ -141,7 +150,19 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 keys: pk.map(|key| [key; LANES]),
                 index: std::array::from_fn(|l| first + l as u32),
             };
-            emit(LANES, &whole, true, &mut next_path, rays);
+            let made = runs.then(|| {
+                if run_at == run_len {
+                    let count = (((samples.end - first) / LANES as u32) as usize).min(RUN_MAX);
+                    area.sample_x8_run(&whole.keys[0], &whole.index, LANES as u32, count, true, &mut run[0]);
+                    if f.lens {
+                        lens_set.sample_x8_run(&whole.keys[1], &whole.index, LANES as u32, count, true, &mut run[1]);
+                    }
+                    (run_at, run_len) = (0, count);
+                }
+                run_at += 1;
+                [run[0][run_at - 1], run[1][run_at - 1]]
+            });
+            emit(LANES, &whole, true, made, &mut next_path, rays);
             first += LANES as u32;
         }
         for s in first..samples.end {
@@ -157,17 +178,17 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
             k += 1;
             if k == LANES {
                 if pending {
-                    emit(LANES, &bufs[cur ^ 1], false, &mut next_path, rays);
+                    emit(LANES, &bufs[cur ^ 1], false, None, &mut next_path, rays);
                 }
                 (pending, cur, k) = (true, cur ^ 1, 0);
             }
         }
     }
     if pending {
-        emit(LANES, &bufs[cur ^ 1], false, &mut next_path, rays);
+        emit(LANES, &bufs[cur ^ 1], false, None, &mut next_path, rays);
     }
     if k > 0 {
-        emit(k, &bufs[cur], false, &mut next_path, rays);
+        emit(k, &bufs[cur], false, None, &mut next_path, rays);
     }
     paths.zero_radiance();
 }

@@ -25,6 +25,7 @@ use crate::geometry::{
 use crate::light::{light_points_x8, power_heuristic_x8, sample_light_x8, sample_pdf_x8, samples_for};
 use crate::optics::{eval_ggx_reflect_x8, sample_ggx_reflect_pdf_x8};
 use crate::sample::hash::random_bits;
+use crate::sample::hash::RUN_MAX;
 use crate::sample::{hash_combine, sample_1d_keyed, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape, NOT_A_LIGHT};
 use crate::simd::{
@@ -491,10 +492,14 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
             // The cleared lanes' contributions of this light, summed over its samples in registers.
             let mut cleared_sum = Vec3x8::splat(Vec3::ZERO);
+            // Across: sample index = camera sample x ns + j of the pixel's set. Else all ns samples
+            // serve this one shading point: strata need no permutation.
+            let permuted = across && !point;
+            // Sets whose permutation walks cycles: the samples of up to `RUN_MAX` consecutive j at once
+            // (`run`, from `run_j` on), each lane walking its j one after another.
+            let mut run = [[f32x8::ZERO; 2]; RUN_MAX];
+            let mut run_j = u32::MAX;
             for j in 0..ns {
-                // Across: sample index = camera sample x ns + j of the pixel's set. Else all ns samples
-                // serve this one shading point: strata need no permutation.
-                let permuted = across && !point;
                 let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
                 // A point light's one sample is the centre of its (unused) sample square.
                 // A quad or disk light's point `y` (and target): the contribution w L A cos_l cos / (d^2 ns)
@@ -515,6 +520,14 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
                         let u = match (point, grid.get(j as usize)) {
                             (true, _) => [f32x8::splat(0.5); 2],
                             (false, Some(&u)) => u,
+                            (false, None) if area.runs() => {
+                                if !(run_j..run_j.saturating_add(RUN_MAX as u32)).contains(&j) {
+                                    let count = ((ns - j) as usize).min(RUN_MAX);
+                                    area.sample_x8_run(&keys_li, &index, 1, count, permuted, &mut run);
+                                    run_j = j;
+                                }
+                                run[(j - run_j) as usize]
+                            }
                             // (One pixel's requests: one key, its constants worked out once.)
                             (false, None) if one_pixel && li < KEY_CACHE => area.sample_x8_one_key_call(keys_li[0], &index, permuted),
                             (false, None) => area.sample_x8_call(&keys_li, &index, permuted),
