@@ -503,7 +503,38 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
                 .to_string(),
         );
     }
+    let light_set = p.spp as u64 * p.light_samples as u64;
+    let across = light_set <= crate::wavefront::shadow::LIGHT_SET_MAX;
+    if matches!(p.light_strategy, Strategy::Jittered | Strategy::Sobol) && scene.features.area_lights && !across {
+        out.push(format!(
+            "spp x light_samples = {light_set} passes 2^24: the light samples are stratified within each camera sample ({} of \
+             them) instead of as one set over the pixel's camera samples, so the light integral converges more slowly than below \
+             2^24 (fewer spp or light_samples keep the one set)",
+            p.light_samples
+        ));
+    }
     for (name, s) in used_strategies(scene, p) {
+        // The set's size: a pixel's samples, or its light samples (over its camera samples, see above).
+        let set = if name != "light" {
+            p.spp
+        } else if across && s == Strategy::Sobol {
+            light_set as u32
+        } else {
+            p.light_samples
+        };
+        if s == Strategy::Sobol && !set.is_power_of_two() {
+            let below = 1u32 << (31 - set.leading_zeros());
+            let of = if name == "light" && set != p.light_samples {
+                format!(" (spp {} x light_samples {})", p.spp, p.light_samples)
+            } else {
+                String::new()
+            };
+            out.push(format!(
+                "{name} sobol set of {set} samples{of}: the first n points of the sequence are evenly spread only where n is a power \
+                 of two; at {set} the error can be several times that of {below} (use {below} or {}, or jittered)",
+                below * 2
+            ));
+        }
         let n = if name == "light" { p.light_samples } else { p.spp };
         if s != Strategy::Grid || name == "time" || name == "wavelength" || n < 5 {
             continue;

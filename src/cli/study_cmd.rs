@@ -3,7 +3,7 @@
 use super::Failure;
 use crate::sample::Strategy;
 use crate::scene::{load_scene_sized, Material, Profile, Scene};
-use crate::study::reference::{obtain, RefError, ReferenceSource};
+use crate::study::reference::{obtain, reference_profile, RefError, ReferenceSource};
 use crate::study::run::{
     configure, light_only, run_series, slopes, summarize, Plan, RunResult, Summary, BIAS_Z, TIME_SLOPE_MIN_COUNTS, TIME_SLOPE_MIN_GROWTH,
     TIME_SLOPE_MIN_SPAN,
@@ -217,6 +217,19 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     };
     let plan =
         Plan { integrals, strategies, counts, seeds: a.seeds, light_from_spp: a.light_samples_from_spp, threads: a.threads, cancel: None };
+    // The reference's own profile, checked before any run (the default's count is 16 x the largest).
+    if let ReferenceSource::Samples(n) = source {
+        if let Err(e) = reference_profile(&profile, &plan, n) {
+            return Err(Failure::input(if a.reference_spp.is_some() {
+                format!("--reference-spp: {e}")
+            } else {
+                format!(
+                    "the default reference ({n} samples, 16 x the largest count {largest}) is beyond the profile's limits ({e}): \
+                     give a smaller --reference-spp, or a reference image with --reference FILE.exr"
+                )
+            }));
+        }
+    }
     if let Some(l) = fixed_light_grid(&scene, &profile, &plan) {
         errln!(
             "warning: the `grid` runs take the same {l} light point{} of each light at every camera sample (light_samples {l}), so \
@@ -368,8 +381,18 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
         }
     };
     let series = run_series(&scene, &profile, &plan, &reference.image, a.sheet, &mut report).map_err(Failure::input)?;
-    let summary = summarize(&series.runs, &series.rows);
-    print_table(&summary, &plan, fixed_light_grid(&scene, &profile, &plan).is_some());
+    let mut summary = summarize(&series.runs, &series.rows);
+    if series.interrupted {
+        // Only the rows whose every seed finished: a partial row's means are over fewer seeds than the
+        // table says, and slopes over a partial series compare unlike rows.
+        let rows = summary.len();
+        summary.retain(|s| s.seeds == plan.seeds as usize);
+        outln!(
+            "\ninterrupted: the table below holds the {} of {rows} started rows whose every seed finished; no slopes fitted",
+            summary.len()
+        );
+    }
+    print_table(&summary, &plan, fixed_light_grid(&scene, &profile, &plan).is_some(), !series.interrupted);
 
     let unit = if light_only(&plan.integrals) { "light samples" } else { "spp" };
     let csv_path = a.out.join("study.csv");
@@ -397,7 +420,8 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
 }
 
 /// `grid_floor`: the grid runs' light integral is a fixed grid (see [`fixed_light_grid`]).
-fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool) {
+/// `slopes`: fit and print the slopes (not for an interrupted series).
+fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool, slopes_too: bool) {
     outln!(
         "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12} {:>9} {:>8}   (means over {} seeds; efficiency = 1 / (mean mse x mean seconds))",
         "strategy",
@@ -441,6 +465,10 @@ fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool) {
     }
     if plan.strategies.iter().any(|s| matches!(s, Strategy::Grid | Strategy::Center)) {
         outln!("  `grid` and `center` are deterministic: their error at a given count is a bias by nature, which z measures");
+    }
+    if !slopes_too {
+        outln!();
+        return;
     }
     outln!("\nfitted slope of log MSE against log samples / log seconds (wall time: noisy):");
     let mut omitted = false;

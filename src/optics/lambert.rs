@@ -1,8 +1,9 @@
 //! Orthonormal bases and the cosine-weighted (Lambertian) hemisphere.
 
+use crate::sample::{sample_disk_concentric, sample_disk_concentric_x8};
 use crate::simd::{f32x8, u32x8, Vec3x8};
 use glam::Vec3;
-use std::f32::consts::{FRAC_1_PI, TAU};
+use std::f32::consts::FRAC_1_PI;
 
 /// Tangent and bitangent `(t, b)` completing the unit `n` to a right-handed orthonormal basis
 /// (`t × b = n`), branch-free and continuous except across `n.z = 0`'s sign flip.
@@ -33,16 +34,18 @@ pub fn to_world(l: Vec3, t: Vec3, b: Vec3, n: Vec3) -> Vec3 {
 /// Cosine-weighted direction in the hemisphere around the unit `n` (density `cos / pi` over solid
 /// angle, [`sample_hemisphere_cos_pdf`]), from `u` in `[0, 1)^2`.
 ///
-/// Malley's method: a uniform point on the unit disk (polar map `r = sqrt(u0)`, `phi = 2 pi u1`)
-/// lifted to the hemisphere. The polar map suffices here; directions are not stratified across
-/// dimensions by the caller.
+/// Malley's method: a uniform point on the unit disk (the concentric map, [`sample_disk_concentric`],
+/// which keeps the stratification of jittered `u` and sends the square's centre, the `center`
+/// strategy, to the normal) lifted to the hemisphere.
 #[inline]
 pub fn sample_hemisphere_cos(n: Vec3, u: [f32; 2]) -> Vec3 {
-    let r = u[0].max(0.0).min(1.0).sqrt();
-    let (s, c) = (TAU * u[1]).sin_cos();
-    let z = (1.0 - u[0]).max(0.0).sqrt();
+    let [x, y] = sample_disk_concentric(u);
+    // (The height from the map's radius, max(|a|, |b|) with a = 2 u0 - 1 and b = 2 u1 - 1, exact, rather
+    // than from x and y, whose sine and cosine round: near the rim that would amplify it.)
+    let (a, b) = (2.0 * u[0] - 1.0, 2.0 * u[1] - 1.0);
+    let z = (1.0 - (a * a).max(b * b)).max(0.0).sqrt();
     let (t, b) = onb(n);
-    to_world(Vec3::new(r * c, r * s, z), t, b, n)
+    to_world(Vec3::new(x, y, z), t, b, n)
 }
 
 /// Density over solid angle of [`sample_hemisphere_cos`]: `max(0, dot(n, wi)) / pi`.
@@ -55,12 +58,12 @@ pub fn sample_hemisphere_cos_pdf(n: Vec3, wi: Vec3) -> f32 {
 /// basis; agrees with the scalar to ~1e-6 (wide's `sin_cos` polynomial vs libm).
 #[inline]
 pub fn sample_hemisphere_cos_x8(n: Vec3x8, u: [f32x8; 2]) -> Vec3x8 {
-    let one = f32x8::ONE;
-    let r = u[0].max(f32x8::ZERO).min(one).sqrt();
-    let (s, c) = (f32x8::splat(TAU) * u[1]).sin_cos();
-    let z = (one - u[0]).max(f32x8::ZERO).sqrt();
+    let [x, y] = sample_disk_concentric_x8(u);
+    let two = f32x8::splat(2.0);
+    let (a, b) = (two * u[0] - f32x8::ONE, two * u[1] - f32x8::ONE);
+    let z = (f32x8::ONE - (a * a).max(b * b)).max(f32x8::ZERO).sqrt();
     let (t, bt) = onb_x8(n);
-    t.scale(r * c) + bt.scale(r * s) + n.scale(z)
+    t.scale(x) + bt.scale(y) + n.scale(z)
 }
 
 /// [`onb`] lane by lane, the same operations (sign = copysign(1, n.z)).

@@ -9,18 +9,26 @@ use wide::f32x8;
 /// `u` in `[0, 1)^2` maps into the closed unit disk.
 #[inline]
 pub fn sample_disk_concentric(u: [f32; 2]) -> [f32; 2] {
+    let (r, phi) = concentric_polar(u);
+    let (s, c) = phi.sin_cos();
+    [r * c, r * s]
+}
+
+/// The signed radius and angle of [`sample_disk_concentric`]'s point (`(r cos phi, r sin phi)`, `r` in
+/// `[-1, 1]`): for samplers that lift a disk point and take the sine and cosine themselves. The centre of
+/// the square, `(0.5, 0.5)`, is the disk's centre.
+#[inline(always)]
+pub fn concentric_polar(u: [f32; 2]) -> (f32, f32) {
     let a = 2.0 * u[0] - 1.0;
     let b = 2.0 * u[1] - 1.0;
     // Pick the dominant axis; at the origin both are 0 and the guard keeps the ratio finite.
-    let (r, phi) = if a.abs() > b.abs() {
+    if a.abs() > b.abs() {
         (a, FRAC_PI_4 * (b / a))
     } else if b != 0.0 {
         (b, 2.0 * FRAC_PI_4 - FRAC_PI_4 * (a / b))
     } else {
         (0.0, 0.0)
-    };
-    let (s, c) = phi.sin_cos();
-    [r * c, r * s]
+    }
 }
 
 /// Eight lanes of [`sample_disk_concentric`] (`u = [u0s, u1s]`); the branches become selects. Agrees

@@ -27,8 +27,9 @@ pub fn light_only(integrals: &IntegralSet) -> bool {
 /// - Only `light` studied: `light_samples = n` per shading point with `strategy`, and one camera path per
 ///   pixel through the pixel centre (pixel, lens, time, glossy, diffuse bounces and wavelength all held
 ///   at `center`), so the error measured is that of the light integral alone. Above 4096 (the profile's limit) `n` must be a
-///   multiple of 4096 and is split into `n / 4096` camera passes of 4096 light samples (each pass draws
-///   its own stratification; refused for `grid`, whose passes would repeat one grid).
+///   multiple of 4096 and is split into `n / 4096` camera passes of 4096 light samples (jittered and
+///   Sobol passes are one stratified set of `n` up to 2^24, past which each pass is a set of its own, with
+///   a warning; refused for `grid`, whose passes would repeat one grid).
 /// - Otherwise: `spp = n` camera samples per pixel; every studied camera integral (pixel, lens, time,
 ///   glossy) uses `strategy`, the others are held at `center` (pixel centre, lens centre, mid-shutter,
 ///   the lobe's central direction). If `light` is studied too, the light uses `strategy` with the

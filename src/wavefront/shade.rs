@@ -18,7 +18,7 @@ use crate::optics::{
     beer_lambert, fresnel_dielectric, fresnel_refract_x8, fresnel_schlick, reflect, reflect_x8, refract, sample_ggx_reflect_pdf_x8,
     sample_ggx_reflect_weight_x8, sample_ggx_reflect_x8, sample_hemisphere_cos_x8,
 };
-use crate::sample::{hash_combine, random_f32, stream_key, Sampler2d};
+use crate::sample::{hash_combine, random_f32, stream_key, Sampler2d, Strategy};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture, NOT_A_LIGHT};
 use crate::simd::{consecutive8, f32x8, gather8, lane_bits, mask_from_bits, u32x8, Vec3x8, LANES};
 use glam::Vec3;
@@ -405,7 +405,12 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         if geo.front & (1 << l) != 0 && !(prim.is_light && r.flags & FLAG_DIFFUSE != 0) {
                             if prim.is_light && r.flags & FLAG_GLOSSY != 0 && rays.with_pdf {
                                 let pick = pick.get_or_init(|| LightPick::cached(scene, profile));
-                                let w = lobe_light_weight(scene, profile, pick.as_deref(), hits.prim[i], &r, hits.t[i]);
+                                // (A `center` lobe's ray: its light is the light samples' alone.)
+                                let w = if profile.glossy_strategy == Strategy::Center {
+                                    0.0
+                                } else {
+                                    lobe_light_weight(scene, profile, pick.as_deref(), hits.prim[i], &r, hits.t[i])
+                                };
                                 paths.add(r.path, r.throughput * *radiance * w);
                             } else {
                                 paths.add(r.path, r.throughput * *radiance);
@@ -1046,10 +1051,14 @@ impl<'a> Ctx<'a> {
                     own: &own,
                 },
             );
+            // (Negative: no lobe ray to share the light with, at the depth limit, or a lobe ray in the
+            // fixed direction of the `center` strategy, which samples no density to weigh against:
+            // the light samples then count in full, and the lobe ray's finds of sampled lights not at all.)
             let mut lobe = [0.0f32; LANES];
+            let random_lobe = profile.glossy_strategy != Strategy::Center;
             for l in 0..LANES {
                 let a = alpha[l].max(f32::MIN_POSITIVE);
-                lobe[l] = if live & (1 << l) != 0 { a } else { -a };
+                lobe[l] = if live & (1 << l) != 0 && random_lobe { a } else { -a };
             }
             nee.push_lobes(m, &wo.rows(), &lobe);
         }

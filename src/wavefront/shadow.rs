@@ -139,6 +139,11 @@ impl Batch {
     }
 }
 
+/// The largest stratified set of a pixel's light samples (`spp x light_samples`, one set across the
+/// pixel's camera samples, for jittered and Sobol light samples); past it each camera sample's light
+/// samples are a set of their own (the samplers' sets hold at most 2^24 samples).
+pub const LIGHT_SET_MAX: u64 = 1 << 24;
+
 /// Key of light `li`'s sample stream for request `i`: shared by a pixel's samples (`across`), or the
 /// sample's own.
 #[inline(always)]
@@ -363,7 +368,7 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
     // 1 light sample and 64 pixel samples the light is still covered by 64 strata. Grid keeps its meaning
     // (each shading point sees the light as the same grid of point lights); random needs no set.
     let (spp, nl) = (profile.spp as u64, profile.light_samples as u64);
-    let across = matches!(profile.light_strategy, Strategy::Jittered | Strategy::Sobol) && spp * nl <= 1 << 24;
+    let across = matches!(profile.light_strategy, Strategy::Jittered | Strategy::Sobol) && spp * nl <= LIGHT_SET_MAX;
     let area = Sampler2d::new(profile.light_strategy, if across { (spp * nl) as u32 } else { profile.light_samples });
     let tables = LightTables::get(scene, profile, across, &area);
     let LightTables { grid, grid_points, flat_light, .. } = &*tables;
