@@ -706,6 +706,16 @@ fn cli_input_errors_exit_2_with_a_message() {
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("--integrals light with light_selection `power`"), "{err}");
     assert!(!dir.join("study.csv").exists(), "nothing is written on an input error");
+    // The default reference (16 x the largest count) past the profile's limits: said so before any run,
+    // not blamed on a --reference-spp the user never gave.
+    let out = strata().args(["study", "scenes/soft_shadows.toml", "--out", d, "--spp", "1000000"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("the default reference (16000000 samples, 16 x the largest count 1000000)") && err.contains("--reference FILE.exr"),
+        "{err}"
+    );
+    assert!(!err.contains("--reference-spp:"), "{err}");
     // A study that fails on its reference leaves no output directory it created.
     let fresh = dir.join("not-yet");
     let out = strata()
@@ -791,7 +801,7 @@ fn cli_interrupt_writes_the_finished_runs() {
     let mut child = strata()
         .args(["study", "scenes/quad_irradiance.toml", "--reference", "analytic", "--integrals", "light", "--strategies", "random"])
         .args(["--spp", "16", "--seeds", "1000", "--threads", "1", "--out", dir.to_str().unwrap()])
-        .stdout(std::process::Stdio::null())
+        .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
@@ -819,8 +829,14 @@ fn cli_interrupt_writes_the_finished_runs() {
         }
     }
     let status = child.wait().unwrap();
+    let mut out = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut out).unwrap();
     assert_eq!(status.code(), Some(130), "{rest}");
     assert!(rest.contains("interrupted: wrote") && rest.contains(&format!("the {} of 1000 runs", reported.len())), "{rest}");
+    // The table holds only rows whose every seed finished (here none: its means would be over fewer
+    // seeds than its header says), and no slopes are fitted to a partial series.
+    assert!(out.contains("interrupted: the table below holds the 0 of 1 started rows"), "{out}");
+    assert!(!out.contains("fitted slope") && !out.lines().any(|l| l.starts_with("random ")), "{out}");
     let csv = std::fs::read_to_string(dir.join("study.csv")).unwrap();
     let seeds: Vec<String> = csv.lines().skip(1).map(|l| l.split(',').nth(2).unwrap().to_string()).collect();
     assert!(reported.len() >= 3 && reported.len() < 1000, "{}", reported.len());
