@@ -460,6 +460,22 @@ fn absorb(scene: &Scene, r: &mut RayItem, t: f32) {
     }
 }
 
+/// Beer-Lambert over the stretch a child ray skips at its spawn: its origin `o` is off the surface point
+/// `p` by the spawn offset (256 ULPs of the coordinates), into the medium it travels in (`media`), and
+/// [`absorb`] counts its segment from `o`. Without this, each segment inside an absorbing medium was
+/// short by the offset along the ray: a trial's 2 mm glass cube 1.7 from the origin let through 6.3%
+/// too much (`(o - p) . d / |d|`, about 6e-5 of 2e-3 per segment). 1 outside absorbing media.
+#[inline(always)]
+fn spawn_absorption(scene: &Scene, media: MediumStack, p: Vec3, o: Vec3, d: Vec3) -> Vec3 {
+    if media == MediumStack::default() {
+        return Vec3::ONE;
+    }
+    match medium::current(scene, media).map(|m| &scene.materials[m as usize]) {
+        Some(Material::Dielectric(x)) if x.sigma_a != Vec3::ZERO => beer_lambert(x.sigma_a, ((o - p).dot(d) / d.length()).max(0.0)),
+        _ => Vec3::ONE,
+    }
+}
+
 /// The last key computed for a (pixel, branch, depth): a pixel's samples are consecutive in the queues,
 /// so their hits usually ask for the same stream key one after another.
 #[derive(Default)]
@@ -901,6 +917,28 @@ impl<'a> Ctx<'a> {
             (t.flags, t.media) = (flags.map(|f| self.refracted_flags(f)), stack);
             second = Some(t);
         }
+        for (l, &s) in stack.iter().enumerate().take(m) {
+            if across & (1 << l) != 0 {
+                rows.media[l] = s;
+            }
+        }
+        // The stretch each child's spawn offset skips inside an absorbing medium (`spawn_absorption`).
+        if media[..m].iter().chain(&stack[..m]).any(|&s| s != MediumStack::default()) {
+            let p_of = |l: usize| Vec3::new(p.x.to_array()[l], p.y.to_array()[l], p.z.to_array()[l]);
+            let at = |r: &[[f32; LANES]; 3], l: usize| Vec3::new(r[0][l], r[1][l], r[2][l]);
+            for l in 0..m {
+                let k = spawn_absorption(scene, rows.media[l], p_of(l), at(&rows.o, l), at(&rows.d, l));
+                for (row, k) in rows.throughput.iter_mut().zip(k.to_array()) {
+                    row[l] *= k;
+                }
+                if let Some(t) = second.as_mut() {
+                    let k = spawn_absorption(scene, t.media[l], p_of(l), at(&t.o, l), at(&t.d, l));
+                    for (row, k) in t.throughput.iter_mut().zip(k.to_array()) {
+                        row[l] *= k;
+                    }
+                }
+            }
+        }
         let (mut kept, mut kept2) = (pass, 0u32);
         let roulette = |t: &mut [[f32; LANES]; 3], l: usize, branch: u32, depth: u16, which: u32| {
             let thr = Vec3::new(t[0][l], t[1][l], t[2][l]);
@@ -914,9 +952,6 @@ impl<'a> Ctx<'a> {
         };
         for l in 0..m {
             let bit = 1 << l;
-            if across & bit != 0 {
-                rows.media[l] = stack[l];
-            }
             if pass & bit != 0 {
                 // Not a bounce (`passed`): the parent's depth and flags.
                 (rows.depth[l], rows.flags[l]) = (depth[l], flags[l]);
@@ -1176,14 +1211,14 @@ impl<'a> Ctx<'a> {
             let c = medium::cross(scene, r.media, this, hit.front);
             self.count_lost(c);
             if !c.is_real() {
-                next.push(&passed(r, p_trans, c.stack));
+                next.push(&passed(scene, r, hit.p, p_trans, c.stack));
                 return;
             }
             (ior(c.before), ior(c.after), c.stack)
         };
         if n1 == n2 {
             // Index-matched: no reflection, no bending (exactly what Fresnel and Snell give for eta = 1).
-            next.push(&passed(r, p_trans, stack));
+            next.push(&passed(scene, r, hit.p, p_trans, stack));
             return;
         }
         if (r.depth as u32) >= self.profile.max_depth {
@@ -1206,7 +1241,17 @@ impl<'a> Ctx<'a> {
         let f = if trans.is_none() { 1.0 } else { f };
         let refl = (hit.spawn(hit.n_facing), reflect(wo, hit.n_facing));
         let coin = || self.fresnel_coin(pixel, r.branch, sample, r.depth);
-        self.interface_children(r, f, refl, trans.map(|(dir, media, flags)| (p_trans, dir, media, flags)), coin, pixel, sample, next);
+        self.interface_children(
+            r,
+            hit.p,
+            f,
+            refl,
+            trans.map(|(dir, media, flags)| (p_trans, dir, media, flags)),
+            coin,
+            pixel,
+            sample,
+            next,
+        );
     }
 
     /// The flags of a ray refracted through a real interface. Under transmissive shadows the shadow stage
@@ -1236,6 +1281,7 @@ impl<'a> Ctx<'a> {
     fn interface_children(
         &self,
         r: &RayItem,
+        p: Vec3,
         f: f32,
         refl: (Vec3, Vec3),
         trans: Option<(Vec3, Vec3, MediumStack, u8)>,
@@ -1244,12 +1290,20 @@ impl<'a> Ctx<'a> {
         sample: u32,
         next: &mut RayQueue,
     ) {
-        let reflected = |thr: Vec3| RayItem { o: refl.0, d: refl.1, throughput: thr, flags: FLAG_SPECULAR, ..next_of(r) };
+        // (Each child's throughput x `spawn_absorption` of the stretch its spawn offset skips.)
+        let scene = self.scene;
+        let reflected = |thr: Vec3| RayItem {
+            o: refl.0,
+            d: refl.1,
+            throughput: thr * spawn_absorption(scene, r.media, p, refl.0, refl.1),
+            flags: FLAG_SPECULAR,
+            ..next_of(r)
+        };
         // (`travel`: for a thin sheet's straight transmission, which keeps a lobe ray's flags.)
         let transmitted = |thr: Vec3, (o, d, media, flags): (Vec3, Vec3, MediumStack, u8)| RayItem {
             o,
             d,
-            throughput: thr,
+            throughput: thr * spawn_absorption(scene, media, p, o, d),
             flags,
             media,
             travel: r.travel + (o - r.o).length(),
@@ -1275,11 +1329,12 @@ impl<'a> Ctx<'a> {
     }
 }
 
-/// Ray `r` through a surface unbent, from `o` with `media`: the same bounce count, branch and flags (what
-/// it would have done without the surface; shadow rays see through such crossings too).
+/// Ray `r` through a surface unbent at `p`, from `o` with `media`: the same bounce count, branch and flags
+/// (what it would have done without the surface; shadow rays see through such crossings too).
 #[inline(always)]
-fn passed(r: &RayItem, o: Vec3, media: MediumStack) -> RayItem {
-    RayItem { o, media, tmax: f32::INFINITY, travel: r.travel + (o - r.o).length(), ..*r }
+fn passed(scene: &Scene, r: &RayItem, p: Vec3, o: Vec3, media: MediumStack) -> RayItem {
+    let throughput = r.throughput * spawn_absorption(scene, media, p, o, r.d);
+    RayItem { o, media, throughput, tmax: f32::INFINITY, travel: r.travel + (o - r.o).length(), ..*r }
 }
 
 #[cfg(test)]
@@ -1303,8 +1358,9 @@ mod tests {
             Material::Mirror { tint } => {
                 if (r.depth as u32) < ctx.profile.max_depth {
                     let d = reflect(-r.d.normalize(), hit.n_facing);
-                    let child =
-                        RayItem { o: hit.spawn(hit.n_facing), d, throughput: r.throughput * *tint, flags: FLAG_SPECULAR, ..next_of(&r) };
+                    let o = hit.spawn(hit.n_facing);
+                    let throughput = r.throughput * *tint * spawn_absorption(ctx.scene, r.media, hit.p, o, d);
+                    let child = RayItem { o, d, throughput, flags: FLAG_SPECULAR, ..next_of(&r) };
                     ctx.spawn(next, child, pixel, sample, 0);
                 }
             }
