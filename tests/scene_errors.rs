@@ -681,3 +681,18 @@ fn a_glass_csg_solid_of_two_glasses_is_an_error() {
         parse_scene(Path::new("ok.toml"), &format!("{BASE}{ok}")).unwrap_or_else(|e| panic!("{e}\n{ok}"));
     }
 }
+
+/// An error inside a named solid is located at the definition and names the use that reached it: a
+/// solid without a material used twice, once inside a group that gives one and once where nothing
+/// does, fails through the second use, which the message names (field and line).
+#[test]
+fn an_error_in_a_named_solid_names_the_use_that_reached_it() {
+    let extra = "[solids.peg]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.5\n\
+                 [[shapes]]\ntype = \"group\"\nmaterial = \"m\"\nchildren = [ { use = \"peg\" } ]\n\
+                 [[shapes]]\ntype = \"group\"\nchildren = [ { type = \"box\", min = [-1, -1, -1], max = [1, 1, 1], material = \"m\" },\n\
+                 { use = \"peg\" } ]\n";
+    let (line, field, msg) = fail(extra);
+    assert_eq!((field.as_str(), line), ("solids.peg.material", line_of(extra, "[solids.peg]")), "{msg}");
+    let use_line = BASE.lines().count() + extra.lines().position(|l| l.starts_with("{ use")).unwrap() + 1;
+    assert!(msg.contains(&format!("(reached through `use = \"peg\"` at shapes[1].children[1].use, line {use_line})")), "{msg}");
+}

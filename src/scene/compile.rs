@@ -1286,7 +1286,15 @@ impl Compiler<'_> {
             let r = self.csg_tree(target, &format!("solids.{name}"), t, material, depth + 1, uses);
             uses.pop();
             self.material_from = saved_from;
-            return r;
+            // An error inside the definition is located there; say which use reached it (a solid used
+            // twice may fail through one use only, e.g. the one without a material).
+            return r.map_err(|mut e| {
+                if !e.message.contains("(reached through") {
+                    let at = self.err(u.span(), f("use"), "");
+                    e.message += &format!(" (reached through `use = \"{name}\"` at {}, line {})", f("use"), at.line);
+                }
+                e
+            });
         }
         let kind_s = self.req(&s.kind, def.span(), &f("type"))?;
         let kind = kind_s.get_ref().as_str();
@@ -1320,17 +1328,27 @@ impl Compiler<'_> {
                     Some(c) => self.vec3(c, &f("center"))?,
                     None => Vec3::ZERO,
                 };
-                let r = self.positive(self.req(&s.radius, sp.clone(), &f("radius"))?, &f("radius"))?;
                 let h = self.positive(self.req(&s.height, sp.clone(), &f("height"))?, &f("height"))?;
-                let shape = if kind == "cone" {
+                let (shape, r) = if kind == "cone" {
+                    // Either radius may be 0 (the apex on that cap), not both.
+                    let r_d = self.req(&s.radius, sp.clone(), &f("radius"))?;
                     let rt_d = self.req(&s.radius_top, sp.clone(), &f("radius_top"))?;
-                    let rt = *rt_d.get_ref();
-                    if !(rt.is_finite() && rt >= 0.0) {
-                        return Err(self.err(rt_d.span(), f("radius_top"), format!("must be a finite number >= 0, got {rt}")));
+                    for (v, name) in [(r_d, "radius"), (rt_d, "radius_top")] {
+                        let x = *v.get_ref();
+                        if !(x.is_finite() && x >= 0.0) {
+                            return Err(self.err(v.span(), f(name), format!("must be a finite number >= 0, got {x}")));
+                        }
+                        if x > MAX_MAGNITUDE {
+                            return Err(self.err(v.span(), f(name), format!("must be at most {MAX_MAGNITUDE:e} ({BEYOND}), got {x:e}")));
+                        }
+                    }
+                    let (r, rt) = (*r_d.get_ref(), *rt_d.get_ref());
+                    if r.max(rt) == 0.0 {
+                        return Err(self.err(r_d.span(), f("radius"), "radius and radius_top are both 0: one must be > 0"));
                     }
                     csg_cone(r, rt)
                 } else {
-                    csg::Shape::Cylinder
+                    (csg::Shape::Cylinder, self.positive(self.req(&s.radius, sp.clone(), &f("radius"))?, &f("radius"))?)
                 };
                 // Canonical cylinder/cone: see csg::solid; centre `c` is the middle of the axis (along +y).
                 leaf(shape, csg_axis_placement(c, r, h), mat(self)?)
@@ -1346,7 +1364,7 @@ impl Compiler<'_> {
                 if small >= big {
                     return Err(self.err(s.minor_radius.as_ref().unwrap().span(), f("minor_radius"), "must be smaller than major_radius (spindle tori are not supported)"));
                 }
-                leaf(csg_torus(big, small), csg_torus_placement(c), mat(self)?)
+                leaf(csg_torus(1.0, small / big), csg_torus_placement(c, big), mat(self)?)
             }
             "halfspace" => {
                 if depth == 0 {
@@ -1651,8 +1669,12 @@ pub fn affine_box_bounds(t: &Affine3A, half: Vec3) -> Aabb {
 }
 
 // Adapters to the canonical CSG shapes (defined in csg::solid).
-fn csg_cone(r_bottom: f32, r_top: f32) -> csg::Shape {
-    csg::Shape::Cone { r0: 1.0, r1: r_top / r_bottom }
+/// The canonical cone of the scene's radii and the radius it is placed by: the larger, so that the
+/// canonical radii lie in [0, 1] whichever end is narrow (scaled by the smaller, an apex-down cone of
+/// radius 1e-10 had object coordinates of 1e10, whose squares overflowed f32).
+fn csg_cone(r_bottom: f32, r_top: f32) -> (csg::Shape, f32) {
+    let r = r_bottom.max(r_top);
+    (csg::Shape::Cone { r0: r_bottom / r, r1: r_top / r }, r)
 }
 
 /// Canonical cylinders and cones have radius 1 and z in [-1, 1] (axis +z); the scene's axis is +y.
@@ -1664,9 +1686,11 @@ fn csg_torus(major: f32, minor: f32) -> csg::Shape {
     csg::Shape::Torus { major, minor }
 }
 
-/// The canonical torus lies in the xy plane around +z; the scene's lies in the xz plane around +y.
-fn csg_torus_placement(center: Vec3) -> Affine3A {
-    Affine3A::from_rotation_translation(Quat::from_rotation_arc(Vec3::Z, Vec3::Y), center)
+/// The canonical torus lies in the xy plane around +z; the scene's lies in the xz plane around +y. Placed
+/// by a scale of its major radius (the canonical one 1): the canonical form's floor on the major radius
+/// (1e-6, absolute) once enlarged a torus of major radius 5e-7 twofold.
+fn csg_torus_placement(center: Vec3, major: f32) -> Affine3A {
+    Affine3A::from_scale_rotation_translation(Vec3::splat(major), Quat::from_rotation_arc(Vec3::Z, Vec3::Y), center)
 }
 
 fn csg_halfspace_placement(point: Vec3, normal: Vec3) -> Affine3A {

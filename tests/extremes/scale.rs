@@ -167,3 +167,40 @@ fn translated_far_from_origin_matches() {
         }
     }
 }
+
+/// Pixels of an emissive image that see the shape (one centre sample per pixel).
+fn covered(text: &str) -> usize {
+    let img = render(text, profile(&[("spp", "1"), ("pixel_strategy", "center")]));
+    img.px.iter().filter(|p| p.x > 0.5).count()
+}
+
+fn emissive_shape(camera: [f64; 3], shape: &str) -> String {
+    format!(
+        "[image]\nwidth = 60\nheight = 60\n[camera]\nposition = {}\nlook_at = [0.0, 0.0, 0.0]\nfov = 45.0\n\
+         [materials.white]\ntype = \"emissive\"\nradiance = [1.0, 1.0, 1.0]\n[[shapes]]\nmaterial = \"white\"\n{shape}",
+        vec3(camera)
+    )
+}
+
+/// An apex-down cone (bottom radius 0 or tiny, top radius 1) covers the pixels of the same cone with
+/// bottom radius 1e-6, whatever its tiny radius: the canonical cone is
+/// scaled by the larger radius. (Scaled by the bottom one, a bottom radius of 1e-10 made a box-like blob
+/// of twice the pixels, and 1e-20 rendered nothing.) And a torus of major radius 5e-7 covers the pixels
+/// of the unit torus scaled by 5e-7 (an absolute floor of 1e-6 on the major radius once doubled it).
+#[test]
+fn apex_down_cones_and_tiny_tori_keep_their_shape() {
+    let cone = |r: &str| emissive_shape([0.5, 2.5, 4.0], &format!("type = \"cone\"\nradius = {r}\nradius_top = 1.0\nheight = 2.0\n"));
+    let want = covered(&cone("1e-6"));
+    assert!(want > 300, "{want}");
+    for r in ["0.0", "1e-10", "1e-20", "1e-38"] {
+        let got = covered(&cone(r));
+        assert!(got.abs_diff(want) <= 2, "radius {r}: {got} pixels against {want}");
+    }
+    let cam = [2.5e-7, 1e-6, 1.5e-6];
+    let direct = covered(&emissive_shape(cam, "type = \"torus\"\nmajor_radius = 5e-7\nminor_radius = 1.5e-7\n"));
+    let scaled = covered(&emissive_shape(
+        cam,
+        "type = \"group\"\ntransform = { scale = [5e-7, 5e-7, 5e-7] }\nchildren = [ { type = \"torus\", major_radius = 1.0, minor_radius = 0.3 } ]\n",
+    ));
+    assert!(scaled > 300 && direct.abs_diff(scaled) <= 2, "torus: {direct} pixels against {scaled} scaled");
+}
