@@ -570,6 +570,61 @@ fn coincident_glass_sphere_surfaces_are_warned_of() {
     assert!(w[8].contains("`shapes[9]`") && w[8].contains("and 11 more shapes from here on"), "{}", w[8]);
 }
 
+/// Separate glass shapes whose surfaces meet anywhere (not only equal spheres) are warned of at the later
+/// shape, naming the other: water whose cylinder fills a cup's hole exactly (up to a lower level), or
+/// only its floor, the
+/// same in a box cuvette, a glass block resting on a glass slab. A trial's exactly filled cup rendered
+/// its water invisible without a word. Water slightly larger than the hole (the documented way), a glass
+/// box resting on an opaque one, and glass apart are not warned of; the equal spheres of the check above
+/// are warned of once.
+#[test]
+fn coincident_glass_surfaces_are_warned_of() {
+    let mats = "[materials.glass]\ntype = \"dielectric\"\nior = 1.5\npriority = 3\n\
+                [materials.water]\ntype = \"dielectric\"\nior = 1.33\npriority = 1\n";
+    let cup = "[[shapes]]\ntype = \"group\"\nmaterial = \"glass\"\nchildren = [ { type = \"cylinder\", center = [0, 0, 0], radius = 0.8, height = 2 }, \
+               { type = \"cylinder\", center = [0, 0.2, 0], radius = 0.7, height = 2, hole = true } ]\n";
+    // (Up to y = 0.5 from the hole's floor at y = -0.8, or from 0.01 below it.)
+    let water = |r: &str, low: f64| {
+        format!(
+            "[[shapes]]\ntype = \"cylinder\"\ncenter = [0, {}, 0]\nradius = {r}\nheight = {}\nmaterial = \"water\"\n",
+            (low + 0.5) / 2.0,
+            0.5 - low
+        )
+    };
+    let cuvette =
+        "[[shapes]]\ntype = \"group\"\nmaterial = \"glass\"\nchildren = [ { type = \"box\", min = [-1, -1, -1], max = [1, 1, 1] }, \
+                   { type = \"box\", min = [-0.9, -0.9, -0.9], max = [0.9, 1.5, 0.9], hole = true } ]\n";
+    let boxed = |lo: &str, hi: &str, m: &str| format!("[[shapes]]\ntype = \"box\"\nmin = [{lo}]\nmax = [{hi}]\nmaterial = \"{m}\"\n");
+    let cases = [
+        (format!("{cup}{}", water("0.7", -0.8)), Some(("shapes[1]", "shapes[0]"))),
+        (format!("{cup}{}", water("0.71", -0.8)), Some(("shapes[1]", "shapes[0]"))),
+        (format!("{cup}{}", water("0.71", -0.81)), None),
+        (format!("{cuvette}{}", boxed("-0.9, -0.9, -0.9", "0.9, 0.5, 0.9", "water")), Some(("shapes[1]", "shapes[0]"))),
+        (format!("{cuvette}{}", boxed("-0.91, -0.91, -0.91", "0.91, 0.5, 0.91", "water")), None),
+        (
+            format!("{}{}", boxed("-2, -1, -2", "2, 0, 2", "glass"), boxed("-0.5, 0, -0.5", "0.5, 1, 0.5", "water")),
+            Some(("shapes[1]", "shapes[0]")),
+        ),
+        (format!("{}{}", boxed("-2, -1, -2", "2, 0, 2", "m"), boxed("-0.5, 0, -0.5", "0.5, 1, 0.5", "water")), None),
+        (format!("{}{}", boxed("-2, -1, -2", "2, 0, 2", "glass"), boxed("-0.5, 0.01, -0.5", "0.5, 1, 0.5", "water")), None),
+    ];
+    for (shapes, want) in cases {
+        check_pair_warning(&format!("{BASE}{mats}{shapes}"), "meets one of", "[[shapes]]", want);
+    }
+    // A water sphere filling a spherical hole exactly: the sphere check's warning alone.
+    let block =
+        "[[shapes]]\ntype = \"group\"\nmaterial = \"glass\"\nchildren = [ { type = \"box\", min = [-1, -1, -1], max = [1, 1, 1] }, \
+                 { type = \"sphere\", center = [0, 0, 0], radius = 0.5, hole = true } ]\n\
+                 [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.5\nmaterial = \"water\"\n";
+    let s = parse_scene(Path::new("c.toml"), &format!("{BASE}{mats}{block}")).unwrap();
+    assert_eq!(
+        s.warnings.iter().filter(|w| w.contains("coincides with one of") || w.contains("meets one of")).count(),
+        1,
+        "{:?}",
+        s.warnings
+    );
+}
+
 /// Area lights whose surfaces coincide (two equal disks, a quad given twice, also from its opposite
 /// corner) are warned of at the later light, naming the other: a ray meets only one of them. Lights
 /// apart, of another size, a quad facing the other way, or points at one position (never met by a ray)
