@@ -21,14 +21,19 @@ pub fn sample_disk_concentric(u: [f32; 2]) -> [f32; 2] {
 pub fn concentric_polar(u: [f32; 2]) -> (f32, f32) {
     let a = 2.0 * u[0] - 1.0;
     let b = 2.0 * u[1] - 1.0;
-    // Pick the dominant axis; at the origin both are 0 and the guard keeps the ratio finite.
-    if a.abs() > b.abs() {
-        (a, FRAC_PI_4 * (b / a))
-    } else if b != 0.0 {
-        (b, 2.0 * FRAC_PI_4 - FRAC_PI_4 * (a / b))
+    // Pick the dominant axis; at the origin both are 0 and the guard keeps the ratio finite. (Selects,
+    // not branches: the dominant axis is a coin toss per sample.)
+    let dom = a.abs() > b.abs();
+    let (r, other) = if dom { (a, b) } else { (b, a) };
+    let ratio = if r != 0.0 { other / r } else { 0.0 };
+    let phi = if dom {
+        FRAC_PI_4 * ratio
+    } else if r != 0.0 {
+        2.0 * FRAC_PI_4 - FRAC_PI_4 * ratio
     } else {
-        (0.0, 0.0)
-    }
+        0.0
+    };
+    (r, phi)
 }
 
 /// Eight lanes of [`sample_disk_concentric`] (`u = [u0s, u1s]`); the branches become selects. Agrees

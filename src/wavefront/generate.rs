@@ -92,10 +92,9 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 set.sample_x8(keys, index, true)
             }
         };
-        let [pixel_u, lens_u] =
-            made.unwrap_or_else(|| [sample(&area, &keys[0]), if f.lens { sample(&lens_set, &keys[1]) } else { [f32x8::ZERO; 2] }]);
-        let off = filter_offsets(profile.filter, pixel_u);
-        let lens = if f.lens { sample_disk_concentric_x8(lens_u) } else { [f32x8::ZERO; 2] };
+        let off = filter_offsets(profile.filter, made.map_or_else(|| sample(&area, &keys[0]), |m| m[0]));
+        let lens =
+            if f.lens { sample_disk_concentric_x8(made.map_or_else(|| sample(&lens_set, &keys[1]), |m| m[1])) } else { [f32x8::ZERO; 2] };
         let (o, d) = cam.rays_x8(f32x8::from(b.cx) + off[0], f32x8::from(b.cy) + off[1], lens);
         // New paths: branch, depth, bounce counts and flags start empty (zero); media, the camera's.
         let mut rows = RayRows {
@@ -150,7 +149,7 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 keys: pk.map(|key| [key; LANES]),
                 index: std::array::from_fn(|l| first + l as u32),
             };
-            let made = runs.then(|| {
+            if runs {
                 if run_at == run_len {
                     let count = (((samples.end - first) / LANES as u32) as usize).min(RUN_MAX);
                     area.sample_x8_run(&whole.keys[0], &whole.index, LANES as u32, count, true, &mut run[0]);
@@ -160,9 +159,10 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                     (run_at, run_len) = (0, count);
                 }
                 run_at += 1;
-                [run[0][run_at - 1], run[1][run_at - 1]]
-            });
-            emit(LANES, &whole, true, made, &mut next_path, rays);
+                emit(LANES, &whole, true, Some([run[0][run_at - 1], run[1][run_at - 1]]), &mut next_path, rays);
+            } else {
+                emit(LANES, &whole, true, None, &mut next_path, rays);
+            }
             first += LANES as u32;
         }
         for s in first..samples.end {

@@ -395,6 +395,8 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
     // waiting for its pair.
     let mut held: Vec<Option<BufferJob>> = if buffers && picks.is_none() { vec![None; scene.lights.len()] } else { Vec::new() };
     let mut chunk = 0usize;
+    // (The light samples of a run, `sample_x8_run`: made once here, not zeroed per chunk and light.)
+    let mut run = [[f32x8::ZERO; 2]; RUN_MAX];
     let mut base = 0;
     while base < nee.len() {
         let m = (nee.len() - base).min(LANES);
@@ -502,7 +504,6 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
             let permuted = across && !point;
             // Sets whose permutation walks cycles: the samples of up to `RUN_MAX` consecutive j at once
             // (`run`, from `run_j` on), each lane walking its j one after another.
-            let mut run = [[f32x8::ZERO; 2]; RUN_MAX];
             let mut run_j = u32::MAX;
             for j in 0..ns {
                 let index = if permuted { samples.map(|s| s * ns + j) } else { [j; LANES] };
