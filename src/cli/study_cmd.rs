@@ -224,8 +224,9 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
                 format!("--reference-spp: {e}")
             } else {
                 format!(
-                    "the default reference ({n} samples, 16 x the largest count {largest}) is beyond the profile's limits ({e}): \
-                     give a smaller --reference-spp, or a reference image with --reference FILE.exr"
+                    "the default reference ({n} samples, 16 x the largest count {largest}{}) is beyond the profile's limits ({e}): \
+                     give a smaller --reference-spp, or a reference image with --reference FILE.exr",
+                    if light_only(&plan.integrals) && n != largest.saturating_mul(16) { ", rounded up to a multiple of 4096" } else { "" }
                 )
             }));
         }

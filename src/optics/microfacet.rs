@@ -23,10 +23,9 @@
 
 use crate::simd::{f32x8, Vec3x8, LANES};
 use glam::Vec3;
-use std::f32::consts::FRAC_1_PI;
+use std::f32::consts::{FRAC_1_PI, TAU};
 
 use super::lambert::{onb, onb_x8, to_local, to_world};
-use crate::sample::warp::concentric_polar;
 
 /// Smallest roughness used (smaller values are clamped). Sampled directions converge to the mirror
 /// direction as alpha approaches it.
@@ -134,12 +133,9 @@ pub fn sample_ggx_reflect(wo: Vec3, n: Vec3, alpha: f32, u: [f32; 2]) -> Option<
     let t1 = if len2 > 1e-14 { Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { Vec3::X };
     let t2 = vh.cross(t1);
     // Uniform point on the unit disk, then the half of the disk that is hidden from vh is squeezed
-    // by the projection factor s (Heitz 2018, listing 1, written out independently). The disk point by
-    // the concentric map (Heitz uses the polar one; any uniform map is exact): it keeps the sample
-    // square's stratification, and the square's centre (the `center` strategy) is the disk's centre,
-    // the lobe's central direction (the mirror direction seen head-on).
-    let (r, phi) = concentric_polar(u);
-    let (sp, cp) = phi.sin_cos();
+    // by the projection factor s (Heitz 2018, listing 1, written out independently).
+    let r = u[0].max(0.0).min(1.0).sqrt();
+    let (sp, cp) = (TAU * u[1]).sin_cos();
     let p1 = r * cp;
     let s = 0.5 * (1.0 + vh.z);
     let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * (r * sp);
@@ -169,16 +165,16 @@ pub fn sample_ggx_reflect_x8(wo: Vec3x8, n: Vec3x8, alpha: f32x8, u: [f32x8; 2])
     let t1 =
         Vec3x8::select(len2.simd_gt(f32x8::splat(1e-14)), Vec3x8::new(-vh.y / len, vh.x / len, zero / len), Vec3x8::new(one, zero, zero));
     let t2 = vh.cross(t1);
-    let (u0, u1) = (u[0].to_array(), u[1].to_array());
-    let (mut rc, mut rs) = ([0.0f32; LANES], [0.0f32; LANES]);
+    let r = u[0].max(zero).min(one).sqrt();
+    let phi = (f32x8::splat(TAU) * u[1]).to_array();
+    let (mut sp, mut cp) = ([0.0f32; LANES], [0.0f32; LANES]);
     for l in 0..LANES {
-        let (r, phi) = concentric_polar([u0[l], u1[l]]);
-        let (sp, cp) = phi.sin_cos();
-        (rc[l], rs[l]) = (r * cp, r * sp);
+        (sp[l], cp[l]) = phi[l].sin_cos();
     }
-    let p1 = f32x8::from(rc);
+    let (sp, cp) = (f32x8::from(sp), f32x8::from(cp));
+    let p1 = r * cp;
     let s = f32x8::splat(0.5) * (one + vh.z);
-    let p2 = (one - s) * (one - p1 * p1).max(zero).sqrt() + s * f32x8::from(rs);
+    let p2 = (one - s) * (one - p1 * p1).max(zero).sqrt() + s * (r * sp);
     let nz = (one - p1 * p1 - p2 * p2).max(zero).sqrt();
     let nh = t1.scale(p1) + t2.scale(p2) + vh.scale(nz);
     let m = Vec3x8::new(a * nh.x, a * nh.y, nh.z.max(zero)).normalize_or(Vec3x8::splat(Vec3::Z));

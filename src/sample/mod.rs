@@ -27,8 +27,8 @@
 //!
 //! Non-square `n` (grid, jittered): `nx` is the largest divisor of `n` that is `<= sqrt(n)` and
 //! `ny = n / nx` ([`grid_shape`]), so there are always exactly `n` strata (a prime `n` gives `1 x n`
-//! strips, `n = 8` gives `2 x 4`). Jittered sets whose factorisation is such strips (more than 4 times
-//! longer than wide) take `n` equal-area strata in `r = floor(sqrt(n))` rows instead ([`jitter_rows`]:
+//! strips, `n = 8` gives `2 x 4`). Jittered sets of a count that is neither a square nor a power of two
+//! (from 5 on) take `n` equal-area strata in `r = floor(sqrt(n))` rows instead ([`jitter_rows`]:
 //! a row of `k` cells is `k / n` high, each cell `1 / k` wide; 7 -> rows of 4 and 3, 17 -> 5, 4, 4, 4),
 //! each once. The stratum of sample `index` is `permute(index, n, key)`
 //! ([`permute`], after Kensler 2013), with `key` from `(seed, stream, dim)`: the pixel-area, lens and

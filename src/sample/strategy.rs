@@ -20,8 +20,8 @@ pub enum Strategy {
     Grid,
     /// Independent uniform points.
     Random,
-    /// One uniform point in each of the `nx x ny` strata (for counts whose grid is strips, in each of `n`
-    /// equal-area strata in rows: [`jitter_rows`]).
+    /// One uniform point in each of the `nx x ny` strata (for counts neither square nor a power of two,
+    /// in each of `n` equal-area strata in rows: [`jitter_rows`]).
     Jittered,
     /// Owen-scrambled, index-shuffled Sobol (0,2)-sequence.
     Sobol,
@@ -101,8 +101,8 @@ pub fn grid_shape(n: u32) -> [u32; 2] {
 /// measured 3 x 9, 3 x 11 and 5 x 13 grids at 1.5x the MSE of the count below (27 against 25, 33
 /// against 32, 65 against 64); in rows, `strata study scenes/quad_irradiance.toml --reference analytic
 /// --integrals pixel --strategies jittered --seeds 16` gives 0.55x, 0.46x and 0.61x the grids' MSE, and
-/// every other non-square count from 12 to 100 0.75-0.97x; near-square counts (12 = 3 x 4, 20) take the
-/// grid's own cells.)
+/// every other non-square count from 12 to 100 0.75-0.97x. Near-square counts (12 = 3 x 4, 20) take the
+/// grid's cells transposed (3 rows of 4 for 12): the same strata shape, other images.)
 ///
 /// (Before session 39 a set took `n` of the `m > n` strata of a covering grid: unbiased, but the cells
 /// it left out added an error falling only as `1 / n`, which swamped the stratified part on smooth
@@ -314,7 +314,7 @@ pub struct Sampler2d {
     pub n: u32,
     nx: u32,
     ny: u32,
-    /// A jittered set's equal-area rows, for counts whose grid is strips ([`jitter_rows`]).
+    /// A jittered set's equal-area rows, for counts neither square nor a power of two ([`jitter_rows`]).
     rows: Option<JitterRows>,
 }
 
@@ -324,7 +324,7 @@ impl Sampler2d {
         // (The grid's shape is a search over divisors, O(sqrt n): only for the strategies that use it.)
         let gridded = matches!(strategy, Strategy::Grid | Strategy::Jittered);
         let [nx, ny] = if gridded { grid_shape(n) } else { [1, n] };
-        let rows = jitter_rows(n).filter(|_| strategy == Strategy::Jittered);
+        let rows = if strategy == Strategy::Jittered { jitter_rows(n) } else { None };
         Sampler2d { strategy, n, nx, ny, rows }
     }
 

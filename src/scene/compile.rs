@@ -472,8 +472,8 @@ impl Compiler<'_> {
     /// sphere, ellipsoid or box of a non-thin dielectric, or a CSG solid with such a leaf; static)
     /// whose bounds touch, 3 x 6^2 axis rays across the overlap of their bounds, the f64 crossings of
     /// both compared (closer than the spawn offset, 256 ULPs of the point; a CSG solid's by its leaves
-    /// near the overlap, whether or not they bound it there). Pairs `spheres` (that check's) are not
-    /// warned of twice; the probes stop after 2^22 leaf tests (about 0.05 s).
+    /// near the overlap, whether or not they bound it there). Shapes the sphere check warned of
+    /// (`spheres`) are not warned of twice; the probes stop after 2^22 leaf tests (about 0.05 s).
     fn coincident_glass_surfaces(&mut self, spheres: &[(usize, usize)]) {
         use crate::csg::reference::leaf_f64;
         use glam::DVec3;
@@ -528,6 +528,9 @@ impl Compiler<'_> {
                     self.csg
                         .solid_leaves(*s)
                         .map(|k| *self.csg.leaf(k))
+                        // (Glass leaves only: an opaque leaf meeting glass is the intersect stage's
+                        // opaque-neighbour rule's, as for plain opaque shapes.)
+                        .filter(|l| glass(l.material))
                         .filter(|l| l.bounds().is_none_or(|(a, b)| a.as_dvec3().cmple(hi).all() && b.as_dvec3().cmpge(lo).all())),
                 ),
             }
@@ -540,15 +543,25 @@ impl Compiler<'_> {
         const BUDGET: usize = 1 << 22;
         let (mut spent, mut pairs) = (0usize, Vec::new());
         let (mut a, mut b, mut la, mut lb) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        // Bounds closer than this may hold surfaces within the spawn offset: 1e-4 of the largest item
+        // or 256 ULPs of the farthest coordinate (the same for every pair, so that the sweep along x
+        // may stop at the first item past it).
+        let far = items.iter().map(|it| it.2.abs().max(it.3.abs()).max_element()).fold(0.0f64, f64::max);
+        let ext = items.iter().map(|it| (it.3 - it.2).max_element()).fold(0.0f64, f64::max);
+        let slack = (1e-4 * ext).max(512.0 * far * f32::EPSILON as f64);
         'outer: for x in 0..items.len() {
             for y in x + 1..items.len() {
                 let ((i, ref p, lo1, hi1, s1), (j, ref q, lo2, hi2, s2)) = (&items[x], &items[y]);
-                let slack = 1e-4 * (hi1 - lo1).max(hi2 - lo2).max_element();
                 if lo2.x > hi1.x + slack {
                     break;
                 }
+                // (Every pair looked at counts, so that a column of glass along y or z stays bounded.)
+                spent += 1;
+                if *s1 && *s2 {
+                    continue;
+                }
                 let (lo, hi) = (lo1.max(*lo2) - slack, hi1.min(*hi2) + slack);
-                if !lo.cmple(hi).all() || (*s1 && *s2) || i == j {
+                if !lo.cmple(hi).all() || i == j {
                     continue;
                 }
                 near(p, lo, hi, &mut la);
@@ -580,7 +593,7 @@ impl Compiler<'_> {
                     }
                 }
                 let pair = ((*i).max(*j), (*i).min(*j));
-                if hit && !spheres.contains(&pair) {
+                if hit && !spheres.iter().any(|s| s.0 == pair.0) {
                     pairs.push(pair);
                 }
             }

@@ -454,7 +454,8 @@ pub struct NeeQueue {
     /// In the queue of glossy points ([`NeeQueue::glossy`], filled by [`NeeQueue::push_lobes`]; empty
     /// elsewhere): the direction back along the incoming ray (unit) and the GGX `alpha` (its `w` is
     /// throughput x tint: the shadow stage evaluates the lobe per light sample), never 0; `alpha < 0`
-    /// when no lobe ray leaves the point (depth limit), so its light samples need no MIS weight.
+    /// when no lobe ray leaves the point (depth limit) or its lobe ray is not sampled (the `center`
+    /// strategy's fixed direction), so its light samples need no MIS weight.
     pub wox: Vec<f32>,
     pub woy: Vec<f32>,
     pub woz: Vec<f32>,

@@ -1119,7 +1119,15 @@ impl<'a> Ctx<'a> {
         }
         let u = self.glossy.sample_x8(&keys, &sample, true);
         let (nf, alpha_x8) = (geo.n_facing, f32x8::from(alpha));
-        let (wi, ok) = sample_ggx_reflect_x8(wo, nf, alpha_x8, u);
+        // `center`: the lobe's central direction, the mirror direction (microfacet normal `n`) at any
+        // incidence (`center_lobe`); else the visible-normal sample.
+        let (wi, ok) = if profile.glossy_strategy == Strategy::Center {
+            let wi = reflect_x8(wo, nf).normalize_or(nf);
+            let zero = f32x8::ZERO;
+            (wi, wo.dot_unfused(nf).simd_gt(zero) & wi.dot_unfused(nf).simd_gt(zero))
+        } else {
+            sample_ggx_reflect_x8(wo, nf, alpha_x8, u)
+        };
         let weight = sample_ggx_reflect_weight_x8(wo, nf, wi, alpha_x8);
         // The lobe rays' density, for the MIS weight of the sampled light they may find.
         let pdf = if next.with_pdf { sample_ggx_reflect_pdf_x8(wo, nf, wi, alpha_x8).to_array() } else { [0.0f32; LANES] };
@@ -1517,7 +1525,13 @@ mod tests {
             let wo = -r.d.normalize();
             let (p, dim) = (ctx.profile, dims::GLOSSY + r.depth as u32);
             let u = crate::sample::sample_2d(p.glossy_strategy, ctx.seed, branch_stream(pixel, r.branch), dim, sample, p.spp);
-            if let Some(wi) = sample_ggx_reflect(wo, hit.n_facing, *alpha, u) {
+            let wi = if p.glossy_strategy == Strategy::Center {
+                Some(reflect(wo, hit.n_facing).normalize_or(hit.n_facing))
+                    .filter(|wi| wo.dot(hit.n_facing) > 0.0 && wi.dot(hit.n_facing) > 0.0)
+            } else {
+                sample_ggx_reflect(wo, hit.n_facing, *alpha, u)
+            };
+            if let Some(wi) = wi {
                 let wgt = sample_ggx_reflect_weight(wo, hit.n_facing, wi, *alpha);
                 let child = RayItem {
                     o: hit.spawn(hit.n_facing),
