@@ -24,8 +24,7 @@ use crate::geometry::{
 };
 use crate::light::{light_points_x8, power_heuristic_x8, sample_light_x8, sample_pdf_x8, samples_for};
 use crate::optics::{eval_ggx_reflect_x8, sample_ggx_reflect_pdf_x8};
-use crate::sample::hash::random_bits;
-use crate::sample::hash::RUN_MAX;
+use crate::sample::hash::{random_bits, RUN_MAX};
 use crate::sample::{hash_combine, sample_1d_keyed, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape, NOT_A_LIGHT};
 use crate::simd::{
