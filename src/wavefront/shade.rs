@@ -405,13 +405,12 @@ pub fn shade(scene: &Scene, profile: &Profile, seed: u64, rays: &RayQueue, hits:
                         if geo.front & (1 << l) != 0 && !(prim.is_light && r.flags & FLAG_DIFFUSE != 0) {
                             if prim.is_light && r.flags & FLAG_GLOSSY != 0 && rays.with_pdf {
                                 let pick = pick.get_or_init(|| LightPick::cached(scene, profile));
-                                // (A `center` lobe's ray: its light is the light samples' alone.)
-                                let w = if profile.glossy_strategy == Strategy::Center {
-                                    0.0
-                                } else {
-                                    lobe_light_weight(scene, profile, pick.as_deref(), hits.prim[i], &r, hits.t[i])
-                                };
-                                paths.add(r.path, r.throughput * *radiance * w);
+                                // (A `center` lobe's ray: its light is the light samples' alone, nothing
+                                // added here.)
+                                if profile.glossy_strategy != Strategy::Center {
+                                    let w = lobe_light_weight(scene, profile, pick.as_deref(), hits.prim[i], &r, hits.t[i]);
+                                    paths.add(r.path, r.throughput * *radiance * w);
+                                }
                             } else {
                                 paths.add(r.path, r.throughput * *radiance);
                             }
