@@ -517,6 +517,30 @@ impl Sampler2d {
         }
     }
 
+    /// The strata `sample_x8` takes for runs of samples of 8 sets, lane `l`'s keyed by `keys[l]`: `out[m][l]`
+    /// is the permuted stratum of index `base[l] + m step`, for `m < count[l] <= RUN_MAX` (rows past a
+    /// lane's count left alone). For sets that [`Sampler2d::runs`], every index below `n`: 8 pixels' samples
+    /// of a work unit at once, a lane per pixel. Then [`Sampler2d::sample_x8_in_strata`].
+    pub fn strata_runs(
+        &self,
+        keys: &[u64; LANES],
+        base: &[u32; LANES],
+        step: u32,
+        count: &[u32; LANES],
+        out: &mut [[u32; LANES]; RUN_MAX],
+    ) {
+        debug_assert!(self.runs());
+        permute_runs(base, step, count, &PermuteShape::new(self.n), &keys.map(perm_key), out);
+    }
+
+    /// `sample_x8(keys, index, true)` of a set that [`Sampler2d::runs`], given the strata the permutation
+    /// puts `index` in (`s`, from [`Sampler2d::strata_runs`]): bit for bit the same.
+    #[inline(never)]
+    pub fn sample_x8_in_strata(&self, keys: &[u64; LANES], index: &[u32; LANES], s: &[u32; LANES]) -> [f32x8; 2] {
+        debug_assert!(self.runs());
+        self.jitter_strata_x8(keys, index, s)
+    }
+
     #[inline(always)]
     fn sample_impl(&self, key: u64, index: u32, permuted: bool) -> [f32; 2] {
         match self.strategy {

@@ -120,7 +120,43 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         }
         rays.push_rows(k, &rows);
     };
-    for (x, y) in tile.pixels_z_order() {
+    // Across pixels: where each pixel's samples of the unit are whole packets, and at most `RUN_MAX` (a
+    // unit of the default tile holds 16 samples of each of its pixels), the strata of 8 pixels' samples
+    // are walked at once, a lane per pixel (`Sampler2d::strata_runs`): a pixel's own run of 2 packets is
+    // too short to keep the walk busy. `strata[set][m][lane]`, for the pixels `ahead[..n_ahead]`.
+    let len = samples.len();
+    let across = runs && len.is_multiple_of(LANES) && len <= RUN_MAX;
+    let mut strata = [[[0u32; LANES]; RUN_MAX]; 2];
+    let mut zs = tile.pixels_z_order();
+    let mut ahead = [(0u32, 0u32); LANES];
+    let (mut n_ahead, mut at) = (0usize, 0usize);
+    loop {
+        if at == n_ahead {
+            (n_ahead, at) = (0, 0);
+            while n_ahead < LANES {
+                let Some(p) = zs.next() else { break };
+                ahead[n_ahead] = p;
+                n_ahead += 1;
+            }
+            if n_ahead == 0 {
+                break;
+            }
+            if across {
+                let key = |l: usize, dim: u32| {
+                    stream_key(seed, (ahead[l.min(n_ahead - 1)].1 * scene.width + ahead[l.min(n_ahead - 1)].0) as u64, dim)
+                };
+                let count = std::array::from_fn(|l| if l < n_ahead { len as u32 } else { 0 });
+                let base = [samples.start; LANES];
+                for (set, dim, used) in [(&area, dims::PIXEL, true), (&lens_set, dims::LENS, f.lens)] {
+                    if used && set.runs() {
+                        let keys = std::array::from_fn(|l| key(l, dim));
+                        set.strata_runs(&keys, &base, 1, &count, &mut strata[(dim == dims::LENS) as usize]);
+                    }
+                }
+            }
+        }
+        let ((x, y), lane) = (ahead[at], at);
+        at += 1;
         let pixel = y * scene.width + x;
         let stream = pixel as u64;
         // The pixel's stream keys, once per pixel (the 1D ones only where the scene uses them).
@@ -149,7 +185,20 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 keys: pk.map(|key| [key; LANES]),
                 index: std::array::from_fn(|l| first + l as u32),
             };
-            if runs {
+            if across {
+                // Packet `p` of this pixel: its lane's strata `8 p .. 8 p + 8`.
+                let p = ((first - samples.start) / LANES as u32) as usize;
+                let made = |set: &Sampler2d, which: usize, key: &[u64; LANES]| {
+                    if set.runs() {
+                        let s = std::array::from_fn(|j| strata[which][p * LANES + j][lane]);
+                        set.sample_x8_in_strata(key, &whole.index, &s)
+                    } else {
+                        set.sample_x8_one_key(key[0], &whole.index, true)
+                    }
+                };
+                let lens = if f.lens { made(&lens_set, 1, &whole.keys[1]) } else { [f32x8::ZERO; 2] };
+                emit(LANES, &whole, true, Some([made(&area, 0, &whole.keys[0]), lens]), &mut next_path, rays);
+            } else if runs {
                 if run_at == run_len {
                     let count = (((samples.end - first) / LANES as u32) as usize).min(RUN_MAX);
                     area.sample_x8_run(&whole.keys[0], &whole.index, LANES as u32, count, true, &mut run[0]);
@@ -221,9 +270,10 @@ fn filter_offsets(filter: Filter, u: [f32x8; 2]) -> [f32x8; 2] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sample::Strategy;
 
     /// Whole packets of one pixel's samples (filled as vectors) give the rays the lane-by-lane fill
-    /// gives: 16 samples per pixel generated at once (two whole packets per pixel), and the range 3..13
+    /// gives: 16 samples per pixel generated at once (two whole packets per pixel), 8..16 (one), and the range 3..13
     /// (one whole packet, then a partial one that spans pixels), against one sample at a time (always
     /// lane by lane), per (pixel, sample), with lens, motion and dispersion: origin, direction, time,
     /// wavelength and throughput.
@@ -238,13 +288,12 @@ mod tests {
         let scene = crate::scene::parse_scene(std::path::Path::new("g.toml"), text).unwrap();
         assert!(scene.features.lens && scene.features.motion && scene.features.dispersion);
         let mut profile = Profile::builtin("preview");
-        profile.spp = 16;
         let tile = Tile { x0: 1, y0: 0, x1: 12, y1: 5 };
-        let rays_of = |ranges: &[Range<u32>]| {
+        let rays_of = |profile: &Profile, ranges: &[Range<u32>]| {
             let mut out = std::collections::BTreeMap::new();
             for r in ranges {
                 let (mut paths, mut q) = (PathTable::default(), RayQueue::new(true, true));
-                generate(&scene, &profile, 7, tile, r.clone(), &mut paths, &mut q);
+                generate(&scene, profile, 7, tile, r.clone(), &mut paths, &mut q);
                 for i in 0..q.len() {
                     let ray = q.get(i);
                     let key = (paths.pixel[ray.path as usize], paths.sample[ray.path as usize]);
@@ -255,11 +304,17 @@ mod tests {
             }
             out
         };
-        for range in [0..16, 3..13] {
-            let whole = rays_of(std::slice::from_ref(&range));
-            let single = rays_of(&range.clone().map(|s| s..s + 1).collect::<Vec<_>>());
-            assert_eq!(whole.len(), 11 * 5 * range.len());
-            assert!(whole == single, "samples {range:?}: whole-packet and lane-by-lane rays differ");
+        // (24 and 100 jittered samples: sets whose permutation walks cycles, 8 pixels' strata at once
+        // where a unit's samples are whole packets, 0..16 and 8..16, the 55 pixels 6 groups of 8 and one
+        // of 7; with a random lens, the pixel set alone walks.)
+        for (spp, lens) in [(16, Strategy::Jittered), (24, Strategy::Jittered), (24, Strategy::Random), (100, Strategy::Jittered)] {
+            (profile.spp, profile.pixel_strategy, profile.lens_strategy) = (spp, Strategy::Jittered, lens);
+            for range in [0..16, 3..13, 8..16] {
+                let whole = rays_of(&profile, std::slice::from_ref(&range));
+                let single = rays_of(&profile, &range.clone().map(|s| s..s + 1).collect::<Vec<_>>());
+                assert_eq!(whole.len(), 11 * 5 * range.len());
+                assert!(whole == single, "{spp} spp, lens {lens:?}, samples {range:?}: whole-packet and lane-by-lane rays differ");
+            }
         }
     }
 
