@@ -506,7 +506,7 @@ impl Sampler2d {
         }
         let mut s = [[0u32; LANES]; RUN_MAX];
         if permuted {
-            permute_runs(base, step, &[count as u32; LANES], &PermuteShape::new(self.n), &keys.map(perm_key), &mut s);
+            self.strata_runs(keys, base, step, &[count as u32; LANES], &mut s);
         } else {
             for (m, s) in s.iter_mut().enumerate().take(count) {
                 *s = index(m);

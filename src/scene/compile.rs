@@ -481,59 +481,58 @@ impl Compiler<'_> {
             return;
         }
         let glass = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
-        enum Item {
-            Leaf(csg::Leaf),
-            Solid(u32),
-        }
-        // (prim, shape, bounds lo, hi, a plain sphere)
-        let mut items: Vec<(usize, Item, DVec3, DVec3, bool)> = Vec::new();
+        // Each item's surfaces as leaves (`leaves[range]`): a plain shape's one canonical leaf, a CSG
+        // solid's glass leaves (whether or not they bound it everywhere: its boundary by the boolean
+        // program would cost a program evaluation per crossing; an opaque leaf meeting glass is the
+        // intersect stage's opaque-neighbour rule's, as for plain opaque shapes).
+        let mut leaves: Vec<csg::Leaf> = Vec::new();
+        // (prim, its leaves, bounds lo, hi, a plain sphere)
+        let mut items: Vec<(usize, Range<usize>, DVec3, DVec3, bool)> = Vec::new();
         for (i, p) in self.prims.iter().enumerate() {
             if p.motion != Vec3::ZERO {
                 continue;
             }
-            let leaf = |shape: csg::Shape, m: Affine3A| Item::Leaf(csg::Leaf::new(shape, m, p.material));
-            let item = match p.shape {
-                Shape::Sphere { center, radius } if glass(p.material) => {
-                    (leaf(csg::Shape::Sphere, Affine3A::from_scale_rotation_translation(Vec3::splat(radius), Quat::IDENTITY, center)), true)
+            let start = leaves.len();
+            let leaf = |shape: csg::Shape, m: Affine3A| csg::Leaf::new(shape, m, p.material);
+            let (bounds, sphere) = match p.shape {
+                Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_) if !glass(p.material) => continue,
+                Shape::Sphere { center, radius } => {
+                    leaves.push(leaf(
+                        csg::Shape::Sphere,
+                        Affine3A::from_scale_rotation_translation(Vec3::splat(radius), Quat::IDENTITY, center),
+                    ));
+                    (leaves[start].bounds(), true)
                 }
-                Shape::Ellipsoid(e) if glass(p.material) => {
-                    (leaf(csg::Shape::Sphere, Affine3A::from_mat3_translation(e.to_world, e.center)), false)
+                Shape::Ellipsoid(e) => {
+                    leaves.push(leaf(csg::Shape::Sphere, Affine3A::from_mat3_translation(e.to_world, e.center)));
+                    (leaves[start].bounds(), false)
                 }
-                Shape::Box(b) if glass(p.material) => {
-                    (leaf(csg::Shape::Box, Affine3A::from_mat3_translation(b.to_world * Mat3::from_diagonal(b.half), b.center)), false)
+                Shape::Box(b) => {
+                    leaves.push(leaf(csg::Shape::Box, Affine3A::from_mat3_translation(b.to_world * Mat3::from_diagonal(b.half), b.center)));
+                    (leaves[start].bounds(), false)
                 }
-                Shape::Csg { solid } if self.csg.solid_leaves(solid).any(|k| glass(self.csg.leaf(k).material)) => {
-                    (Item::Solid(solid), false)
+                Shape::Csg { solid } => {
+                    leaves.extend(self.csg.solid_leaves(solid).map(|k| *self.csg.leaf(k)).filter(|l| glass(l.material)));
+                    (Some(self.csg.bounds(solid)), false)
                 }
                 _ => continue,
             };
-            let (lo, hi) = match &item.0 {
-                Item::Leaf(l) => l.bounds().unwrap_or((Vec3::INFINITY, Vec3::NEG_INFINITY)),
-                Item::Solid(s) => self.csg.bounds(*s),
-            };
-            let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-            if lo.is_finite() && hi.is_finite() && lo.cmple(hi).all() {
-                items.push((i, item.0, lo, hi, item.1));
+            let (lo, hi) = bounds.map_or((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi)| (lo.as_dvec3(), hi.as_dvec3()));
+            if leaves.len() > start && lo.is_finite() && hi.is_finite() && lo.cmple(hi).all() {
+                items.push((i, start..leaves.len(), lo, hi, sphere));
+            } else {
+                leaves.truncate(start);
             }
         }
         items.sort_by(|a, b| a.2.x.total_cmp(&b.2.x));
-        // The leaves of an item whose bounds meet the box `lo..hi` (a CSG solid's: the surfaces of its
-        // leaves there, whether or not they bound the solid; its boundary by the boolean program would
-        // cost a program evaluation per crossing).
-        let near = |item: &Item, lo: DVec3, hi: DVec3, out: &mut Vec<csg::Leaf>| {
+        // An item's leaves whose bounds meet the box `lo..hi`.
+        let near = |range: &Range<usize>, lo: DVec3, hi: DVec3, out: &mut Vec<csg::Leaf>| {
             out.clear();
-            match item {
-                Item::Leaf(l) => out.push(*l),
-                Item::Solid(s) => out.extend(
-                    self.csg
-                        .solid_leaves(*s)
-                        .map(|k| *self.csg.leaf(k))
-                        // (Glass leaves only: an opaque leaf meeting glass is the intersect stage's
-                        // opaque-neighbour rule's, as for plain opaque shapes.)
-                        .filter(|l| glass(l.material))
-                        .filter(|l| l.bounds().is_none_or(|(a, b)| a.as_dvec3().cmple(hi).all() && b.as_dvec3().cmpge(lo).all())),
-                ),
-            }
+            out.extend(
+                leaves[range.clone()]
+                    .iter()
+                    .filter(|l| l.bounds().is_none_or(|(a, b)| a.as_dvec3().cmple(hi).all() && b.as_dvec3().cmpge(lo).all())),
+            );
         };
         let crossings = |leaves: &[csg::Leaf], o: DVec3, d: DVec3, out: &mut Vec<f64>| {
             out.clear();
@@ -561,7 +560,7 @@ impl Compiler<'_> {
                     continue;
                 }
                 let (lo, hi) = (lo1.max(*lo2) - slack, hi1.min(*hi2) + slack);
-                if !lo.cmple(hi).all() || i == j {
+                if !lo.cmple(hi).all() {
                     continue;
                 }
                 near(p, lo, hi, &mut la);

@@ -933,7 +933,8 @@ impl<'a> Ctx<'a> {
         }
         // The stretch each child's spawn offset skips inside an absorbing medium (`spawn_absorption`).
         if media[..m].iter().chain(&stack[..m]).any(|&s| s != MediumStack::default()) {
-            let p_of = |l: usize| Vec3::new(p.x.to_array()[l], p.y.to_array()[l], p.z.to_array()[l]);
+            let (px, py, pz) = (p.x.to_array(), p.y.to_array(), p.z.to_array());
+            let p_of = |l: usize| Vec3::new(px[l], py[l], pz[l]);
             let at = |r: &[[f32; LANES]; 3], l: usize| Vec3::new(r[0][l], r[1][l], r[2][l]);
             for l in 0..m {
                 let k = spawn_absorption(scene, rows.media[l], p_of(l), at(&rows.o, l), at(&rows.d, l));
@@ -1119,7 +1120,7 @@ impl<'a> Ctx<'a> {
         let u = self.glossy.sample_x8(&keys, &sample, true);
         let (nf, alpha_x8) = (geo.n_facing, f32x8::from(alpha));
         // `center`: the lobe's central direction, the mirror direction (microfacet normal `n`) at any
-        // incidence (`center_lobe`); else the visible-normal sample.
+        // incidence; else the visible-normal sample.
         let (wi, ok) = if profile.glossy_strategy == Strategy::Center {
             let wi = reflect_x8(wo, nf).normalize_or(nf);
             let zero = f32x8::ZERO;
