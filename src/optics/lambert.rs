@@ -1,6 +1,7 @@
 //! Orthonormal bases and the cosine-weighted (Lambertian) hemisphere.
 
-use crate::sample::{sample_disk_concentric, sample_disk_concentric_x8};
+use crate::sample::sample_disk_concentric_x8;
+use crate::sample::warp::concentric_polar;
 use crate::simd::{f32x8, u32x8, Vec3x8};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
@@ -34,18 +35,18 @@ pub fn to_world(l: Vec3, t: Vec3, b: Vec3, n: Vec3) -> Vec3 {
 /// Cosine-weighted direction in the hemisphere around the unit `n` (density `cos / pi` over solid
 /// angle, [`sample_hemisphere_cos_pdf`]), from `u` in `[0, 1)^2`.
 ///
-/// Malley's method: a uniform point on the unit disk (the concentric map, [`sample_disk_concentric`],
+/// Malley's method: a uniform point on the unit disk (the concentric map, `sample_disk_concentric`,
 /// which keeps the stratification of jittered `u` and sends the square's centre, the `center`
 /// strategy, to the normal) lifted to the hemisphere.
 #[inline]
 pub fn sample_hemisphere_cos(n: Vec3, u: [f32; 2]) -> Vec3 {
-    let [x, y] = sample_disk_concentric(u);
-    // (The height from the map's radius, max(|a|, |b|) with a = 2 u0 - 1 and b = 2 u1 - 1, exact, rather
-    // than from x and y, whose sine and cosine round: near the rim that would amplify it.)
-    let (a, b) = (2.0 * u[0] - 1.0, 2.0 * u[1] - 1.0);
-    let z = (1.0 - (a * a).max(b * b)).max(0.0).sqrt();
+    // (The height from the map's radius r, exact, rather than from x and y, whose sine and cosine
+    // round: near the rim that would amplify it. The 8-lane twin takes r^2 as max(a^2, b^2).)
+    let (r, phi) = concentric_polar(u);
+    let (s, c) = phi.sin_cos();
+    let z = (1.0 - r * r).max(0.0).sqrt();
     let (t, b) = onb(n);
-    to_world(Vec3::new(x, y, z), t, b, n)
+    to_world(Vec3::new(r * c, r * s, z), t, b, n)
 }
 
 /// Density over solid angle of [`sample_hemisphere_cos`]: `max(0, dot(n, wi)) / pi`.
