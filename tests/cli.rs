@@ -751,7 +751,9 @@ fn identical_samples_are_warned_about() {
         let out_path = tmp(name);
         let o = strata().args(["render", scene.to_str().unwrap(), "-q", "-o", out_path.to_str().unwrap()]).args(args).output().unwrap();
         assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
-        (String::from_utf8_lossy(&o.stderr).into_owned(), std::fs::read(out_path).unwrap())
+        // (The pixels' bits: the files' headers record the spp and light samples each was rendered with.)
+        let px: Vec<u32> = image::open(&out_path).unwrap().into_rgb32f().into_raw().iter().map(|x| x.to_bits()).collect();
+        (String::from_utf8_lossy(&o.stderr).into_owned(), px)
     };
     let (w4, img4) = render("c4.exr", &["--spp", "4", "--strategy", "center"]);
     let (w1, img1) = render("c1.exr", &["--spp", "1", "--strategy", "center"]);
@@ -844,5 +846,42 @@ fn size_renders_at_another_size() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{bad}: {err}");
         assert!(err.contains(&format!("--size {bad}: ")), "{bad}: {err}");
+    }
+}
+
+/// A quad lit by a point light straight above its centre, the whole scene at scale `s`: the centre
+/// pixel's radiance is albedo / pi x I / h^2 = 0.5 / pi at every scale (I = 16 s^2, h = 4 s). At sides of
+/// 8e9 and 8e-12 the check that u and v are not parallel squared the cross product in f32 (which
+/// overflows and underflows there) and refused the quad (a user trial).
+#[test]
+fn quads_of_huge_and_tiny_sides_render_their_irradiance() {
+    for s in [1e-12f64, 1.0, 1e9, 1e12] {
+        let scene = tmp(&format!("quad_scale_{s:e}.toml"));
+        let v = |x: f64| format!("{:e}", x * s);
+        std::fs::write(
+            &scene,
+            format!(
+                "[image]\nwidth = 15\nheight = 15\n[camera]\nposition = [0, {h}, {z}]\nlook_at = [0, 0, 0]\nfov = 40\n\
+                 [materials.l]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
+                 [[shapes]]\ntype = \"quad\"\norigin = [{m}, 0, {m}]\nu = [0, 0, {e}]\nv = [{e}, 0, 0]\nmaterial = \"l\"\n\
+                 [[lights]]\ntype = \"point\"\nposition = [0, {h}, 0]\nintensity = [{i}, {i}, {i}]\n",
+                h = v(4.0),
+                z = v(12.0),
+                m = v(-4.0),
+                e = v(8.0),
+                i = format!("{:e}", 16.0 * s * s)
+            ),
+        )
+        .unwrap();
+        let out = tmp(&format!("quad_scale_{s:e}.exr"));
+        let o = strata()
+            .args(["render", scene.to_str().unwrap(), "-q", "--spp", "1", "--strategy", "center", "-o", out.to_str().unwrap()])
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "scale {s:e}: {}", String::from_utf8_lossy(&o.stderr));
+        let img = image::open(&out).unwrap().into_rgb32f();
+        let centre = img.get_pixel(7, 7)[0] as f64;
+        let expect = 0.5 / std::f64::consts::PI;
+        assert!((centre / expect - 1.0).abs() < 1e-3, "scale {s:e}: centre {centre}, expected {expect}");
     }
 }

@@ -287,7 +287,7 @@ fn analytic_reference_has_no_error_floor() {
         threads: 0,
         cancel: None,
     };
-    let reference = obtain(&ReferenceSource::Analytic, &scene, &base, &plan, &dir).ok().unwrap();
+    let reference = obtain(&ReferenceSource::Analytic, &scene, &base, &plan, &dir, None).ok().unwrap();
     let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
     let summary = summarize(&series.runs, &series.rows);
     for s in &summary {
@@ -330,7 +330,7 @@ fn soft_shadow_slopes_random_and_jittered() {
         threads: 0,
         cancel: None,
     };
-    let reference = obtain(&ReferenceSource::Samples(16384), &scene, &base, &plan, &dir).ok().unwrap();
+    let reference = obtain(&ReferenceSource::Samples(16384), &scene, &base, &plan, &dir, None).ok().unwrap();
     let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
     let summary = summarize(&series.runs, &series.rows);
     let (r, _) = slopes(&summary, Strategy::Random);
@@ -366,7 +366,7 @@ fn study_strategy_drives_wavelength_and_diffuse_dimensions() {
         threads: 0,
         cancel: None,
     };
-    let reference = obtain(&ReferenceSource::Samples(256), &scene, &base, &plan, &dir).ok().unwrap();
+    let reference = obtain(&ReferenceSource::Samples(256), &scene, &base, &plan, &dir, None).ok().unwrap();
     let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
     for strategy in [Strategy::Random, Strategy::Jittered] {
         let mut p = base.clone();
@@ -418,7 +418,7 @@ fn light_samples_from_spp_reference_is_converged() {
         threads: 0,
         cancel: None,
     };
-    let reference = obtain(&ReferenceSource::Samples(256), &scene, &base, &plan, &dir).ok().unwrap();
+    let reference = obtain(&ReferenceSource::Samples(256), &scene, &base, &plan, &dir, None).ok().unwrap();
     let series = run_series(&scene, &base, &plan, &reference.image, false, &mut |_| {}).unwrap();
     // Independent: 1024 jittered spp x 16 jittered light samples (16384 per pixel, 64 x the largest run).
     let mut p = base.clone();
@@ -670,8 +670,13 @@ fn reference_cache_is_reused_only_when_fresh() {
 fn cli_input_errors_exit_2_with_a_message() {
     let dir = tmp_dir("errors");
     let d = dir.to_str().unwrap();
-    let cases: [(&[&str], &str); 15] = [
+    let cases: [(&[&str], &str); 19] = [
         (&["--strategies", "random,magic"], "unknown strategy `magic`"),
+        (&["--integrals", "light,light"], "`light` is listed twice"),
+        (&["--integrals", "all,light"], "`all` (every integral) stands alone"),
+        (&["--spp", "99999999999"], "`99999999999` is too large a sample count (at most 1048576)"),
+        // Nothing studied that the scene has: every run would be the same image.
+        (&["--integrals", "lens,time"], "the scene does not exercise lens, time (no camera aperture, moving shapes)"),
         (&["--spp", ","], "--spp: the list is empty"),
         (&["--spp", "4,zero"], "is not a sample count"),
         (&["--spp", "1,,4"], "an empty item"),
@@ -858,4 +863,47 @@ fn light_counts_above_4096_are_passes_but_not_for_a_grid() {
     let e = configure(&base, &light, Strategy::Grid, 8192, false).unwrap_err();
     assert!(e.contains("grid") && e.contains("8192"), "{e}");
     assert_eq!(configure(&base, &light, Strategy::Grid, 4096, false).unwrap().light_samples, 4096);
+}
+
+/// A reference file records how it was rendered (the EXR's `strata.provenance`), and a study warns when
+/// it estimates another image than the runs: here a box-filtered reference studied under a tent filter
+/// (the README's profile table compared `final`, tent, with a box reference, a user trial). The same
+/// filter gives no warning; a file without the record gives a note. A study removes the plot and sheet
+/// of an earlier one that it does not write again.
+#[test]
+fn cli_reference_file_of_another_estimator_is_warned_of() {
+    let dir = tmp_dir("provenance");
+    let d = dir.to_str().unwrap();
+    let scene = "scenes/quad_irradiance.toml";
+    let reference = dir.join("ref_box.exr");
+    let r = reference.to_str().unwrap();
+    let o = strata().args(["render", scene, "--size", "24x16", "--spp", "64", "-q", "-o", r]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let study = |integrals: &str, extra: &[&str]| {
+        let mut a = vec!["study", scene, "--size", "24x16", "--integrals", integrals, "--strategies", "jittered"];
+        a.extend_from_slice(&["--spp", "1,4", "--seeds", "1", "-q", "--out", d]);
+        a.extend_from_slice(extra);
+        let out = strata().args(&a).output().unwrap();
+        assert!(out.status.success(), "{a:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let tent = study("pixel,light", &["--reference", r, "--set", "filter=tent", "--sheet"]);
+    assert!(
+        tent.contains("estimates another image than the study's runs: filter box in the reference, tent in the study")
+            && tent.contains("--set filter=tent"),
+        "{tent}"
+    );
+    assert!(dir.join("sheet.png").exists());
+    let same = study("pixel,light", &["--reference", r]);
+    assert!(!same.contains("warning") && !same.contains("note"), "{same}");
+    assert!(!dir.join("sheet.png").exists(), "an earlier study's sheet was left beside the new CSV");
+    // The light held at its centre in the study but sampled in the reference: another image too.
+    let held = study("pixel", &["--reference", r]);
+    assert!(held.contains("the light integral is sampled (jittered) in the reference, held at its centre in the study"), "{held}");
+    // A file without the record (another renderer's): a note, no claim either way.
+    let foreign = dir.join("foreign.exr");
+    let (w, h, px) = strata::film::output::read_image(&reference).unwrap();
+    strata::film::output::write_image(&foreign, w, h, &px).unwrap();
+    let note = study("pixel,light", &["--reference", foreign.to_str().unwrap()]);
+    assert!(note.contains("records no Strata settings") && !note.contains("warning"), "{note}");
 }

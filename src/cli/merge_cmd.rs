@@ -5,7 +5,7 @@
 
 use super::Failure;
 use crate::film::file::{check_film_writable, read_film, write_film, FilmFile, FilmHeader};
-use crate::film::output::{check_writable, write_image};
+use crate::film::output::{check_writable, write_image_with, Provenance};
 use crate::render::unit_count;
 use clap::Args;
 use std::fmt::Write as _;
@@ -102,7 +102,9 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     for (_, f) in &films[1..] {
         merged.merge(&f.film);
     }
-    write_image(&out, merged.width, merged.height, &merged.to_rgb()).map_err(Failure::runtime)?;
+    // (With --allow-gaps the range is the span the films cover: the estimator is the same, with fewer samples.)
+    let provenance = Provenance { samples: range.clone(), ..Provenance::of(first) };
+    write_image_with(&out, merged.width, merged.height, &merged.to_rgb(), Some(&provenance)).map_err(Failure::runtime)?;
     if let Some(fp) = &a.film {
         let completed = vec![true; unit_count(first.width, first.height, first.tile, range.clone())];
         let h = FilmHeader { samples: range.clone(), completed, ..first.clone() };

@@ -8,8 +8,12 @@ pub mod render_cmd;
 pub mod study_cmd;
 
 use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
 
 #[derive(Parser, Debug)]
 #[command(name = "strata", version, about = "A data-oriented SIMD wavefront ray tracer for the CPU")]
@@ -26,6 +30,20 @@ pub enum Command {
     Study(study_cmd::StudyArgs),
     /// Sum the films of sample ranges into one image (and film), exactly; --status lists the ranges.
     Merge(merge_cmd::MergeArgs),
+}
+
+/// A clap parser of a count flag whose values run up to `max` (0 and the limit itself are left to the
+/// profile's validation, which says why): a negative, fractional or huge value is named as what it is,
+/// not as "not in 0..=4294967295".
+pub fn count_parser(what: &'static str, max: u32) -> impl Fn(&str) -> Result<u32, String> + Clone + Send + Sync + 'static {
+    move |v: &str| {
+        v.parse::<u32>().map_err(|_| match v.parse::<f64>() {
+            Ok(x) if x < 0.0 => format!("a count of {what} cannot be negative (at most {max})"),
+            Ok(x) if x.fract() != 0.0 => format!("a count of {what} is a whole number (at most {max})"),
+            Ok(_) => format!("too many {what}: at most {max}"),
+            Err(_) => format!("not a count of {what} (a whole number, at most {max})"),
+        })
+    }
 }
 
 /// An error with its exit code.
@@ -129,6 +147,58 @@ pub fn main() -> ExitCode {
         Err(f) => {
             errln!("error: {}", f.message);
             ExitCode::from(f.code)
+        }
+    }
+}
+
+/// Progress of a render's work units: a bar on a terminal, else a line per 10% (for job logs).
+pub struct Progress {
+    pub(crate) bar: Option<ProgressBar>,
+    label: String,
+    quiet: bool,
+    logged_tenths: AtomicUsize,
+    start: Instant,
+}
+
+impl Progress {
+    pub fn new(label: &str, quiet: bool, total: usize, done: usize) -> Progress {
+        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
+            let b = ProgressBar::new(total as u64);
+            b.set_style(
+                ProgressStyle::with_template("{prefix} {spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} work units (eta {eta})")
+                    .unwrap(),
+            );
+            b.set_prefix(label.to_string());
+            b.set_position(done as u64);
+            b
+        });
+        let tenths = (done * 10).checked_div(total).unwrap_or(10);
+        Progress { bar, label: label.to_string(), quiet, logged_tenths: AtomicUsize::new(tenths), start: Instant::now() }
+    }
+
+    pub fn update(&self, done: usize, total: usize) {
+        if let Some(b) = &self.bar {
+            b.set_length(total as u64);
+            b.set_position(done as u64);
+        } else if !self.quiet && total > 0 {
+            let tenths = done * 10 / total;
+            if self.logged_tenths.fetch_max(tenths, Ordering::Relaxed) < tenths {
+                let secs = self.start.elapsed().as_secs_f64();
+                errln!("{}: {}% ({done}/{total} work units, {secs:.1} s)", self.label, tenths * 10);
+            }
+        }
+    }
+
+    pub fn println(&self, m: &str) {
+        match &self.bar {
+            Some(b) => b.suspend(|| errln!("{m}")),
+            None => errln!("{m}"),
+        }
+    }
+
+    pub fn finish(&self) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
         }
     }
 }

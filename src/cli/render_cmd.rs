@@ -1,19 +1,17 @@
 //! `strata render`, including sample ranges, film files, checkpoints and resume (see `docs/farm.md`).
 
-use super::Failure;
+use super::{Failure, Progress};
 use crate::film::file::{check_film_writable, profile_record, read_film, write_film, FilmHeader};
-use crate::film::output::{check_file_writable, check_writable, write_image};
+use crate::film::output::{check_file_writable, check_writable, write_image_with, Provenance};
 use crate::film::Film;
 use crate::render::{check_render_size, render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
 use crate::sample::Strategy;
 use crate::scene::{load_scene_sized, LightSelection, Profile, Scene};
 use crate::wavefront::Settings;
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
-use std::io::IsTerminal;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -28,13 +26,13 @@ pub struct RenderArgs {
     #[arg(long, default_value = "preview")]
     pub profile: String,
     /// Samples per pixel (overrides the profile).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::count_parser("camera samples per pixel", crate::scene::MAX_SPP))]
     pub spp: Option<u32>,
     /// One strategy for every integral: center, grid, random, jittered, sobol (overrides the profile).
     #[arg(long)]
     pub strategy: Option<String>,
     /// Samples per area light per shading point (overrides the profile).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::count_parser("light samples", crate::scene::MAX_LIGHT_SAMPLES))]
     pub light_samples: Option<u32>,
     /// Maximum bounces (overrides the profile).
     #[arg(long, allow_negative_numbers = true)]
@@ -328,7 +326,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         return Ok(130);
     }
 
-    let image = write_image(&out, film.width, film.height, &film.to_rgb());
+    let image = write_image_with(&out, film.width, film.height, &film.to_rgb(), Some(&Provenance::of(&header)));
     // An interrupted render always leaves its film, so that it can be resumed.
     let film_out = film_path.clone().or_else(|| (!stats.completed).then(|| interrupt_film_path(&out)));
     let write_stats = || -> Result<(), Failure> {
@@ -624,59 +622,15 @@ fn install_interrupt_handler(
     });
 }
 
-/// Progress of this process's sample range: a bar on a terminal, else a line per 10% (for job logs).
-struct Progress {
-    bar: Option<ProgressBar>,
-    label: String,
-    quiet: bool,
-    logged_tenths: AtomicUsize,
-    start: Instant,
-}
-
-impl Progress {
-    fn new(label: &str, quiet: bool, total: usize, done: usize) -> Progress {
-        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
-            let b = ProgressBar::new(total as u64);
-            b.set_style(
-                ProgressStyle::with_template("{prefix} {spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} work units (eta {eta})")
-                    .unwrap(),
-            );
-            b.set_prefix(label.to_string());
-            b.set_position(done as u64);
-            b
-        });
-        let tenths = (done * 10).checked_div(total).unwrap_or(10);
-        Progress { bar, label: label.to_string(), quiet, logged_tenths: AtomicUsize::new(tenths), start: Instant::now() }
+/// A count of rays for the summary: `663`, `12.35K`, `72.15M`, `1.20G` (the exact counts are in
+/// `--stats-json`).
+fn ray_count(x: u64) -> String {
+    match x {
+        0..10_000 => x.to_string(),
+        10_000..1_000_000 => format!("{:.2}K", x as f64 / 1e3),
+        1_000_000..10_000_000_000 => format!("{:.2}M", x as f64 / 1e6),
+        _ => format!("{:.2}G", x as f64 / 1e9),
     }
-
-    fn update(&self, done: usize, total: usize) {
-        if let Some(b) = &self.bar {
-            b.set_position(done as u64);
-        } else if !self.quiet && total > 0 {
-            let tenths = done * 10 / total;
-            if self.logged_tenths.fetch_max(tenths, Ordering::Relaxed) < tenths {
-                let secs = self.start.elapsed().as_secs_f64();
-                errln!("{}: {}% ({done}/{total} work units, {secs:.1} s)", self.label, tenths * 10);
-            }
-        }
-    }
-
-    fn println(&self, m: &str) {
-        match &self.bar {
-            Some(b) => b.suspend(|| errln!("{m}")),
-            None => errln!("{m}"),
-        }
-    }
-
-    fn finish(&self) {
-        if let Some(b) = &self.bar {
-            b.finish_and_clear();
-        }
-    }
-}
-
-fn mega(x: u64) -> String {
-    format!("{:.2}M", x as f64 / 1e6)
 }
 
 pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStats, setup_seconds: f64, out: &Path) {
@@ -716,13 +670,13 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
     );
     wl!(
         "  rays: camera {}, secondary {}, shadow {}, total {}",
-        mega(s.rays.camera),
-        mega(s.rays.secondary),
-        mega(s.rays.shadow),
-        mega(s.rays.total)
+        ray_count(s.rays.camera),
+        ray_count(s.rays.secondary),
+        ray_count(s.rays.shadow),
+        ray_count(s.rays.total)
     );
     if s.rays.shadow_cleared > 0 {
-        wl!("  shadow rays cleared untraced by the light-cone test: {}", mega(s.rays.shadow_cleared));
+        wl!("  shadow rays cleared untraced by the light-cone test: {}", ray_count(s.rays.shadow_cleared));
     }
     wl!("  time: {:.3} s wall, {:.2} M rays/s", s.seconds, s.rays_per_second / 1e6);
     let points = scene.lights.iter().filter(|l| l.is_point()).count();

@@ -128,6 +128,8 @@ fn parse_strategy(s: &str) -> Result<Strategy, String> {
 fn parse_count(s: &str) -> Result<u32, String> {
     match s.parse::<u32>() {
         Ok(n) if n >= 1 => Ok(n),
+        // (Counts past u32 are sample counts all the same: named as too large, as 2000000 is later.)
+        _ if s.parse::<u128>().is_ok() => Err(format!("`{s}` is too large a sample count (at most {})", crate::scene::MAX_SPP)),
         _ => Err(format!("`{s}` is not a sample count (an integer >= 1)")),
     }
 }
@@ -270,6 +272,17 @@ fn unused_integrals(scene: &Scene, integrals: &IntegralSet) -> Vec<&'static str>
         .collect()
 }
 
+/// What a scene needs for the integral named `name` to be exercised.
+fn exercised_by(name: &str) -> &'static str {
+    match name {
+        "lens" => "camera aperture",
+        "time" => "moving shapes",
+        "glossy" => "glossy material",
+        "light" => "area light",
+        _ => "pixels",
+    }
+}
+
 /// The warning for a rendered reference of `n` samples when the largest count is `largest`: None if
 /// `n >= REFERENCE_MIN_FACTOR x largest`.
 ///
@@ -326,12 +339,20 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
         });
     }
     plan.cancel = Some(cancel);
-    let created = !a.out.exists();
-    std::fs::create_dir_all(&a.out).map_err(|e| Failure::input(format!("--out {}: cannot create: {e}", a.out.display())))?;
     let unused = unused_integrals(&scene, &plan.integrals);
+    if unused.len() == plan.integrals.len() {
+        return Err(Failure::input(format!(
+            "{}: the scene does not exercise {} (no {}): every run would render the same image; study another integral",
+            a.scene.display(),
+            unused.join(", "),
+            unused.iter().map(|i| exercised_by(i)).collect::<Vec<_>>().join(", ")
+        )));
+    }
     if !unused.is_empty() {
         errln!("note: the scene does not exercise {} (their strategy changes nothing)", unused.join(", "));
     }
+    let created = !a.out.exists();
+    std::fs::create_dir_all(&a.out).map_err(|e| Failure::input(format!("--out {}: cannot create: {e}", a.out.display())))?;
     outln!("strata study: {}  {}x{}  profile {}", a.scene.display(), scene.width, scene.height, profile.name);
     // (The pick of `light_selection` is a light integral of its own: jittered across the pixel's
     // samples unless the light strategy is random or sobol, even where the light is held at its centre.)
@@ -344,7 +365,12 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     if !a.quiet {
         errln!("  reference: preparing...");
     }
-    let reference = match obtain(&source, &scene, &profile, &plan, &a.out) {
+    // (A line per 10% of the rendered reference's work units, as `render` prints: it can take minutes.)
+    let progress = super::Progress::new("  reference", a.quiet, 1, 0);
+    let report = |done: usize, total: usize| progress.update(done, total);
+    let obtained = obtain(&source, &scene, &profile, &plan, &a.out, Some(&report));
+    progress.finish();
+    let reference = match obtained {
         Ok(r) => r,
         Err(e) => {
             // A study that never started leaves no empty output directory behind.
@@ -365,6 +391,20 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
         return Err(Failure::input("the reference image has non-finite pixels"));
     }
     outln!("  reference: {}", reference.description);
+    for w in &reference.warnings {
+        errln!("{w}");
+    }
+    // A previous study's outputs that this one will not rewrite must not sit beside its CSV (an
+    // interrupted study writes no plot or sheet; one without --sheet no sheet).
+    for stale in ["study.csv", "study.png", "sheet.png"] {
+        match std::fs::remove_file(a.out.join(stale)) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => {
+                return Err(Failure::runtime(format!("{}: cannot remove the previous study's file: {e}", a.out.join(stale).display())))
+            }
+        }
+    }
     let total = plan.strategies.len() * plan.counts.len() * plan.seeds as usize;
     let mut done = 0;
     let mut report = |r: &RunResult| {

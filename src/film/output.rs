@@ -79,8 +79,71 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>
     res
 }
 
+/// What a rendered image estimates and how it was made: written into an EXR's header as one text
+/// attribute, `strata.provenance`, of four lines (`scene_hash 80b5240e2da06139`, `seed 1`, `samples 0..64
+/// of 64`, `profile {...}`; PNG carries none), so that `strata study --reference` can tell a reference
+/// rendered with another filter, depth or scene from one of the studied estimator. (One attribute: the
+/// exr crate writes a header's other attributes in the order of a `HashMap`, which differs from process to
+/// process, and the same render must give the same bytes.)
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Provenance {
+    /// FNV-1a of the scene file's text (as films record it).
+    pub scene_hash: u64,
+    pub seed: u64,
+    /// The samples of each pixel the image holds, of `spp`.
+    pub samples: std::ops::Range<u32>,
+    pub spp: u32,
+    /// The profile as films record it ([`crate::film::file::profile_record`]: JSON, name blanked).
+    pub profile: String,
+}
+
+/// The EXR attribute holding an image's [`Provenance`].
+const PROVENANCE_KEY: &str = "strata.provenance";
+
+impl Provenance {
+    /// The provenance of the image of a film with this header.
+    pub fn of(h: &crate::film::file::FilmHeader) -> Provenance {
+        Provenance { scene_hash: h.scene_hash, seed: h.seed, samples: h.samples.clone(), spp: h.spp, profile: h.profile.clone() }
+    }
+
+    fn text(&self) -> String {
+        let (a, b) = (self.samples.start, self.samples.end);
+        format!("scene_hash {:016x}\nseed {}\nsamples {a}..{b} of {}\nprofile {}", self.scene_hash, self.seed, self.spp, self.profile)
+    }
+
+    fn parse(text: &str) -> Option<Provenance> {
+        let mut lines = text.lines();
+        let mut field = |name: &str| lines.next()?.strip_prefix(name)?.strip_prefix(' ');
+        let hash = u64::from_str_radix(field("scene_hash")?, 16).ok()?;
+        let seed = field("seed")?.parse().ok()?;
+        let (range, spp) = field("samples")?.split_once(" of ")?;
+        let (a, b) = range.split_once("..")?;
+        let profile = field("profile")?.to_string();
+        Some(Provenance { scene_hash: hash, seed, samples: a.parse().ok()?..b.parse().ok()?, spp: spp.parse().ok()?, profile })
+    }
+
+    /// The provenance in an EXR's header: `Ok(None)` if it has none (another renderer's image, or one
+    /// written before session 41).
+    pub fn read(path: &Path) -> Result<Option<Provenance>, String> {
+        use exr::meta::attribute::{AttributeValue, Text};
+        let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| format!("{}: {e}", path.display()))?;
+        let Some(header) = meta.headers.first() else { return Ok(None) };
+        match header.own_attributes.other.get(&Text::new_or_panic(PROVENANCE_KEY)) {
+            Some(AttributeValue::Text(t)) => Provenance::parse(&t.to_string())
+                .map(Some)
+                .ok_or_else(|| format!("{}: malformed attribute `{PROVENANCE_KEY}`", path.display())),
+            _ => Ok(None),
+        }
+    }
+}
+
 /// Write a linear RGB image (row-major) as PNG or EXR according to the extension.
 pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[Vec3]) -> Result<(), String> {
+    write_image_with(path, width, height, rgb, None)
+}
+
+/// [`write_image`], an EXR with the image's [`Provenance`] in its header.
+pub fn write_image_with(path: &Path, width: u32, height: u32, rgb: &[Vec3], provenance: Option<&Provenance>) -> Result<(), String> {
     let fmt = format_for(path)?;
     write_atomic(path, |tmp| match fmt {
         ImageFormat::Png => {
@@ -102,7 +165,14 @@ pub fn write_image(path: &Path, width: u32, height: u32, rgb: &[Vec3]) -> Result
                 let c = rgb[p.y() * w + p.x()];
                 (c.x, c.y, c.z)
             });
-            let layer = Layer::new((w, height as usize), LayerAttributes::default(), encoding, channels);
+            let mut attributes = LayerAttributes::default();
+            // (EXR text is Latin-1: the profile record is ASCII, its name blanked; anything else would
+            // be left out rather than mangled.)
+            if let Some(v) = provenance.and_then(|p| exr::meta::attribute::Text::new_or_none(p.text())) {
+                let key = exr::meta::attribute::Text::new_or_panic(PROVENANCE_KEY);
+                attributes.other.insert(key, exr::meta::attribute::AttributeValue::Text(v));
+            }
+            let layer = Layer::new((w, height as usize), attributes, encoding, channels);
             Image::from_layer(layer).write().to_file(tmp).map_err(|e| format!("{}: {e}", path.display()))
         }
     })

@@ -21,12 +21,16 @@ pub struct Quad {
 }
 
 impl Quad {
-    /// Precompute normal and dual basis. Degenerate `u x v = 0` gives NaN fields: such a quad is
-    /// never hit.
+    /// Precompute normal and dual basis, in f64: `|u x v|^2` is a fourth power of the sides, which
+    /// overflows f32 past sides of ~1e9 and underflows it below ~1e-10 (a quad light of a scene scaled
+    /// by 1e12 or 1e-12, a user trial), where the results (a unit vector, `1 / |u|`) are well inside
+    /// f32's range. Degenerate `u x v = 0` gives NaN fields: such a quad is never hit.
     pub fn new(origin: Vec3, u: Vec3, v: Vec3) -> Quad {
-        let n = u.cross(v);
+        let (ud, vd) = (u.as_dvec3(), v.as_dvec3());
+        let n = ud.cross(vd);
         let nn = n.dot(n);
-        Quad { origin, u, v, unit_normal: n / nn.sqrt(), dual_u: v.cross(n) / nn, dual_v: n.cross(u) / nn }
+        let (unit_normal, dual_u, dual_v) = (n / nn.sqrt(), vd.cross(n) / nn, n.cross(ud) / nn);
+        Quad { origin, u, v, unit_normal: unit_normal.as_vec3(), dual_u: dual_u.as_vec3(), dual_v: dual_v.as_vec3() }
     }
 
     /// Unit normal `normalize(u x v)` (the caller flips it to face the ray).
@@ -38,7 +42,7 @@ impl Quad {
     /// Area `|u x v|`.
     #[inline]
     pub fn area(&self) -> f32 {
-        self.u.cross(self.v).length()
+        self.u.as_dvec3().cross(self.v.as_dvec3()).length() as f32
     }
 }
 

@@ -233,7 +233,7 @@ impl Compiler<'_> {
             Some(b) => self.background(b, "image.background")?,
             None => Vec3::ZERO,
         };
-        let camera = self.camera(&file.camera, width, height)?;
+        let mut camera = self.camera(&file.camera, width, height)?;
 
         for (name, def) in &file.materials {
             let m = self.material(def, &format!("materials.{name}"))?;
@@ -366,7 +366,7 @@ impl Compiler<'_> {
         } else {
             Default::default()
         };
-        let camera_media = if features.dielectric { self.camera_media(&camera, &file.camera) } else { Vec::new() };
+        let camera_media = if features.dielectric { self.camera_media(&mut camera, &file.camera) } else { Vec::new() };
         if features.dielectric {
             let spheres = self.coincident_glass_spheres();
             self.coincident_glass_surfaces(&spheres);
@@ -698,7 +698,14 @@ impl Compiler<'_> {
     /// at shutter open, outermost (largest bounds) first. Warns where that cannot hold for every camera
     /// ray: a medium the camera leaves or enters during the shutter, or whose surface the lens aperture
     /// crosses, more media than a ray's stack keeps.
-    fn camera_media(&mut self, camera: &Camera, def: &S<CameraDef>) -> Vec<u32> {
+    ///
+    /// A camera exactly on a medium's surface (a camera at the water line of a box of water whose top is
+    /// at its height) is moved off it first, by a spawn offset of the solid's scale along the view
+    /// direction (or, where the view runs along the surface, along up or right), with a note: on the
+    /// surface, the strict inside test put it outside while the camera rays heading into the solid missed
+    /// the surface they start on, so they never entered it (a user trial: no absorption, no refraction).
+    fn camera_media(&mut self, camera: &mut Camera, def: &S<CameraDef>) -> Vec<u32> {
+        self.camera_off_surfaces(camera, def);
         let pos = camera.position;
         // The aperture's rim, where it crosses the surface the lens centre is inside of.
         let rim: Vec<Vec3> = if camera.lens_radius > 0.0 {
@@ -772,6 +779,64 @@ impl Compiler<'_> {
         }
         let skip = found.len().saturating_sub(depth);
         found.into_iter().skip(skip).map(|(_, m)| m).collect()
+    }
+
+    /// Move a camera that lies on the surface of a medium (a non-thin dielectric sphere, ellipsoid, box or
+    /// CSG solid) off it: see [`Compiler::camera_media`].
+    fn camera_off_surfaces(&mut self, camera: &mut Camera, def: &S<CameraDef>) {
+        for k in 0..self.prims.len() {
+            let p = &self.prims[k];
+            let medium = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
+            let inside = |x: Vec3| -> bool {
+                let x = x - p.motion * camera.shutter[0];
+                match &p.shape {
+                    Shape::Sphere { center, radius } => (x.as_dvec3() - center.as_dvec3()).length_squared() < (*radius as f64).powi(2),
+                    Shape::Ellipsoid(e) => e.world_to_object.transform_point3(x).length_squared() < 1.0,
+                    Shape::Box(b) => b.world_to_object.transform_point3(x).abs().cmplt(b.half).all(),
+                    Shape::Csg { solid } => self.csg.inside(*solid, x),
+                    _ => false,
+                }
+            };
+            // (A CSG solid's medium: its first glass leaf's; a solid without one is no medium.)
+            let material = match p.shape {
+                Shape::Csg { solid } => match self.csg.solid_leaves(solid).map(|l| self.csg.leaf(l).material).find(|&m| medium(m)) {
+                    Some(m) => m,
+                    None => continue,
+                },
+                Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_) if medium(p.material) => p.material,
+                _ => continue,
+            };
+            let Some(b) = prim_bounds(&p.shape, &self.csg) else { continue };
+            let pos = camera.position;
+            let reach = b.min.abs().max(b.max.abs()).max_element();
+            // On the surface: a point a few ULPs either side of the camera along some axis of the view is
+            // on the other side of it (a camera 1e-6 above water 10 wide is not: its rays meet the surface
+            // at t = 1e-6, and it keeps its place).
+            let probe = (4.0 * f32::EPSILON * pos.abs().max_element()).max(reach * f32::EPSILON / 2.0);
+            let here = inside(pos);
+            let off = |x: Vec3, a: Vec3| inside(x) == here && inside(x + a * probe) == here && inside(x - a * probe) == here;
+            let Some(a) = [camera.forward, camera.up, camera.right].into_iter().find(|&a| !off(pos, a)) else { continue };
+            // A spawn offset off it (two across an edge), on the side the inside test puts the camera.
+            let step = crate::geometry::offset_distance(reach.max(pos.abs().max_element()));
+            let Some(to) = [a * step, -a * step, a * 2.0 * step, -a * 2.0 * step].into_iter().map(|m| pos + m).find(|&x| off(x, a)) else {
+                continue;
+            };
+            let side = if inside(to) { "inside it" } else { "outside it" };
+            let name = self.material_name(material);
+            camera.position = to;
+            self.warn(
+                def.span(),
+                "camera.position",
+                format!(
+                    "the camera lies on the surface of a `{name}` solid: moved {:.1e} off it (to [{}, {}, {}]) so that \
+                     every camera ray starts on one side, {side}; camera rays that start on a surface miss it",
+                    (to - pos).length(),
+                    to.x,
+                    to.y,
+                    to.z,
+                ),
+            );
+        }
     }
 
     fn camera(&self, def: &S<CameraDef>, width: u32, height: u32) -> R<Camera> {
@@ -1098,6 +1163,43 @@ impl Compiler<'_> {
         Ok(())
     }
 
+    /// Warn of a glass box or ball (a medium rays enter) thinner than a few spawn offsets where it lies: a
+    /// ray entering it starts `offset_distance` (256 ULPs of the hit point's largest coordinate) inside,
+    /// so through a thinner one it starts past the far face, never sees it, and counts as inside the glass
+    /// for the rest of its path (a 2 mm pane at x = 200 rendered black, a user trial). CSG leaves have
+    /// their own, stricter warning (`csg_solid`).
+    fn thin_glass(&mut self, shape: &Shape, material: u32, def: &S<ShapeDef>, field: &str) {
+        if !matches!(&self.materials[material as usize], Material::Dielectric(d) if !d.thin) {
+            return;
+        }
+        let (thickness, what) = match shape {
+            Shape::Sphere { radius, .. } => (2.0 * radius, "ball"),
+            // The distance between opposite faces: `2 half_i / |row i|` of the world-to-object matrix.
+            Shape::Box(b) => {
+                let m = Mat3::from(b.world_to_object.matrix3).transpose();
+                let t = (0..3).map(|i| 2.0 * b.half[i] / m.col(i).length()).fold(f32::INFINITY, f32::min);
+                (t, "box")
+            }
+            _ => return,
+        };
+        let Some(bounds) = prim_bounds(shape, &self.csg) else { return };
+        let reach = bounds.min.abs().max(bounds.max.abs()).max_element();
+        let offset = crate::geometry::offset_distance(reach);
+        if thickness < 4.0 * offset {
+            self.warn(
+                def.span(),
+                field,
+                format!(
+                    "this glass {what} is only {thickness:.2e} thick but reaches {reach:.2e} from the origin, where a ray that \
+                     enters it starts {offset:.2e} inside (256 ULPs of its coordinates): rays can pass its far face unseen \
+                     and then count as inside the glass for the rest of their path (dark or black pixels); make it thicker \
+                     than {:.1e} or move the scene nearer the origin",
+                    4.0 * offset
+                ),
+            );
+        }
+    }
+
     /// What a named solid's definition may not hold, whether or not it is used: `hole` (a hole is a
     /// place in a group, marked where the solid is used).
     fn solid_definition(&self, name: &str, def: &S<ShapeDef>) -> R<()> {
@@ -1150,6 +1252,7 @@ impl Compiler<'_> {
                 return Err(self.err(s.motion.as_ref().unwrap().span(), format!("{field}.motion"), "an infinite plane cannot move"));
             }
             self.within_range(&shape, def, field)?;
+            self.thin_glass(&shape, material, def, field);
             self.prims.push(Prim { shape, material, motion, is_light: false });
             self.prim_at.push((def.span(), field.to_string()));
             return Ok(());
@@ -1355,9 +1458,10 @@ impl Compiler<'_> {
                 return Err(self.err(d.span(), f(n), "must be non-zero (an edge of the parallelogram)"));
             }
         }
-        if u.cross(v).length_squared() <= 1e-30 * (u.length_squared() * v.length_squared()).max(f32::MIN_POSITIVE)
-            || u.cross(v) == Vec3::ZERO
-        {
+        // (In f64: the squares of the cross product's length are fourth powers of the sides, which
+        // overflow or underflow f32 for sides past 1e9 or below 1e-10.)
+        let (u64_, v64) = (u.as_dvec3(), v.as_dvec3());
+        if u64_.cross(v64).length_squared() <= 1e-30 * u64_.length_squared() * v64.length_squared() || u.cross(v) == Vec3::ZERO {
             return Err(self.err(vd.span(), f("v"), "u and v must not be parallel (or so short that their cross product vanishes)"));
         }
         Ok((o, u, v))

@@ -10,7 +10,7 @@ pub mod profile;
 
 pub use compile::{load_scene, load_scene_sized, parse_scene, parse_scene_sized};
 pub use error::InputError;
-pub use profile::{Branching, LightSelection, Profile};
+pub use profile::{Branching, LightSelection, Profile, MAX_DEPTH, MAX_LIGHT_SAMPLES, MAX_SPP};
 
 use crate::accel::{Aabb, Bvh, WideBvh};
 use crate::camera::Camera;

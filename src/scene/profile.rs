@@ -285,15 +285,25 @@ impl Profile {
         fn num<T: std::str::FromStr>(key: &str, v: &str) -> Result<T, String> {
             v.trim().parse().map_err(|_| format!("{key}: `{v}` is not a valid number"))
         }
+        /// A count at most `max` (its lower bound is the validation's, with its reason).
+        fn count(key: &str, v: &str, max: u32) -> Result<u32, String> {
+            let t = v.trim();
+            t.parse::<u32>().map_err(|_| match t.parse::<f64>() {
+                Ok(x) if x < 0.0 => format!("{key}: `{v}` is negative: a count, at most {max}"),
+                Ok(x) if x.fract() != 0.0 => format!("{key}: `{v}` is not a whole number: a count, at most {max}"),
+                Ok(_) => format!("{key}: `{v}` is too large: at most {max}"),
+                Err(_) => format!("{key}: `{v}` is not a number: a count, at most {max}"),
+            })
+        }
         // Names are exact and lowercase, as in profile files (`centre` is accepted for `center` there too).
         fn strat(key: &str, v: &str) -> Result<Strategy, String> {
             Strategy::parse_or_explain(v.trim()).map_err(|e| format!("{key}: {e}"))
         }
         match key {
-            "spp" => self.spp = num(key, value)?,
-            "light_samples" => self.light_samples = num(key, value)?,
-            "max_depth" => self.max_depth = num(key, value)?,
-            "diffuse_depth" => self.diffuse_depth = num(key, value)?,
+            "spp" => self.spp = count(key, value, MAX_SPP)?,
+            "light_samples" => self.light_samples = count(key, value, MAX_LIGHT_SAMPLES)?,
+            "max_depth" => self.max_depth = count(key, value, MAX_DEPTH)?,
+            "diffuse_depth" => self.diffuse_depth = count(key, value, MAX_DEPTH)?,
             "throughput_cutoff" => self.throughput_cutoff = num(key, value)?,
             "transmissive_shadows" => {
                 self.transmissive_shadows = value.trim().parse().map_err(|_| format!("{key}: expected true or false"))?

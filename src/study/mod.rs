@@ -84,16 +84,26 @@ impl IntegralSet {
         if s.trim().eq_ignore_ascii_case("all") {
             return Ok(IntegralSet::all());
         }
+        if s.split(',').all(|p| p.trim().is_empty()) {
+            return Err("the list of integrals is empty".into());
+        }
+        // (As the other lists of `study`: no empty item, no item twice, `all` alone.)
         let mut list = Vec::new();
-        for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        for part in s.split(',').map(str::trim) {
+            if part.is_empty() {
+                return Err(format!("`{s}`: an empty item"));
+            }
+            if part.eq_ignore_ascii_case("all") {
+                return Err(format!("`{s}`: `all` (every integral) stands alone, not in a list"));
+            }
             let i = Integral::parse(part).ok_or_else(|| {
                 let all: Vec<_> = Integral::ALL.iter().map(|i| i.name()).collect();
                 format!("unknown integral `{part}` (one of {}, or all)", all.join(", "))
             })?;
+            if list.contains(&i) {
+                return Err(format!("`{s}`: `{part}` is listed twice"));
+            }
             list.push(i);
-        }
-        if list.is_empty() {
-            return Err("the list of integrals is empty".into());
         }
         Ok(IntegralSet::of(&list))
     }

@@ -14,7 +14,8 @@
 use super::analytic::{Footprint, QuadIrradiance};
 use super::run::{configure, light_only, render_cancellable, Plan, REFERENCE_SEED};
 use super::{Integral, IntegralSet};
-use crate::film::output::{read_image, write_atomic, write_image};
+use crate::film::file::profile_record;
+use crate::film::output::{read_image, write_atomic, write_image_with, Provenance};
 use crate::sample::Strategy;
 use crate::scene::{Profile, Scene};
 use glam::DVec3;
@@ -32,6 +33,8 @@ pub enum ReferenceSource {
 pub struct Reference {
     pub image: Vec<DVec3>,
     pub description: String,
+    /// Warnings about the reference (a file rendered with another estimator than the study's).
+    pub warnings: Vec<String>,
 }
 
 /// Errors: `Input` for bad requests (exit 2), `Runtime` for failures while working (exit 1),
@@ -44,11 +47,19 @@ pub enum RefError {
 }
 
 /// Obtain the reference for a study `plan` on `scene` with the base `profile`.
-pub fn obtain(source: &ReferenceSource, scene: &Scene, profile: &Profile, plan: &Plan, out_dir: &Path) -> Result<Reference, RefError> {
+/// `progress` is told the rendered reference's work units done and total as they finish.
+pub fn obtain(
+    source: &ReferenceSource,
+    scene: &Scene,
+    profile: &Profile,
+    plan: &Plan,
+    out_dir: &Path,
+    progress: Option<&(dyn Fn(usize, usize) + Sync)>,
+) -> Result<Reference, RefError> {
     match source {
-        ReferenceSource::File(path) => from_file(path, scene),
+        ReferenceSource::File(path) => from_file(path, scene, profile, plan),
         ReferenceSource::Analytic => analytic(scene, profile, &plan.integrals).map_err(RefError::Input),
-        ReferenceSource::Samples(n) => rendered(scene, profile, plan, *n, out_dir),
+        ReferenceSource::Samples(n) => rendered(scene, profile, plan, *n, out_dir, progress),
     }
 }
 
@@ -68,7 +79,92 @@ pub fn reference_profile(base: &Profile, plan: &Plan, n: u32) -> Result<Profile,
     Ok(p)
 }
 
-fn from_file(path: &Path, scene: &Scene) -> Result<Reference, RefError> {
+/// How the estimator a reference file records (`file`, its provenance's profile) differs from the
+/// study's (`study`, the profile its reference would be rendered with): what changes the converged image
+/// (the filter, an integral sampled in one and held at its centre in the other, shadows through glass, a
+/// shallower depth), each with the `--set` that mends it where one does. A deeper reference is no
+/// difference: it is closer to the light transport's solution, and the MSE then counts the runs' own
+/// truncation (a shallow profile's real cost). Strategies, counts, branching and light selection change
+/// only the noise, and are not compared.
+pub fn estimator_differences(scene: &Scene, file: &Profile, study: &Profile) -> Vec<(String, Option<String>)> {
+    let mut out = Vec::new();
+    let held = |s: Strategy| s == Strategy::Center;
+    let f = &scene.features;
+    let bounces = file.diffuse_depth.min(study.diffuse_depth) > 0;
+    // (Integrals the scene does not exercise: held or sampled, the image is the same.)
+    let dims = [
+        ("pixel", true, file.pixel_strategy, study.pixel_strategy),
+        ("lens", f.lens, file.lens_strategy, study.lens_strategy),
+        ("time", f.motion, file.time_strategy, study.time_strategy),
+        ("glossy", f.glossy, file.glossy_strategy, study.glossy_strategy),
+        ("light", f.area_lights, file.light_strategy, study.light_strategy),
+        ("diffuse bounce", bounces, file.diffuse_strategy, study.diffuse_strategy),
+        ("wavelength", f.dispersion, file.wavelength_strategy, study.wavelength_strategy),
+    ];
+    for (name, _, f, s) in dims.into_iter().filter(|d| d.1) {
+        if held(f) != held(s) {
+            let how = |x: Strategy| if held(x) { "held at its centre".to_string() } else { format!("sampled ({x})") };
+            out.push((format!("the {name} integral is {} in the reference, {} in the study", how(f), how(s)), None));
+        }
+    }
+    if !held(file.pixel_strategy) && !held(study.pixel_strategy) && file.filter != study.filter {
+        let (f, s) = (file.filter.name(), study.filter.name());
+        out.push((format!("filter {f} in the reference, {s} in the study"), Some(format!("filter={s}"))));
+    }
+    for (what, f, s) in [("max_depth", file.max_depth, study.max_depth), ("diffuse_depth", file.diffuse_depth, study.diffuse_depth)] {
+        if f < s {
+            out.push((format!("{what} {f} in the reference, {s} in the study"), Some(format!("{what}={s}"))));
+        }
+    }
+    if file.transmissive_shadows != study.transmissive_shadows {
+        let (f, s) = (file.transmissive_shadows, study.transmissive_shadows);
+        out.push((format!("transmissive_shadows {f} in the reference, {s} in the study"), Some(format!("transmissive_shadows={s}"))));
+    }
+    out
+}
+
+/// The warnings for a reference file rendered with `provenance` (None: the file records none) when the
+/// study renders `study` on `scene`.
+fn provenance_warnings(path: &Path, provenance: Option<&Provenance>, scene: &Scene, study: &Profile) -> Vec<String> {
+    let Some(p) = provenance else {
+        return vec![format!(
+            "note: {} records no Strata settings (another renderer's image, or one written before session 41): make sure \
+             it was rendered with the studied filter ({}), depths and integrals, or the MSE measures that difference too",
+            path.display(),
+            study.filter.name()
+        )];
+    };
+    let mut out = Vec::new();
+    if p.scene_hash != scene.hash {
+        out.push(format!(
+            "warning: {} was rendered from another scene file, or from this one before an edit (scene hash {:016x}, now {:016x})",
+            path.display(),
+            p.scene_hash,
+            scene.hash
+        ));
+    }
+    match serde_json::from_str::<Profile>(&p.profile) {
+        Ok(file) => {
+            let d = estimator_differences(scene, &file, study);
+            if !d.is_empty() {
+                let what: Vec<&str> = d.iter().map(|(w, _)| w.as_str()).collect();
+                let sets: Vec<String> = d.iter().filter_map(|(_, s)| s.as_ref().map(|s| format!("--set {s}"))).collect();
+                let mend =
+                    if sets.len() == d.len() { format!(" render the reference again with {}, or", sets.join(" ")) } else { String::new() };
+                out.push(format!(
+                    "warning: {} estimates another image than the study's runs: {}. The MSE measures that difference as well \
+                     as the runs' error, and may rank profiles wrongly:{mend} let the study render its own (--reference-spp N)",
+                    path.display(),
+                    what.join("; "),
+                ));
+            }
+        }
+        Err(e) => out.push(format!("warning: {}: its recorded profile cannot be read ({e}): not compared", path.display())),
+    }
+    out
+}
+
+fn from_file(path: &Path, scene: &Scene, profile: &Profile, plan: &Plan) -> Result<Reference, RefError> {
     let is_exr = path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if !is_exr {
         return Err(RefError::Input(format!("{}: the reference must be a linear .exr image", path.display())));
@@ -82,7 +178,12 @@ fn from_file(path: &Path, scene: &Scene) -> Result<Reference, RefError> {
             scene.height
         )));
     }
-    Ok(Reference { image: px.iter().map(|c| c.as_dvec3()).collect(), description: format!("file {}", path.display()) })
+    let provenance = Provenance::read(path).map_err(RefError::Input)?;
+    let largest = plan.counts.iter().copied().max().unwrap_or(1);
+    let study = reference_profile(profile, plan, largest).map_err(RefError::Input)?;
+    let warnings = provenance_warnings(path, provenance.as_ref(), scene, &study);
+    let image = px.iter().map(|c| c.as_dvec3()).collect();
+    Ok(Reference { image, description: format!("file {}", path.display()), warnings })
 }
 
 /// The analytic image for the studied integrals (see [`QuadIrradiance`]).
@@ -97,7 +198,7 @@ pub fn analytic(scene: &Scene, profile: &Profile, integrals: &IntegralSet) -> Re
         Footprint::Filter(f) => format!("over the {f} filter footprint (Gauss-Legendre)"),
     };
     let light = if light_centre { "light held at its centre" } else { "Lambert's polygon formula" };
-    Ok(Reference { image, description: format!("analytic ({light}, {what}, f64)") })
+    Ok(Reference { image, description: format!("analytic ({light}, {what}, f64)"), warnings: Vec::new() })
 }
 
 /// The full text the cache is keyed by.
@@ -147,7 +248,14 @@ pub fn cache_paths(out_dir: &Path, key_text: &str) -> (PathBuf, PathBuf) {
     (out_dir.join(format!("{stem}.exr")), out_dir.join(format!("{stem}.txt")))
 }
 
-fn rendered(scene: &Scene, profile: &Profile, plan: &Plan, n: u32, out_dir: &Path) -> Result<Reference, RefError> {
+fn rendered(
+    scene: &Scene,
+    profile: &Profile,
+    plan: &Plan,
+    n: u32,
+    out_dir: &Path,
+    progress: Option<&(dyn Fn(usize, usize) + Sync)>,
+) -> Result<Reference, RefError> {
     let ref_profile = reference_profile(profile, plan, n).map_err(|e| RefError::Input(format!("--reference-spp: {e}")))?;
     let key = cache_key_text(scene, &ref_profile);
     let (exr, txt) = cache_paths(out_dir, &key);
@@ -164,21 +272,28 @@ fn rendered(scene: &Scene, profile: &Profile, plan: &Plan, n: u32, out_dir: &Pat
         if side == with_image_hash(&key, &px) && (w, h) == (scene.width, scene.height) {
             {
                 let description = format!("jittered, {n} {what}, reused cached {}", exr.display());
-                return Ok(Reference { image: px.iter().map(|c| c.as_dvec3()).collect(), description });
+                return Ok(Reference { image: px.iter().map(|c| c.as_dvec3()).collect(), description, warnings: Vec::new() });
             }
         }
     }
-    let (film, seconds, _) = render_cancellable(scene, ref_profile, REFERENCE_SEED, plan.threads, plan.cancel.as_deref())
+    let (film, seconds, _) = render_cancellable(scene, ref_profile.clone(), REFERENCE_SEED, plan.threads, plan.cancel.as_deref(), progress)
         .map_err(RefError::Runtime)?
         .ok_or(RefError::Interrupted)?;
     let rgb = film.to_rgb();
     // The image first, then the sidecar: an interrupted write leaves no sidecar, so no stale reuse.
     let _ = std::fs::remove_file(&txt);
-    write_image(&exr, scene.width, scene.height, &rgb).map_err(RefError::Runtime)?;
+    let provenance = Provenance {
+        scene_hash: scene.hash,
+        seed: REFERENCE_SEED,
+        samples: 0..ref_profile.spp,
+        spp: ref_profile.spp,
+        profile: profile_record(&ref_profile),
+    };
+    write_image_with(&exr, scene.width, scene.height, &rgb, Some(&provenance)).map_err(RefError::Runtime)?;
     // (Hashed as read back, as a later study reads it.)
     let (_, _, written) = read_image(&exr).map_err(RefError::Runtime)?;
     let side = with_image_hash(&key, &written);
     write_atomic(&txt, |tmp| std::fs::write(tmp, &side).map_err(|e| e.to_string())).map_err(RefError::Runtime)?;
     let description = format!("jittered, {n} {what}, rendered in {seconds:.2} s, cached as {}", exr.display());
-    Ok(Reference { image: rgb.iter().map(|c| c.as_dvec3()).collect(), description })
+    Ok(Reference { image: rgb.iter().map(|c| c.as_dvec3()).collect(), description, warnings: Vec::new() })
 }

@@ -195,7 +195,7 @@ impl RowCheck {
 
 /// Render one image with `profile` and `seed`; returns the linear image, seconds and rays.
 pub fn render_once(scene: &Scene, profile: Profile, seed: u64, threads: usize) -> (Film, f64, u64) {
-    render_cancellable(scene, profile, seed, threads, None)
+    render_cancellable(scene, profile, seed, threads, None, None)
         .unwrap_or_else(|e| panic!("{e}"))
         .expect("a render without a cancel flag completes")
 }
@@ -208,10 +208,12 @@ pub fn render_cancellable(
     seed: u64,
     threads: usize,
     cancel: Option<&AtomicBool>,
+    progress: Option<&(dyn Fn(usize, usize) + Sync)>,
 ) -> Result<Option<(Film, f64, u64)>, String> {
     let mut job = RenderJob::new(scene, Settings { profile, seed });
     job.threads = threads;
     job.cancel = cancel;
+    job.progress = progress;
     let (film, stats) = render_into(&job, Film::new(scene.width, scene.height));
     if stats.overflow {
         return Err(crate::render::overflow_message(&job));
@@ -251,14 +253,15 @@ pub fn run_series(
     // which would otherwise be charged to the first run's seconds.
     let cancel = plan.cancel.as_deref();
     if let (Some(&s), Some(&n)) = (plan.strategies.first(), plan.counts.first()) {
-        render_cancellable(scene, configure(base, &plan.integrals, s, n, plan.light_from_spp)?, 0, plan.threads, cancel)?;
+        render_cancellable(scene, configure(base, &plan.integrals, s, n, plan.light_from_spp)?, 0, plan.threads, cancel, None)?;
     }
     for &strategy in &plan.strategies {
         for &n in &plan.counts {
             let profile = configure(base, &plan.integrals, strategy, n, plan.light_from_spp)?;
             let mut sum = vec![DVec3::ZERO; reference.len()];
             for seed in 1..=plan.seeds as u64 {
-                let done = if plan.cancelled() { None } else { render_cancellable(scene, profile.clone(), seed, plan.threads, cancel)? };
+                let done =
+                    if plan.cancelled() { None } else { render_cancellable(scene, profile.clone(), seed, plan.threads, cancel, None)? };
                 let Some((film, seconds, rays)) = done else {
                     if seed > 1 {
                         rows.push(RowCheck::of(strategy, n, &sum, seed as usize - 1, reference));

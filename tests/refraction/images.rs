@@ -258,3 +258,43 @@ fn shipped_glass_scenes_have_no_nonfinite_samples() {
         }
     }
 }
+
+/// A camera exactly on the surface of absorbing water (its eye at the water line, looking down): it is
+/// moved a spawn offset off the surface, on the side the inside test puts it (outside), with a warning,
+/// and the centre pixel is the analytic (1 - R)^2 e^(-sigma d) of a ray entering the water and leaving
+/// through its floor (a user trial: the rays that started on the surface never entered the water, 1 - R
+/// without absorption). A camera on the surface of an absorbing ball, looking in, sees e^(-2 sigma r)
+/// (index 1: no reflection). Cameras 1e-6 off either side keep their place.
+#[test]
+fn a_camera_on_a_medium_surface_is_moved_off_it() {
+    let water = |y: &str| {
+        format!(
+            "[image]\nwidth = 9\nheight = 9\n[camera]\nposition = [0, {y}, 0]\nlook_at = [0, -5, 0.001]\nfov = 30\n\
+             [materials.w]\ntype = \"dielectric\"\nior = 1.33\nabsorption = [0.5, 0.5, 0.5]\n\
+             [materials.e]\ntype = \"emissive\"\nradiance = [1, 1, 1]\n\
+             [[shapes]]\ntype = \"box\"\nmin = [-10, -2, -10]\nmax = [10, 0, 10]\nmaterial = \"w\"\n\
+             [[shapes]]\ntype = \"quad\"\norigin = [-20, -2.5, 20]\nu = [40, 0, 0]\nv = [0, 0, -40]\nmaterial = \"e\"\n"
+        )
+    };
+    let mut profile = split_profile();
+    profile.spp = 1;
+    profile.pixel_strategy = strata::sample::Strategy::Center;
+    let centre = |s: &Scene| render(s, profile.clone(), 1).to_rgb()[4 * 9 + 4].x as f64;
+    let r = ((1.33f64 - 1.0) / (1.33 + 1.0)).powi(2);
+    let entering = (1.0 - r).powi(2) * (-1.0f64).exp();
+    let inside = (1.0 - r) * (-1.0f64).exp();
+    for (y, expect, moved) in [("0", entering, true), ("1e-6", entering, false), ("-1e-6", inside, false)] {
+        let s = scene(&water(y));
+        let warned = s.warnings.iter().any(|w| w.contains("the camera lies on the surface of a `w` solid"));
+        assert_eq!(warned, moved, "camera at y = {y}: {:?}", s.warnings);
+        let c = centre(&s);
+        assert!((c / expect - 1.0).abs() < 2e-3, "camera at y = {y}: centre {c}, expected {expect}");
+    }
+    let ball = "[image]\nwidth = 9\nheight = 9\nbackground = [1, 1, 1]\n[camera]\nposition = [0, 0, 1]\nlook_at = [0, 0, 0]\nfov = 30\n\
+                [materials.g]\ntype = \"dielectric\"\nior = 1.0\nabsorption = [1, 1, 1]\n\
+                [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"g\"\n";
+    let s = scene(ball);
+    assert!(s.warnings.iter().any(|w| w.contains("lies on the surface")), "{:?}", s.warnings);
+    let c = centre(&s);
+    assert!((c / (-2.0f64).exp() - 1.0).abs() < 2e-3, "ball: centre {c}, expected {}", (-2.0f64).exp());
+}
