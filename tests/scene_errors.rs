@@ -516,10 +516,11 @@ fn first_mistakes_read_as_what_they_are() {
     assert!(msg.contains("f32 range"), "{msg}");
     // A value where a table belongs names the table as the file writes it, not serde's Rust type.
     let (_, field, msg) = fail("[materials]\nwhite = 3\n");
-    assert_eq!(field, "white");
+    // (The full path, as the compiler's own errors give it, since session 41.)
+    assert_eq!(field, "materials.white");
     assert!(msg.contains("expected a material table ([materials.NAME]") && !msg.contains("MaterialDef"), "{msg}");
     let (_, field, msg) = fail("[[shapes]]\ntype = \"sphere\"\ntransform = 3\n");
-    assert_eq!(field, "transform");
+    assert_eq!(field, "shapes[0].transform");
     assert!(msg.contains("expected a transform table") && !msg.contains("TransformDef"), "{msg}");
     // Written twice: a list's header says how to write several entries, another table's says it may
     // appear once, a key that it is given twice.
@@ -783,4 +784,19 @@ fn thin_glass_far_from_the_origin_is_warned_of() {
             None => assert!(found.is_empty(), "{shapes}: {:?}", s.warnings),
         }
     }
+}
+
+/// A value of the wrong type names its field by the same path as range errors do (`shapes[1].radius`, not
+/// `radius`; a user trial): the list entry's index, or the table's name. A key inside an inline table keeps
+/// its bare name (the text gives its path no plainer).
+#[test]
+fn type_errors_name_the_full_path() {
+    let sphere = |r: &str| format!("[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = {r}\nmaterial = \"m\"\n");
+    let (_, field, msg) = fail(&format!("{}{}", sphere("1"), sphere("\"big\"")));
+    assert_eq!(field, "shapes[1].radius");
+    assert!(msg.contains("invalid type: string \"big\""), "{msg}");
+    let (_, field, _) = fail("[materials.paint]\ntype = \"lambert\"\nalbedo = [0.5, \"x\", 0.5]\n");
+    assert_eq!(field, "materials.paint.albedo");
+    let (_, field, _) = fail("[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [ { type = \"sphere\", radius = \"x\" } ]\n");
+    assert_eq!(field, "radius");
 }

@@ -716,33 +716,8 @@ impl Compiler<'_> {
         let mut found: Vec<(f32, u32)> = Vec::new();
         let mut notes: Vec<String> = Vec::new();
         for p in &self.prims {
-            let material = match p.shape {
-                // A solid's medium is its one glass (`one_medium`); opaque leaves are surfaces in or on it.
-                Shape::Csg { solid } => {
-                    let medium = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
-                    // (Glasses apart in one solid: the one around the camera, if any.)
-                    let leaves = || self.csg.solid_leaves(solid).map(|k| self.csg.leaf(k)).filter(|l| medium(l.material));
-                    match leaves().find(|l| l.inside(pos)).or_else(|| leaves().next()) {
-                        Some(l) => l.material,
-                        None => continue,
-                    }
-                }
-                Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_) => p.material,
-                _ => continue,
-            };
-            if !matches!(&self.materials[material as usize], Material::Dielectric(d) if !d.thin) {
-                continue;
-            }
-            let inside = |x: Vec3, t: f32| -> bool {
-                let x = x - p.motion * t;
-                match &p.shape {
-                    Shape::Sphere { center, radius } => (x.as_dvec3() - center.as_dvec3()).length_squared() < (*radius as f64).powi(2),
-                    Shape::Ellipsoid(e) => e.world_to_object.transform_point3(x).length_squared() < 1.0,
-                    Shape::Box(b) => b.world_to_object.transform_point3(x).abs().cmplt(b.half).all(),
-                    Shape::Csg { solid } => self.csg.inside(*solid, x),
-                    _ => false,
-                }
-            };
+            let Some(material) = self.medium_of(p, pos) else { continue };
+            let inside = |x: Vec3, t: f32| self.solid_contains(p, x, t);
             let at_open = inside(pos, camera.shutter[0]);
             if at_open != inside(pos, camera.shutter[1]) {
                 notes.push(format!(
@@ -781,31 +756,40 @@ impl Compiler<'_> {
         found.into_iter().skip(skip).map(|(_, m)| m).collect()
     }
 
+    /// The medium a solid prim is (a non-thin dielectric sphere, ellipsoid or box; a CSG solid's one glass,
+    /// where glasses apart in one solid give the one around `pos`, if any): None for anything else.
+    fn medium_of(&self, p: &Prim, pos: Vec3) -> Option<u32> {
+        let medium = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
+        match p.shape {
+            // A solid's medium is its one glass (`one_medium`); opaque leaves are surfaces in or on it.
+            Shape::Csg { solid } => {
+                let leaves = || self.csg.solid_leaves(solid).map(|k| self.csg.leaf(k)).filter(|l| medium(l.material));
+                leaves().find(|l| l.inside(pos)).or_else(|| leaves().next()).map(|l| l.material)
+            }
+            Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_) if medium(p.material) => Some(p.material),
+            _ => None,
+        }
+    }
+
+    /// Whether the solid prim `p` holds `x` strictly inside at shutter time `t`.
+    fn solid_contains(&self, p: &Prim, x: Vec3, t: f32) -> bool {
+        let x = x - p.motion * t;
+        match &p.shape {
+            Shape::Sphere { center, radius } => (x.as_dvec3() - center.as_dvec3()).length_squared() < (*radius as f64).powi(2),
+            Shape::Ellipsoid(e) => e.world_to_object.transform_point3(x).length_squared() < 1.0,
+            Shape::Box(b) => b.world_to_object.transform_point3(x).abs().cmplt(b.half).all(),
+            Shape::Csg { solid } => self.csg.inside(*solid, x),
+            _ => false,
+        }
+    }
+
     /// Move a camera that lies on the surface of a medium (a non-thin dielectric sphere, ellipsoid, box or
     /// CSG solid) off it: see [`Compiler::camera_media`].
     fn camera_off_surfaces(&mut self, camera: &mut Camera, def: &S<CameraDef>) {
         for k in 0..self.prims.len() {
             let p = &self.prims[k];
-            let medium = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
-            let inside = |x: Vec3| -> bool {
-                let x = x - p.motion * camera.shutter[0];
-                match &p.shape {
-                    Shape::Sphere { center, radius } => (x.as_dvec3() - center.as_dvec3()).length_squared() < (*radius as f64).powi(2),
-                    Shape::Ellipsoid(e) => e.world_to_object.transform_point3(x).length_squared() < 1.0,
-                    Shape::Box(b) => b.world_to_object.transform_point3(x).abs().cmplt(b.half).all(),
-                    Shape::Csg { solid } => self.csg.inside(*solid, x),
-                    _ => false,
-                }
-            };
-            // (A CSG solid's medium: its first glass leaf's; a solid without one is no medium.)
-            let material = match p.shape {
-                Shape::Csg { solid } => match self.csg.solid_leaves(solid).map(|l| self.csg.leaf(l).material).find(|&m| medium(m)) {
-                    Some(m) => m,
-                    None => continue,
-                },
-                Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_) if medium(p.material) => p.material,
-                _ => continue,
-            };
+            let Some(material) = self.medium_of(p, camera.position) else { continue };
+            let inside = |x: Vec3| self.solid_contains(p, x, camera.shutter[0]);
             let Some(b) = prim_bounds(&p.shape, &self.csg) else { continue };
             let pos = camera.position;
             let reach = b.min.abs().max(b.max.abs()).max_element();

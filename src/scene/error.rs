@@ -121,8 +121,36 @@ impl Source<'_> {
             return self.error(span, name, msg);
         }
         let named = message.strip_prefix("unknown field ").or_else(|| message.strip_prefix("missing field "));
-        let field = named.and_then(extract_backticked).unwrap_or_else(|| self.key_at(span.start));
+        let field = named.and_then(extract_backticked).unwrap_or_else(|| self.qualified(span.start, self.key_at(span.start)));
         self.error(span, field, plain_struct_names(&message))
+    }
+
+    /// `key` as the path the compiler's own errors give (`shapes[1].radius`, `materials.glass.ior`), where
+    /// the line at `offset` is `key = ...` under a `[table]` or a top-level `[[list]]` header; else `key`
+    /// itself (a key in an inline table, or under a nested header, whose path the text does not give
+    /// plainly).
+    fn qualified(&self, offset: usize, key: String) -> String {
+        let offset = offset.min(self.text.len());
+        let line_start = self.text[..offset].rfind('\n').map_or(0, |i| i + 1);
+        let line = self.text[line_start..].lines().next().unwrap_or("").trim_start();
+        let first_key = line.split('=').next().unwrap_or("").trim();
+        if key.is_empty() || first_key != key {
+            return key;
+        }
+        let before = &self.text[..line_start];
+        let Some(header) = before.lines().rev().map(str::trim).find(|l| l.starts_with('[')) else { return key };
+        let header = header.split('#').next().unwrap_or("").trim();
+        if let Some(name) = header.strip_prefix("[[").and_then(|h| h.strip_suffix("]]")).map(str::trim) {
+            if name.contains('.') {
+                return key;
+            }
+            let index = before.lines().filter(|l| l.split('#').next().unwrap_or("").trim() == header).count() - 1;
+            format!("{name}[{index}].{key}")
+        } else if let Some(name) = header.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
+            format!("{}.{key}", name.trim())
+        } else {
+            key
+        }
     }
 
     /// The key of the `key = value` entry that byte `offset` lies in, looking back along its own line
