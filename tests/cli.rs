@@ -850,9 +850,9 @@ fn size_renders_at_another_size() {
 }
 
 /// A quad lit by a point light straight above its centre, the whole scene at scale `s`: the centre
-/// pixel's radiance is albedo / pi x I / h^2 = 0.5 / pi at every scale (I = 16 s^2, h = 4 s). At sides of
-/// 8e9 and 8e-12 the check that u and v are not parallel squared the cross product in f32 (which
-/// overflows and underflows there) and refused the quad (a user trial).
+/// pixel's radiance is albedo / pi x I / h^2 = 0.5 / pi at every scale (I = 16 s^2, h = 4 s). The quad's
+/// checks and basis squared the cross product in f32: at sides of 8e9 it overflowed and the quad was
+/// refused as "parallel" (a user trial), at 8e-12 it underflowed into an inaccurate normal and basis.
 #[test]
 fn quads_of_huge_and_tiny_sides_render_their_irradiance() {
     for s in [1e-12f64, 1.0, 1e9, 1e12] {

@@ -799,4 +799,9 @@ fn type_errors_name_the_full_path() {
     assert_eq!(field, "materials.paint.albedo");
     let (_, field, _) = fail("[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [ { type = \"sphere\", radius = \"x\" } ]\n");
     assert_eq!(field, "radius");
+    // Headers written with spaces, and a sub-table of a list's entry.
+    let (_, field, _) = fail(&format!("{}[[ shapes ]] # the second\ntype = \"sphere\"\nradius = \"x\"\n", sphere("1")));
+    assert_eq!(field, "shapes[1].radius");
+    let (_, field, _) = fail(&format!("{}[shapes.transform]\nrotate = \"x\"\n", sphere("1")));
+    assert_eq!(field, "shapes[0].transform.rotate");
 }

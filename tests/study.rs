@@ -670,15 +670,17 @@ fn reference_cache_is_reused_only_when_fresh() {
 fn cli_input_errors_exit_2_with_a_message() {
     let dir = tmp_dir("errors");
     let d = dir.to_str().unwrap();
-    let cases: [(&[&str], &str); 19] = [
+    let cases: [(&[&str], &str); 21] = [
         (&["--strategies", "random,magic"], "unknown strategy `magic`"),
         (&["--integrals", "light,light"], "`light` is listed twice"),
         (&["--integrals", "all,light"], "`all` (every integral) stands alone"),
-        (&["--spp", "99999999999"], "`99999999999` is too large a sample count (at most 1048576)"),
+        (&["--spp", "99999999999"], "sample count `99999999999` is too large"),
         // Nothing studied that the scene has: every run would be the same image.
         (&["--integrals", "lens,time"], "the scene does not exercise lens, time (no camera aperture, moving shapes)"),
         (&["--spp", ","], "--spp: the list is empty"),
-        (&["--spp", "4,zero"], "is not a sample count"),
+        (&["--spp", "4,zero"], "`zero` is not a number"),
+        (&["--spp", "4,0"], "`0` is not a sample count (an integer >= 1)"),
+        (&["--spp", "1e3"], "`1e3`: write a count in digits (`1000`)"),
         (&["--spp", "1,,4"], "an empty item"),
         (&["--spp", "4,16,4"], "`4` is listed twice"),
         (&["--strategies", "jittered,random,jittered"], "`jittered` is listed twice"),
@@ -897,6 +899,9 @@ fn cli_reference_file_of_another_estimator_is_warned_of() {
     let same = study("pixel,light", &["--reference", r]);
     assert!(!same.contains("warning") && !same.contains("note"), "{same}");
     assert!(!dir.join("sheet.png").exists(), "an earlier study's sheet was left beside the new CSV");
+    // A deeper study than the reference changes nothing in a scene of Lambert surfaces alone.
+    let deeper = study("pixel,light", &["--reference", r, "--set", "max_depth=8"]);
+    assert!(!deeper.contains("warning"), "{deeper}");
     // The light held at its centre in the study but sampled in the reference: another image too.
     let held = study("pixel", &["--reference", r]);
     assert!(held.contains("the light integral is sampled (jittered) in the reference, held at its centre in the study"), "{held}");
@@ -906,4 +911,61 @@ fn cli_reference_file_of_another_estimator_is_warned_of() {
     strata::film::output::write_image(&foreign, w, h, &px).unwrap();
     let note = study("pixel,light", &["--reference", foreign.to_str().unwrap()]);
     assert!(note.contains("records no Strata settings") && !note.contains("warning"), "{note}");
+    // Films merged with a gap (samples 0..16 and 32..64 of 64): an incomplete reference, said so.
+    for (range, name) in [("0..16", "a.film"), ("32..64", "b.film")] {
+        let f = dir.join(name);
+        let args = ["render", scene, "--size", "24x16", "--spp", "64", "--samples", range, "-q", "--film", f.to_str().unwrap()];
+        let o = strata().args(args).args(["-o", dir.join(format!("{name}.exr")).to_str().unwrap()]).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let gappy = dir.join("gappy.exr");
+    let (a, b) = (dir.join("a.film"), dir.join("b.film"));
+    let o =
+        strata().args(["merge", a.to_str().unwrap(), b.to_str().unwrap(), "--allow-gaps", "-o", gappy.to_str().unwrap()]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let gap = study("pixel,light", &["--reference", gappy.to_str().unwrap()]);
+    assert!(gap.contains("is an incomplete render (interrupted, or merged with gaps)"), "{gap}");
+    // A complete part of a split render is no different an estimator: no warning.
+    let part = study("pixel,light", &["--reference", dir.join("b.film.exr").to_str().unwrap()]);
+    assert!(!part.contains("warning"), "{part}");
+}
+
+/// An interrupted reference keeps its finished work units in a film beside the cache, and the same study
+/// continues from them (a user trial lost minutes of reference work to a Ctrl-C): the second run's first
+/// progress line already counts the first run's units, and it keeps more.
+#[test]
+fn cli_interrupted_reference_is_continued() {
+    use std::io::{BufRead, BufReader};
+    let dir = tmp_dir("resume_ref");
+    // Interrupt at the first progress line of the reference; the units kept, and the first line's count.
+    let run = || -> (usize, usize) {
+        let mut child = strata()
+            .args(["study", "scenes/soft_shadows.toml", "--size", "40x30", "--integrals", "light", "--spp", "4"])
+            .args(["--reference-spp", "4194304", "--seeds", "1", "--threads", "1", "--out", dir.to_str().unwrap()])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut first = None;
+        let mut kept = None;
+        for line in BufReader::new(child.stderr.take().unwrap()).lines() {
+            let line = line.unwrap();
+            if first.is_none() && line.contains("reference: ") && line.contains("work units") {
+                // `  reference: 10% (10/96 work units, 1.2 s)`
+                let done = line.split('(').nth(1).and_then(|r| r.split('/').next()).unwrap().parse::<usize>().unwrap();
+                first = Some(done);
+                assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+            }
+            if let Some(r) = line.split("the reference's ").nth(1) {
+                kept = Some(r.split(' ').next().unwrap().parse::<usize>().unwrap());
+            }
+        }
+        assert_eq!(child.wait().unwrap().code(), Some(130));
+        (first.expect("a progress line of the reference"), kept.expect("the units kept are reported"))
+    };
+    let (_, kept1) = run();
+    assert!(kept1 >= 1);
+    let (first2, kept2) = run();
+    assert!(first2 >= kept1 && kept2 > kept1, "first run kept {kept1}; the second began at {first2}, kept {kept2}");
+    assert_eq!(std::fs::read_dir(&dir).unwrap().filter(|e| e.as_ref().unwrap().path().extension() == Some("film".as_ref())).count(), 1);
 }

@@ -4,7 +4,7 @@
 //! Every check runs before anything is written, so a refused merge leaves existing outputs untouched.
 
 use super::Failure;
-use crate::film::file::{check_film_writable, read_film, write_film, FilmFile, FilmHeader};
+use crate::film::file::{check_film_writable, other_builds_warning, read_film, write_film, FilmFile, FilmHeader};
 use crate::film::output::{check_writable, write_image_with, Provenance};
 use crate::render::unit_count;
 use clap::Args;
@@ -97,17 +97,27 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     }
 
     let first = &films[0].1.header;
+    // Films of several builds merge (their samples are exact either way), with a warning; the merged film
+    // records a build only where all of them share it.
+    let builds: Vec<(String, u64)> = films.iter().map(|(p, f)| (p.display().to_string(), f.header.build)).collect();
+    let (name0, build0) = builds.iter().find(|b| b.1 != 0).cloned().unwrap_or_default();
+    if let Some(w) = other_builds_warning(&builds, build0, &name0) {
+        errln!("{w}");
+    }
+    // (Films of unknown build, 0, are taken as the others'.)
+    let known: Vec<u64> = builds.iter().map(|b| b.1).filter(|&b| b != 0).collect();
+    let build = if known.windows(2).all(|w| w[0] == w[1]) { known.first().copied().unwrap_or(0) } else { 0 };
     let range = first.samples.start..films.iter().map(|(_, f)| f.header.samples.end).max().unwrap();
     let mut merged = films[0].1.film.clone();
     for (_, f) in &films[1..] {
         merged.merge(&f.film);
     }
-    // (With --allow-gaps the range is the span the films cover: the estimator is the same, with fewer samples.)
-    let provenance = Provenance { samples: range.clone(), ..Provenance::of(first) };
+    // (With --allow-gaps the range is the span the films cover, marked incomplete.)
+    let provenance = Provenance { samples: range.clone(), complete: problems.is_empty(), ..Provenance::of(first) };
     write_image_with(&out, merged.width, merged.height, &merged.to_rgb(), Some(&provenance)).map_err(Failure::runtime)?;
     if let Some(fp) = &a.film {
         let completed = vec![true; unit_count(first.width, first.height, first.tile, range.clone())];
-        let h = FilmHeader { samples: range.clone(), completed, ..first.clone() };
+        let h = FilmHeader { samples: range.clone(), completed, build, ..first.clone() };
         write_film(fp, &h, &merged).map_err(Failure::runtime)?;
     }
     let ranges: Vec<String> = films.iter().map(|(_, f)| range_text(&f.header.samples)).collect();

@@ -32,18 +32,10 @@ pub enum Command {
     Merge(merge_cmd::MergeArgs),
 }
 
-/// A clap parser of a count flag whose values run up to `max` (0 and the limit itself are left to the
-/// profile's validation, which says why): a negative, fractional or huge value is named as what it is,
-/// not as "not in 0..=4294967295".
+/// A clap parser of a count flag of `what`, quoting its limit `max` ([`crate::scene::profile::parse_count`]:
+/// 0 and the limit itself are left to the profile's validation, which says why).
 pub fn count_parser(what: &'static str, max: u32) -> impl Fn(&str) -> Result<u32, String> + Clone + Send + Sync + 'static {
-    move |v: &str| {
-        v.parse::<u32>().map_err(|_| match v.parse::<f64>() {
-            Ok(x) if x < 0.0 => format!("a count of {what} cannot be negative (at most {max})"),
-            Ok(x) if x.fract() != 0.0 => format!("a count of {what} is a whole number (at most {max})"),
-            Ok(_) => format!("too many {what}: at most {max}"),
-            Err(_) => format!("not a count of {what} (a whole number, at most {max})"),
-        })
-    }
+    move |v: &str| crate::scene::profile::parse_count(v, max).map_err(|e| format!("{what}: {e}"))
 }
 
 /// An error with its exit code.

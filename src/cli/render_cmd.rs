@@ -1,7 +1,7 @@
 //! `strata render`, including sample ranges, film files, checkpoints and resume (see `docs/farm.md`).
 
 use super::{Failure, Progress};
-use crate::film::file::{check_film_writable, profile_record, read_film, write_film, FilmHeader};
+use crate::film::file::{build_id, check_film_writable, other_builds_warning, profile_record, read_film, write_film, FilmHeader};
 use crate::film::output::{check_file_writable, check_writable, write_image_with, Provenance};
 use crate::film::Film;
 use crate::render::{check_render_size, render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
@@ -148,9 +148,15 @@ pub fn parse_samples(text: &str, spp: u32) -> Result<Range<u32>, Failure> {
     }
 }
 
-/// The film written when a render is interrupted and no --film or --resume names one: beside the image.
+/// The film written when a render is interrupted and no --film or --resume names one: beside the image
+/// (`out.film`), or where that is taken by a file already, the first free `out.2.film`, `out.3.film`, ...
+/// (an interrupt never replaces a film it did not write: a trial lost 30% of another render's film so).
 fn interrupt_film_path(out: &Path) -> PathBuf {
-    out.with_extension("film")
+    let first = out.with_extension("film");
+    if !first.exists() {
+        return first;
+    }
+    (2u32..).map(|n| out.with_extension(format!("{n}.film"))).find(|p| !p.exists()).expect("a free name")
 }
 
 /// Why a film cannot be resumed by this render, if it cannot.
@@ -253,12 +259,38 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         seed: a.seed,
         profile: profile_record(&profile),
         completed: vec![false; n_units],
+        build: build_id(),
     };
+    // A partial film of this very render where --film would write (or beside the image, where an earlier
+    // interrupt left it): refused, so that running the command again does not throw its work away.
+    if a.resume.is_none() {
+        let here = film_path.clone().unwrap_or_else(|| out.with_extension("film"));
+        if let Ok(saved) = read_film(&here) {
+            if !saved.header.is_complete() && resume_mismatch(&saved.header, &header).is_none() {
+                return Err(Failure::input(format!(
+                    "{}: a partial film of this same render ({} of {} work units) is there{}: continue it with --resume {}, \
+                     or remove it to start again",
+                    here.display(),
+                    saved.header.units_done(),
+                    saved.header.completed.len(),
+                    if a.film.is_some() { ", which --film would replace" } else { "" },
+                    here.display()
+                )));
+            }
+        }
+    }
     let mut film = Film::new(scene.width, scene.height);
     if let Some(r) = &a.resume {
         let saved = read_film(r).map_err(Failure::input)?;
         if let Some(why) = resume_mismatch(&saved.header, &header) {
             return Err(Failure::input(format!("{}: cannot resume: the film is from a different render: {why}", r.display())));
+        }
+        if let Some(w) = other_builds_warning(&[(r.display().to_string(), saved.header.build)], header.build, "this one") {
+            errln!("{w}");
+        }
+        // (A film of several builds' samples records none; a film of unknown build, 0, is taken as this one's.)
+        if saved.header.units_done() > 0 && saved.header.build != 0 && saved.header.build != header.build {
+            header.build = 0;
         }
         header.completed = saved.header.completed;
         film = saved.film;
@@ -328,7 +360,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
 
     let image = write_image_with(&out, film.width, film.height, &film.to_rgb(), Some(&Provenance::of(&header)));
     // An interrupted render always leaves its film, so that it can be resumed.
-    let film_out = film_path.clone().or_else(|| (!stats.completed).then(|| interrupt_film_path(&out)));
+    let film_out = film_path.clone().or_else(|| (!stats.completed).then(|| film_out_interrupted.clone()));
     let write_stats = || -> Result<(), Failure> {
         let Some(j) = &a.stats_json else { return Ok(()) };
         let json = StatsJson {
@@ -628,7 +660,7 @@ fn ray_count(x: u64) -> String {
     match x {
         0..10_000 => x.to_string(),
         10_000..1_000_000 => format!("{:.2}K", x as f64 / 1e3),
-        1_000_000..10_000_000_000 => format!("{:.2}M", x as f64 / 1e6),
+        1_000_000..1_000_000_000 => format!("{:.2}M", x as f64 / 1e6),
         _ => format!("{:.2}G", x as f64 / 1e9),
     }
 }

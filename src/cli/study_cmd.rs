@@ -2,7 +2,7 @@
 
 use super::Failure;
 use crate::sample::Strategy;
-use crate::scene::{load_scene_sized, Material, Profile, Scene};
+use crate::scene::{load_scene_sized, Profile, Scene};
 use crate::study::reference::{obtain, reference_profile, RefError, ReferenceSource};
 use crate::study::run::{
     configure, light_only, run_series, slopes, summarize, Plan, RunResult, Summary, BIAS_Z, TIME_SLOPE_MIN_COUNTS, TIME_SLOPE_MIN_GROWTH,
@@ -126,11 +126,11 @@ fn parse_strategy(s: &str) -> Result<Strategy, String> {
 }
 
 fn parse_count(s: &str) -> Result<u32, String> {
-    match s.parse::<u32>() {
-        Ok(n) if n >= 1 => Ok(n),
-        // (Counts past u32 are sample counts all the same: named as too large, as 2000000 is later.)
-        _ if s.parse::<u128>().is_ok() => Err(format!("`{s}` is too large a sample count (at most {})", crate::scene::MAX_SPP)),
-        _ => Err(format!("`{s}` is not a sample count (an integer >= 1)")),
+    // (Each integral's own upper limit is checked with the plan, which knows what a count means.)
+    match crate::scene::profile::parse_count(s, u32::MAX) {
+        Ok(0) => Err(format!("`{s}` is not a sample count (an integer >= 1)")),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("sample count {e}")),
     }
 }
 
@@ -152,7 +152,17 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     let strategies = parse_list("--strategies", &a.strategies, parse_strategy)?;
     let mut counts = parse_list("--spp", &a.spp, parse_count)?;
     counts.sort_unstable();
-    let integrals = IntegralSet::parse(&a.integrals).map_err(|e| Failure::input(format!("--integrals: {e}")))?;
+    let integrals = if a.integrals.trim().eq_ignore_ascii_case("all") {
+        IntegralSet::all()
+    } else {
+        let list = parse_list("--integrals", &a.integrals, |i| {
+            if i.eq_ignore_ascii_case("all") {
+                return Err("`all` (every integral) stands alone, not in a list".to_string());
+            }
+            crate::study::Integral::parse_or_explain(i)
+        })?;
+        IntegralSet::of(&list)
+    };
     if a.seeds == 0 || a.seeds > 1000 {
         return Err(Failure::input(format!("--seeds must be in 1..=1000, got {}", a.seeds)));
     }
@@ -256,30 +266,20 @@ fn fixed_light_grid(scene: &Scene, profile: &Profile, plan: &Plan) -> Option<u32
 
 /// Integrals the scene does not exercise (their strategy changes nothing).
 fn unused_integrals(scene: &Scene, integrals: &IntegralSet) -> Vec<&'static str> {
-    use crate::study::Integral as I;
-    let f = &scene.features;
-    let glossy = scene.materials.iter().any(|m| matches!(m, Material::Glossy { .. }));
-    integrals
-        .iter()
-        .filter(|i| match i {
-            I::Lens => !f.lens,
-            I::Time => !f.motion,
-            I::Glossy => !glossy,
-            I::Light => !f.area_lights,
-            I::Pixel => false,
-        })
-        .map(|i| i.name())
-        .collect()
+    integrals.iter().filter(|&i| !exercised(scene, i).0).map(|i| i.name()).collect()
 }
 
-/// What a scene needs for the integral named `name` to be exercised.
-fn exercised_by(name: &str) -> &'static str {
-    match name {
-        "lens" => "camera aperture",
-        "time" => "moving shapes",
-        "glossy" => "glossy material",
-        "light" => "area light",
-        _ => "pixels",
+/// Whether the scene exercises integral `i`, and what it needs to (its features: a glossy material
+/// defined but on no surface exercises nothing).
+fn exercised(scene: &Scene, i: crate::study::Integral) -> (bool, &'static str) {
+    use crate::study::Integral as I;
+    let f = &scene.features;
+    match i {
+        I::Lens => (f.lens, "camera aperture"),
+        I::Time => (f.motion, "moving shapes"),
+        I::Glossy => (f.glossy, "glossy surface"),
+        I::Light => (f.area_lights, "area light"),
+        I::Pixel => (true, "pixels"),
     }
 }
 
@@ -345,7 +345,7 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
             "{}: the scene does not exercise {} (no {}): every run would render the same image; study another integral",
             a.scene.display(),
             unused.join(", "),
-            unused.iter().map(|i| exercised_by(i)).collect::<Vec<_>>().join(", ")
+            plan.integrals.iter().map(|i| exercised(&scene, i).1).collect::<Vec<_>>().join(", ")
         )));
     }
     if !unused.is_empty() {
@@ -366,10 +366,14 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
         errln!("  reference: preparing...");
     }
     // (A line per 10% of the rendered reference's work units, as `render` prints: it can take minutes.)
-    let progress = super::Progress::new("  reference", a.quiet, 1, 0);
-    let report = |done: usize, total: usize| progress.update(done, total);
+    // (Made at the first report: a file, analytic or cached reference shows no bar.)
+    let progress = std::sync::OnceLock::new();
+    let report =
+        |done: usize, total: usize| progress.get_or_init(|| super::Progress::new("  reference", a.quiet, total, 0)).update(done, total);
     let obtained = obtain(&source, &scene, &profile, &plan, &a.out, Some(&report));
-    progress.finish();
+    if let Some(p) = progress.get() {
+        p.finish();
+    }
     let reference = match obtained {
         Ok(r) => r,
         Err(e) => {
@@ -380,8 +384,8 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
             return match e {
                 RefError::Input(m) => Err(Failure::input(m)),
                 RefError::Runtime(m) => Err(Failure::runtime(m)),
-                RefError::Interrupted => {
-                    errln!("interrupted while rendering the reference: nothing written (no run had started)");
+                RefError::Interrupted(kept) => {
+                    errln!("interrupted while rendering the reference: no run had started{kept}");
                     Ok(130)
                 }
             };

@@ -47,7 +47,18 @@ pub fn check_file_writable(path: &Path) -> Result<(), String> {
     if path.is_dir() {
         return Err(format!("{}: is a directory", path.display()));
     }
+    // (`x.png/` or `x.png/.` names a directory, which the write after the render would fail on.)
+    let text = path.as_os_str().to_string_lossy();
+    let last = path.components().next_back();
+    let dotted = text.ends_with("/.") || text.ends_with("/..") || text == "." || text == "..";
+    if text.ends_with(std::path::MAIN_SEPARATOR) || text.ends_with('/') || dotted || !matches!(last, Some(std::path::Component::Normal(_)))
+    {
+        return Err(format!("{}: names a directory, not a file (drop the trailing `/` or `.`)", path.display()));
+    }
     let dir = parent_dir(path);
+    if dir.exists() && !dir.is_dir() {
+        return Err(format!("{}: {} is a file, not a directory", path.display(), dir.display()));
+    }
     if !dir.is_dir() {
         return Err(format!("{}: directory {} does not exist", path.display(), dir.display()));
     }
@@ -80,8 +91,8 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<(), String>
 }
 
 /// What a rendered image estimates and how it was made: written into an EXR's header as one text
-/// attribute, `strata.provenance`, of four lines (`scene_hash 80b5240e2da06139`, `seed 1`, `samples 0..64
-/// of 64`, `profile {...}`; PNG carries none), so that `strata study --reference` can tell a reference
+/// attribute, `strata.provenance`, of five lines (`scene_hash 80b5240e2da06139`, `seed 1`, `samples 0..64
+/// of 64`, `complete yes`, `profile {...}`; PNG carries none), so that `strata study --reference` can tell a reference
 /// rendered with another filter, depth or scene from one of the studied estimator. (One attribute: the
 /// exr crate writes a header's other attributes in the order of a `HashMap`, which differs from process to
 /// process, and the same render must give the same bytes.)
@@ -95,6 +106,8 @@ pub struct Provenance {
     pub spp: u32,
     /// The profile as films record it ([`crate::film::file::profile_record`]: JSON, name blanked).
     pub profile: String,
+    /// Whether every work unit of `samples` is in the image (false: interrupted, or merged with gaps).
+    pub complete: bool,
 }
 
 /// The EXR attribute holding an image's [`Provenance`].
@@ -103,12 +116,15 @@ const PROVENANCE_KEY: &str = "strata.provenance";
 impl Provenance {
     /// The provenance of the image of a film with this header.
     pub fn of(h: &crate::film::file::FilmHeader) -> Provenance {
-        Provenance { scene_hash: h.scene_hash, seed: h.seed, samples: h.samples.clone(), spp: h.spp, profile: h.profile.clone() }
+        let (samples, profile, complete) = (h.samples.clone(), h.profile.clone(), h.is_complete());
+        Provenance { scene_hash: h.scene_hash, seed: h.seed, samples, spp: h.spp, profile, complete }
     }
 
     fn text(&self) -> String {
         let (a, b) = (self.samples.start, self.samples.end);
-        format!("scene_hash {:016x}\nseed {}\nsamples {a}..{b} of {}\nprofile {}", self.scene_hash, self.seed, self.spp, self.profile)
+        let complete = if self.complete { "yes" } else { "no" };
+        let (hash, seed, spp, profile) = (self.scene_hash, self.seed, self.spp, &self.profile);
+        format!("scene_hash {hash:016x}\nseed {seed}\nsamples {a}..{b} of {spp}\ncomplete {complete}\nprofile {profile}")
     }
 
     fn parse(text: &str) -> Option<Provenance> {
@@ -118,8 +134,14 @@ impl Provenance {
         let seed = field("seed")?.parse().ok()?;
         let (range, spp) = field("samples")?.split_once(" of ")?;
         let (a, b) = range.split_once("..")?;
+        let complete = match field("complete")? {
+            "yes" => true,
+            "no" => false,
+            _ => return None,
+        };
         let profile = field("profile")?.to_string();
-        Some(Provenance { scene_hash: hash, seed, samples: a.parse().ok()?..b.parse().ok()?, spp: spp.parse().ok()?, profile })
+        let samples = a.parse().ok()?..b.parse().ok()?;
+        Some(Provenance { scene_hash: hash, seed, samples, spp: spp.parse().ok()?, profile, complete })
     }
 
     /// The provenance in an EXR's header: `Ok(None)` if it has none (another renderer's image, or one

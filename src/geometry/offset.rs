@@ -37,18 +37,17 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
 /// is accurate to ULPs of `max(|o|, |p|)` (`|t d| <= |o| + |p|`); seen from a camera 1e3 away, a
 /// plane near the origin has hit points off the plane by far more than 256 ULPs of the point itself.
 #[inline]
-/// The distance [`offset_ray_origin_scaled`] moves a point whose largest coordinate (or error scale) is
-/// `m` (up to 2x less than `OFFSET_ULPS` x `m` x 2^-23).
-pub fn offset_distance(m: f32) -> f32 {
-    let m = m.abs().max(MIN_SCALE);
-    OFFSET_ULPS * f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON
+pub fn offset_ray_origin_scaled(p: Vec3, n: Vec3, magnitude: f32) -> Vec3 {
+    n.mul_add(Vec3::splat(offset_distance(p.abs().max_element().max(magnitude))), p)
 }
 
-pub fn offset_ray_origin_scaled(p: Vec3, n: Vec3, magnitude: f32) -> Vec3 {
-    let m = p.abs().max_element().max(magnitude).max(MIN_SCALE);
+/// The distance [`offset_ray_origin_scaled`] moves a point whose largest coordinate (or error scale) is
+/// `m`: `OFFSET_ULPS` ULPs of `m` (between 2^-24 and 2^-23 x `OFFSET_ULPS` x `m`).
+#[inline]
+pub fn offset_distance(m: f32) -> f32 {
+    let m = m.abs().max(MIN_SCALE);
     // ulp(m) = 2^(exponent of m) * 2^-23: keep only the exponent bits.
-    let ulp = f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON;
-    n.mul_add(Vec3::splat(OFFSET_ULPS * ulp), p)
+    OFFSET_ULPS * (f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON)
 }
 /// Eight lanes of [`offset_ray_origin_scaled`], bit-identical to it for finite inputs (same
 /// exponent masking, same fused multiply-add per component).

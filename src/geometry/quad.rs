@@ -18,6 +18,8 @@ pub struct Quad {
     pub dual_u: Vec3,
     /// `(n x u) / |n|^2`: `dual_v . v = 1`, `dual_v . u = 0`.
     pub dual_v: Vec3,
+    /// `|u x v|`.
+    pub area: f32,
 }
 
 impl Quad {
@@ -30,7 +32,8 @@ impl Quad {
         let n = ud.cross(vd);
         let nn = n.dot(n);
         let (unit_normal, dual_u, dual_v) = (n / nn.sqrt(), vd.cross(n) / nn, n.cross(ud) / nn);
-        Quad { origin, u, v, unit_normal: unit_normal.as_vec3(), dual_u: dual_u.as_vec3(), dual_v: dual_v.as_vec3() }
+        let (unit_normal, dual_u, dual_v, area) = (unit_normal.as_vec3(), dual_u.as_vec3(), dual_v.as_vec3(), nn.sqrt() as f32);
+        Quad { origin, u, v, unit_normal, dual_u, dual_v, area }
     }
 
     /// Unit normal `normalize(u x v)` (the caller flips it to face the ray).
@@ -42,7 +45,7 @@ impl Quad {
     /// Area `|u x v|`.
     #[inline]
     pub fn area(&self) -> f32 {
-        self.u.as_dvec3().cross(self.v.as_dvec3()).length() as f32
+        self.area
     }
 }
 

@@ -125,10 +125,10 @@ impl Source<'_> {
         self.error(span, field, plain_struct_names(&message))
     }
 
-    /// `key` as the path the compiler's own errors give (`shapes[1].radius`, `materials.glass.ior`), where
-    /// the line at `offset` is `key = ...` under a `[table]` or a top-level `[[list]]` header; else `key`
-    /// itself (a key in an inline table, or under a nested header, whose path the text does not give
-    /// plainly).
+    /// `key` as the path the compiler's own errors give (`shapes[1].radius`, `materials.glass.ior`,
+    /// `shapes[0].transform.rotate`), where the line at `offset` is `key = ...` under a table header;
+    /// else `key` itself (a key in an inline table, or under a nested list header, whose path the text
+    /// does not give plainly).
     fn qualified(&self, offset: usize, key: String) -> String {
         let offset = offset.min(self.text.len());
         let line_start = self.text[..offset].rfind('\n').map_or(0, |i| i + 1);
@@ -137,19 +137,21 @@ impl Source<'_> {
         if key.is_empty() || first_key != key {
             return key;
         }
-        let before = &self.text[..line_start];
-        let Some(header) = before.lines().rev().map(str::trim).find(|l| l.starts_with('[')) else { return key };
-        let header = header.split('#').next().unwrap_or("").trim();
-        if let Some(name) = header.strip_prefix("[[").and_then(|h| h.strip_suffix("]]")).map(str::trim) {
-            if name.contains('.') {
-                return key;
-            }
-            let index = before.lines().filter(|l| l.split('#').next().unwrap_or("").trim() == header).count() - 1;
-            format!("{name}[{index}].{key}")
-        } else if let Some(name) = header.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
-            format!("{}.{key}", name.trim())
-        } else {
-            key
+        let headers: Vec<(bool, String)> = self.text[..line_start].lines().filter_map(table_header).collect();
+        let Some((list, name)) = headers.last() else { return key };
+        // The index of the entry of list `l` that the last header lies in.
+        let index = |l: &str| headers.iter().filter(|(is_list, n)| *is_list && n == l).count().checked_sub(1);
+        if *list {
+            return match (name.contains('.'), index(name)) {
+                (false, Some(i)) => format!("{name}[{i}].{key}"),
+                _ => key,
+            };
+        }
+        // A sub-table of a list's entry (`[shapes.transform]` after `[[shapes]]`), or a plain table.
+        let first = name.split('.').next().unwrap_or("");
+        match index(first) {
+            Some(i) => format!("{first}[{i}]{}.{key}", &name[first.len()..]),
+            None => format!("{name}.{key}"),
         }
     }
 
@@ -234,3 +236,17 @@ pub fn read_text(path: &Path) -> Result<String, InputError> {
 
 /// Scene files larger than this are refused before parsing (protects the machine).
 pub const MAX_INPUT_BYTES: usize = 16 << 20;
+
+/// A table header line, `[a.b]` or `[[a]]` (spaces around names and dots dropped; a trailing comment
+/// allowed): whether it is a list's, and its dotted name. Other lines (an array continued over lines,
+/// `[0.5, 0.5],`) are not headers.
+fn table_header(line: &str) -> Option<(bool, String)> {
+    let t = line.split('#').next().unwrap_or("").trim();
+    let (list, inner) = match t.strip_prefix("[[").and_then(|x| x.strip_suffix("]]")) {
+        Some(inner) => (true, inner),
+        None => (false, t.strip_prefix('[')?.strip_suffix(']')?),
+    };
+    let parts: Vec<&str> = inner.split('.').map(str::trim).collect();
+    let plain = |p: &&str| !p.is_empty() && p.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+    parts.iter().all(plain).then(|| (list, parts.join(".")))
+}

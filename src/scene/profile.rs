@@ -71,6 +71,21 @@ fn is_all(s: &LightSelection) -> bool {
     *s == LightSelection::All
 }
 
+/// A count written as text (`--spp`, `--set spp=`): what is wrong with it named as what it is (negative,
+/// fractional, too large, or digits needed: `1e3`, `4.0`), not as "not in 0..=4294967295". Its upper
+/// bound `max` is only quoted (the profile's validation checks it, and 0, with its reason).
+pub fn parse_count(v: &str, max: u32) -> Result<u32, String> {
+    let t = v.trim();
+    t.parse::<u32>().map_err(|_| match t.parse::<f64>() {
+        Ok(x) if !x.is_finite() => format!("`{v}` is not a count (a whole number, at most {max})"),
+        Ok(x) if x < 0.0 => format!("`{v}` is negative (a count: a whole number, at most {max})"),
+        Ok(x) if x.fract() != 0.0 => format!("`{v}` is not a whole number (a count, at most {max})"),
+        Ok(x) if x > u32::MAX as f64 => format!("`{v}` is too large (at most {max})"),
+        Ok(x) => format!("`{v}`: write a count in digits (`{}`)", x as u64),
+        Err(_) => format!("`{v}` is not a number (a count: a whole number, at most {max})"),
+    })
+}
+
 /// Hard limits that protect the machine; exceeding one is an input error, not an out-of-memory crash.
 pub const MAX_SPP: u32 = 1 << 20;
 pub const MAX_LIGHT_SAMPLES: u32 = 4096;
@@ -285,15 +300,8 @@ impl Profile {
         fn num<T: std::str::FromStr>(key: &str, v: &str) -> Result<T, String> {
             v.trim().parse().map_err(|_| format!("{key}: `{v}` is not a valid number"))
         }
-        /// A count at most `max` (its lower bound is the validation's, with its reason).
         fn count(key: &str, v: &str, max: u32) -> Result<u32, String> {
-            let t = v.trim();
-            t.parse::<u32>().map_err(|_| match t.parse::<f64>() {
-                Ok(x) if x < 0.0 => format!("{key}: `{v}` is negative: a count, at most {max}"),
-                Ok(x) if x.fract() != 0.0 => format!("{key}: `{v}` is not a whole number: a count, at most {max}"),
-                Ok(_) => format!("{key}: `{v}` is too large: at most {max}"),
-                Err(_) => format!("{key}: `{v}` is not a number: a count, at most {max}"),
-            })
+            parse_count(v, max).map_err(|e| format!("{key}: {e}"))
         }
         // Names are exact and lowercase, as in profile files (`centre` is accepted for `center` there too).
         fn strat(key: &str, v: &str) -> Result<Strategy, String> {

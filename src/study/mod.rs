@@ -48,6 +48,14 @@ impl Integral {
     pub fn parse(s: &str) -> Option<Integral> {
         Integral::ALL.into_iter().find(|i| i.name().eq_ignore_ascii_case(s))
     }
+
+    /// [`Integral::parse`], or why not (the names it knows).
+    pub fn parse_or_explain(s: &str) -> Result<Integral, String> {
+        Integral::parse(s).ok_or_else(|| {
+            let all: Vec<_> = Integral::ALL.iter().map(|i| i.name()).collect();
+            format!("unknown integral `{s}` (one of {}, or all)", all.join(", "))
+        })
+    }
 }
 
 /// A set of integrals (no duplicates, in [`Integral::ALL`] order).
@@ -77,35 +85,6 @@ impl IntegralSet {
 
     pub fn iter(&self) -> impl Iterator<Item = Integral> + '_ {
         Integral::ALL.into_iter().filter(|i| self.contains(*i))
-    }
-
-    /// `"all"` or a comma-separated list of integral names.
-    pub fn parse(s: &str) -> Result<IntegralSet, String> {
-        if s.trim().eq_ignore_ascii_case("all") {
-            return Ok(IntegralSet::all());
-        }
-        if s.split(',').all(|p| p.trim().is_empty()) {
-            return Err("the list of integrals is empty".into());
-        }
-        // (As the other lists of `study`: no empty item, no item twice, `all` alone.)
-        let mut list = Vec::new();
-        for part in s.split(',').map(str::trim) {
-            if part.is_empty() {
-                return Err(format!("`{s}`: an empty item"));
-            }
-            if part.eq_ignore_ascii_case("all") {
-                return Err(format!("`{s}`: `all` (every integral) stands alone, not in a list"));
-            }
-            let i = Integral::parse(part).ok_or_else(|| {
-                let all: Vec<_> = Integral::ALL.iter().map(|i| i.name()).collect();
-                format!("unknown integral `{part}` (one of {}, or all)", all.join(", "))
-            })?;
-            if list.contains(&i) {
-                return Err(format!("`{s}`: `{part}` is listed twice"));
-            }
-            list.push(i);
-        }
-        Ok(IntegralSet::of(&list))
     }
 
     pub fn names(&self) -> String {

@@ -12,12 +12,15 @@
 //! the scene file, profile, mapping or N gives a different key (and so a fresh render).
 
 use super::analytic::{Footprint, QuadIrradiance};
-use super::run::{configure, light_only, render_cancellable, Plan, REFERENCE_SEED};
+use super::run::{configure, light_only, render_units, Plan, REFERENCE_SEED};
 use super::{Integral, IntegralSet};
-use crate::film::file::profile_record;
+use crate::film::file::{build_id, profile_record, read_film, write_film, FilmHeader};
 use crate::film::output::{read_image, write_atomic, write_image_with, Provenance};
+use crate::film::Film;
+use crate::render::{unit_count, RenderJob, TILE};
 use crate::sample::Strategy;
 use crate::scene::{Profile, Scene};
+use crate::wavefront::Settings;
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 
@@ -38,12 +41,13 @@ pub struct Reference {
 }
 
 /// Errors: `Input` for bad requests (exit 2), `Runtime` for failures while working (exit 1),
-/// `Interrupted` when the plan's cancel flag stopped the reference render (nothing is cached).
+/// `Interrupted` when the plan's cancel flag stopped the reference render (nothing is cached; the text
+/// says where its finished work units were kept, if any).
 #[derive(Debug)]
 pub enum RefError {
     Input(String),
     Runtime(String),
-    Interrupted,
+    Interrupted(String),
 }
 
 /// Obtain the reference for a study `plan` on `scene` with the base `profile`.
@@ -111,7 +115,10 @@ pub fn estimator_differences(scene: &Scene, file: &Profile, study: &Profile) -> 
         let (f, s) = (file.filter.name(), study.filter.name());
         out.push((format!("filter {f} in the reference, {s} in the study"), Some(format!("filter={s}"))));
     }
-    for (what, f, s) in [("max_depth", file.max_depth, study.max_depth), ("diffuse_depth", file.diffuse_depth, study.diffuse_depth)] {
+    // (The depth changes nothing in a scene without mirrors, glass, glossy surfaces or diffuse bounces.)
+    let deep = f.mirror || f.dielectric || f.glossy || file.diffuse_depth.max(study.diffuse_depth) > 0;
+    let depths = [("max_depth", file.max_depth, study.max_depth, deep), ("diffuse_depth", file.diffuse_depth, study.diffuse_depth, true)];
+    for (what, f, s, _) in depths.into_iter().filter(|d| d.3) {
         if f < s {
             out.push((format!("{what} {f} in the reference, {s} in the study"), Some(format!("{what}={s}"))));
         }
@@ -135,6 +142,13 @@ fn provenance_warnings(path: &Path, provenance: Option<&Provenance>, scene: &Sce
         )];
     };
     let mut out = Vec::new();
+    if !p.complete {
+        out.push(format!(
+            "warning: {} is an incomplete render (interrupted, or merged with gaps): its unfinished work units' pixels \
+             hold fewer samples or none, and the MSE measures them",
+            path.display()
+        ));
+    }
     if p.scene_hash != scene.hash {
         out.push(format!(
             "warning: {} was rendered from another scene file, or from this one before an edit (scene hash {:016x}, now {:016x})",
@@ -178,10 +192,12 @@ fn from_file(path: &Path, scene: &Scene, profile: &Profile, plan: &Plan) -> Resu
             scene.height
         )));
     }
-    let provenance = Provenance::read(path).map_err(RefError::Input)?;
     let largest = plan.counts.iter().copied().max().unwrap_or(1);
     let study = reference_profile(profile, plan, largest).map_err(RefError::Input)?;
-    let warnings = provenance_warnings(path, provenance.as_ref(), scene, &study);
+    let warnings = match Provenance::read(path) {
+        Ok(provenance) => provenance_warnings(path, provenance.as_ref(), scene, &study),
+        Err(e) => vec![format!("warning: {e}: how the reference was rendered cannot be read, so it is not compared with the study")],
+    };
     let image = px.iter().map(|c| c.as_dvec3()).collect();
     Ok(Reference { image, description: format!("file {}", path.display()), warnings })
 }
@@ -214,19 +230,18 @@ pub fn cache_key_text(scene: &Scene, reference_profile: &Profile) -> String {
     )
 }
 
-/// The running executable's hash (xxh64), as the cache key's `renderer` line: a reference rendered by
-/// another build (pulled changes, a local edit) is not reused, which the crate version (0.1.0 at every
+/// The running executable's hash ([`build_id`]), as the cache key's `renderer` line: a reference rendered
+/// by another build (pulled changes, a local edit) is not reused, which the crate version (0.1.0 at every
 /// commit) could not tell. An executable that cannot be read gives a line that matches no other run.
 fn renderer_id() -> String {
     static ID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    ID.get_or_init(|| match std::env::current_exe().and_then(std::fs::read) {
-        // (xxh64: ~10 ms for a 46 MB executable, where byte-wise FNV-1a took ~90.)
-        Ok(bytes) => format!("{:016x}", crate::film::checksum::xxh64(&bytes)),
-        Err(e) => {
-            errln!("note: cannot read the strata executable to key the reference cache ({e}): the reference is rendered afresh");
+    ID.get_or_init(|| match build_id() {
+        0 => {
+            errln!("note: cannot read the strata executable to key the reference cache: the reference is rendered afresh");
             let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos());
-            format!("unreadable ({e}): process {} at {now}", std::process::id())
+            format!("unreadable: process {} at {now}", std::process::id())
         }
+        id => format!("{id:016x}"),
     })
     .clone()
 }
@@ -276,9 +291,45 @@ fn rendered(
             }
         }
     }
-    let (film, seconds, _) = render_cancellable(scene, ref_profile.clone(), REFERENCE_SEED, plan.threads, plan.cancel.as_deref(), progress)
-        .map_err(RefError::Runtime)?
-        .ok_or(RefError::Interrupted)?;
+    // Resumable: an interrupted reference keeps its finished work units in a film beside the cache
+    // (`reference-<key>.film`, named by the same key), which the same study continues.
+    let partial = exr.with_extension("film");
+    let n_units = unit_count(scene.width, scene.height, TILE, 0..ref_profile.spp);
+    let header = FilmHeader {
+        width: scene.width,
+        height: scene.height,
+        spp: ref_profile.spp,
+        samples: 0..ref_profile.spp,
+        tile: TILE,
+        scene_hash: scene.hash,
+        seed: REFERENCE_SEED,
+        profile: profile_record(&ref_profile),
+        completed: vec![false; n_units],
+        build: build_id(),
+    };
+    let (film, completed) = match read_film(&partial) {
+        Ok(f) if f.header == FilmHeader { completed: f.header.completed.clone(), ..header.clone() } => (f.film, f.header.completed),
+        _ => (Film::new(scene.width, scene.height), vec![false; n_units]),
+    };
+    let resumed = completed.iter().filter(|&&c| c).count();
+    let mut job = RenderJob::new(scene, Settings { profile: ref_profile.clone(), seed: REFERENCE_SEED });
+    job.threads = plan.threads;
+    job.cancel = plan.cancel.as_deref();
+    job.progress = progress;
+    let (film, completed, stats) = render_units(&job, film, completed).map_err(RefError::Runtime)?;
+    if !stats.completed {
+        let done = completed.iter().filter(|&&c| c).count();
+        if done == resumed {
+            return Err(RefError::Interrupted(String::new()));
+        }
+        write_film(&partial, &FilmHeader { completed, ..header }, &film).map_err(RefError::Runtime)?;
+        return Err(RefError::Interrupted(format!(
+            "; the reference's {done} of {n_units} work units are kept in {}: the same study continues it",
+            partial.display()
+        )));
+    }
+    let seconds = stats.seconds + stats.selection_seconds;
+    let resumed_note = if resumed > 0 { format!(", resumed from {resumed} of {n_units} work units") } else { String::new() };
     let rgb = film.to_rgb();
     // The image first, then the sidecar: an interrupted write leaves no sidecar, so no stale reuse.
     let _ = std::fs::remove_file(&txt);
@@ -288,12 +339,14 @@ fn rendered(
         samples: 0..ref_profile.spp,
         spp: ref_profile.spp,
         profile: profile_record(&ref_profile),
+        complete: true,
     };
     write_image_with(&exr, scene.width, scene.height, &rgb, Some(&provenance)).map_err(RefError::Runtime)?;
     // (Hashed as read back, as a later study reads it.)
     let (_, _, written) = read_image(&exr).map_err(RefError::Runtime)?;
     let side = with_image_hash(&key, &written);
     write_atomic(&txt, |tmp| std::fs::write(tmp, &side).map_err(|e| e.to_string())).map_err(RefError::Runtime)?;
-    let description = format!("jittered, {n} {what}, rendered in {seconds:.2} s, cached as {}", exr.display());
+    let _ = std::fs::remove_file(&partial);
+    let description = format!("jittered, {n} {what}, rendered in {seconds:.2} s{resumed_note}, cached as {}", exr.display());
     Ok(Reference { image: rgb.iter().map(|c| c.as_dvec3()).collect(), description, warnings: Vec::new() })
 }

@@ -4,7 +4,7 @@
 use super::metrics::{efficiency, fit_loglog, mean_check, mean_check_f64, mse, relmse, LogLogFit};
 use super::{Integral, IntegralSet};
 use crate::film::Film;
-use crate::render::{render_into, RenderJob};
+use crate::render::{render_resumable, unit_count, RenderJob, RenderStats};
 use crate::sample::Strategy;
 use crate::scene::profile::MAX_LIGHT_SAMPLES;
 use crate::scene::{Profile, Scene};
@@ -214,12 +214,22 @@ pub fn render_cancellable(
     job.threads = threads;
     job.cancel = cancel;
     job.progress = progress;
-    let (film, stats) = render_into(&job, Film::new(scene.width, scene.height));
+    let n = unit_count(scene.width, scene.height, job.tile, job.samples.clone());
+    let (film, _, stats) = render_units(&job, Film::new(scene.width, scene.height), vec![false; n])?;
+    Ok(stats.completed.then_some((film, stats.seconds + stats.selection_seconds, stats.rays.total)))
+}
+
+/// The study's render of `job`'s work units not flagged in `completed` into `film` (which holds the
+/// flagged ones): the film, the flags after it and its statistics; an error where a pass outgrew its ray
+/// limit. A completed render's discarded samples, lost media and dimness are warned of.
+pub fn render_units(job: &RenderJob, film: Film, completed: Vec<bool>) -> Result<(Film, Vec<bool>, RenderStats), String> {
+    let scene = job.scene;
+    let (film, completed, stats) = render_resumable(job, film, completed);
     if stats.overflow {
-        return Err(crate::render::overflow_message(&job));
+        return Err(crate::render::overflow_message(job));
     }
     if !stats.completed {
-        return Ok(None);
+        return Ok((film, completed, stats));
     }
     // (Discarded samples would bias every error measured from this image.)
     crate::film::warn_discarded(stats.nonfinite_samples);
@@ -233,7 +243,7 @@ pub fn render_cancellable(
     }
     // (The light selection, a power table or a light tree, is made for each render before its clock:
     // a cost of the run all the same, which a study of selection modes must weigh.)
-    Ok(Some((film, stats.seconds + stats.selection_seconds, stats.rays.total)))
+    Ok((film, completed, stats))
 }
 
 /// Run the whole series against `reference`. `report` is called after each run (progress output). If

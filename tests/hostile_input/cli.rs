@@ -53,6 +53,10 @@ fn output_paths_that_cannot_be_written_are_refused_before_rendering() {
         (is_dir.clone(), "is a directory"),
         (d.join("x.bmp"), ".png or .exr"),
         (d.join("noext"), ".png or .exr"),
+        // A trailing `/` or `/.` names a directory: refused before the render, not failed after it.
+        (PathBuf::from(format!("{}/", d.join("x.png").display())), "names a directory, not a file"),
+        (PathBuf::from(format!("{}/.", d.join("x.png").display())), "names a directory, not a file"),
+        (PathBuf::from(SCENE).join("x.png"), "is a file, not a directory"),
     ];
     for u in unwritable_dirs("out") {
         cases.push((u.join("x.png"), "cannot write here"));
@@ -148,4 +152,26 @@ fn interrupted_render_writes_what_it_has() {
     assert_eq!(img.dimensions(), (320, 240));
     assert!(img.pixels().any(|p| p[0] > 0), "the partial image has content");
     assert_eq!(entries(&d), vec!["partial.film".to_string(), "partial.png".to_string()]);
+    // The same command again (no --resume) would throw that film's work away: refused, film untouched.
+    let film = std::fs::read(d.join("partial.film")).unwrap();
+    let again = Command::new(env!("CARGO_BIN_EXE_strata"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["render", SCENE, "-o", out.to_str().unwrap(), "--spp", "1048576", "--quiet", "--threads", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert_eq!(again.status.code(), Some(2), "{err}");
+    assert!(err.contains("a partial film of this same render") && err.contains("--resume"), "{err}");
+    assert_eq!(std::fs::read(d.join("partial.film")).unwrap(), film);
+    // Another render (another seed) interrupted with the same -o: its film goes beside, not over it.
+    let mut other = Command::new(env!("CARGO_BIN_EXE_strata"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["render", SCENE, "-o", out.to_str().unwrap(), "--spp", "1048576", "--quiet", "--threads", "1", "--seed", "2"])
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    assert!(Command::new("kill").args(["-INT", &other.id().to_string()]).status().unwrap().success());
+    assert_eq!(other.wait().unwrap().code(), Some(130));
+    assert_eq!(std::fs::read(d.join("partial.film")).unwrap(), film, "an interrupt replaced another render's film");
+    assert_eq!(entries(&d), vec!["partial.2.film".to_string(), "partial.film".to_string(), "partial.png".to_string()]);
 }
