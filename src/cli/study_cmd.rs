@@ -38,8 +38,11 @@ With --light-samples-from-spp the reference takes N spp x (largest count) light 
 (largest count) times the largest run's light samples too. --reference analytic computes the reference
 exactly for a Lambert plane under one quad light (at pixel centres with --integrals light).
 
-Progress: a line per finished run on stderr (--quiet: none). Ctrl-C stops the study: study.csv is written
-with the runs that finished (the run in flight is dropped), and the exit code is 130.
+Progress: a line per 10% of a rendered reference and per finished run on stderr (--quiet: none). Ctrl-C
+stops the study: study.csv is written with the runs that finished (the run in flight is dropped), and the
+exit code is 130; during the reference, its finished work units are kept in DIR/reference-<key>.film and
+the same study run again continues them. A reference file is checked against the runs' estimator (its
+EXR records the filter, depths and integrals it was rendered with): a difference is warned of.
 
 Outputs in DIR: study.csv (one row per render: strategy,spp,seed,seconds,rays,mse,relmse,efficiency,
 camera_spp,light_samples,mean_ratio,mean_z), study.png (log-log MSE vs samples and vs seconds, mean
