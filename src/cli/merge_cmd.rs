@@ -100,13 +100,13 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     // Films of several builds merge (their samples are exact either way), with a warning; the merged film
     // records a build only where all of them share it.
     let builds: Vec<(String, u64)> = films.iter().map(|(p, f)| (p.display().to_string(), f.header.build)).collect();
+    // (Films of unknown build, 0, are taken as the others'.)
     let (name0, build0) = builds.iter().find(|b| b.1 != 0).cloned().unwrap_or_default();
-    if let Some(w) = other_builds_warning(&builds, build0, &name0) {
+    let warning = other_builds_warning(&builds, build0, &name0);
+    let build = if warning.is_some() { 0 } else { build0 };
+    if let Some(w) = warning {
         errln!("{w}");
     }
-    // (Films of unknown build, 0, are taken as the others'.)
-    let known: Vec<u64> = builds.iter().map(|b| b.1).filter(|&b| b != 0).collect();
-    let build = if known.windows(2).all(|w| w[0] == w[1]) { known.first().copied().unwrap_or(0) } else { 0 };
     let range = first.samples.start..films.iter().map(|(_, f)| f.header.samples.end).max().unwrap();
     let mut merged = films[0].1.film.clone();
     for (_, f) in &films[1..] {

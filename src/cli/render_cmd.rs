@@ -1,10 +1,10 @@
 //! `strata render`, including sample ranges, film files, checkpoints and resume (see `docs/farm.md`).
 
 use super::{Failure, Progress};
-use crate::film::file::{build_id, check_film_writable, other_builds_warning, profile_record, read_film, write_film, FilmHeader};
+use crate::film::file::{check_film_writable, other_builds_warning, read_film, write_film, FilmHeader};
 use crate::film::output::{check_file_writable, check_writable, write_image_with, Provenance};
 use crate::film::Film;
-use crate::render::{check_render_size, render_resumable, unit_count, Checkpoint, RenderJob, RenderStats};
+use crate::render::{check_render_size, render_resumable, Checkpoint, RenderJob, RenderStats};
 use crate::sample::Strategy;
 use crate::scene::{load_scene_sized, LightSelection, Profile, Scene};
 use crate::wavefront::Settings;
@@ -248,19 +248,8 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         return Err(Failure::input("--checkpoint-every needs --film PATH (where the checkpoints go) or --resume FILM"));
     }
 
-    let n_units = unit_count(scene.width, scene.height, a.tile, samples.clone());
-    let mut header = FilmHeader {
-        width: scene.width,
-        height: scene.height,
-        spp: profile.spp,
-        samples: samples.clone(),
-        tile: a.tile,
-        scene_hash: scene.hash,
-        seed: a.seed,
-        profile: profile_record(&profile),
-        completed: vec![false; n_units],
-        build: build_id(),
-    };
+    let mut header = FilmHeader::fresh(&scene, &profile, samples.clone(), a.tile, a.seed);
+    let n_units = header.completed.len();
     // A partial film of this very render where --film would write (or beside the image, where an earlier
     // interrupt left it): refused, so that running the command again does not throw its work away.
     if a.resume.is_none() {

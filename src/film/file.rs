@@ -110,6 +110,24 @@ pub fn profile_record(p: &Profile) -> String {
 }
 
 impl FilmHeader {
+    /// The header of a render of `samples` of `scene` under `profile` and `seed` in units of `tile`, by
+    /// this build, no unit done yet.
+    pub fn fresh(scene: &crate::scene::Scene, profile: &Profile, samples: Range<u32>, tile: u32, seed: u64) -> FilmHeader {
+        let n_units = crate::render::unit_count(scene.width, scene.height, tile, samples.clone());
+        FilmHeader {
+            width: scene.width,
+            height: scene.height,
+            spp: profile.spp,
+            samples,
+            tile,
+            scene_hash: scene.hash,
+            seed,
+            profile: profile_record(profile),
+            completed: vec![false; n_units],
+            build: build_id(),
+        }
+    }
+
     pub fn profile_hash(&self) -> u64 {
         xxh64(self.profile.as_bytes())
     }

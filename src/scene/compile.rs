@@ -413,7 +413,7 @@ impl Compiler<'_> {
         if self.prim_at.len() != self.prims.len() {
             return Vec::new();
         }
-        let glass = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
+        let glass = |m: u32| self.is_medium(m);
         let mut first: std::collections::HashMap<[u32; 4], usize> = std::collections::HashMap::new();
         let mut pairs: Vec<(usize, usize)> = Vec::new();
         let mut spheres: Vec<(Vec3, f32)> = Vec::new();
@@ -480,7 +480,7 @@ impl Compiler<'_> {
         if self.prim_at.len() != self.prims.len() {
             return;
         }
-        let glass = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
+        let glass = |m: u32| self.is_medium(m);
         // Each item's surfaces as leaves (`leaves[range]`): a plain shape's one canonical leaf, a CSG
         // solid's glass leaves (whether or not they bound it everywhere: its boundary by the boolean
         // program would cost a program evaluation per crossing; an opaque leaf meeting glass is the
@@ -756,10 +756,15 @@ impl Compiler<'_> {
         found.into_iter().skip(skip).map(|(_, m)| m).collect()
     }
 
+    /// Whether material `m` is a medium rays enter (a dielectric, not a thin sheet).
+    fn is_medium(&self, m: u32) -> bool {
+        matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin)
+    }
+
     /// The medium a solid prim is (a non-thin dielectric sphere, ellipsoid or box; a CSG solid's one glass,
     /// where glasses apart in one solid give the one around `pos`, if any): None for anything else.
     fn medium_of(&self, p: &Prim, pos: Vec3) -> Option<u32> {
-        let medium = |m: u32| matches!(&self.materials[m as usize], Material::Dielectric(d) if !d.thin);
+        let medium = |m: u32| self.is_medium(m);
         match p.shape {
             // A solid's medium is its one glass (`one_medium`); opaque leaves are surfaces in or on it.
             Shape::Csg { solid } => {
@@ -1153,7 +1158,7 @@ impl Compiler<'_> {
     /// for the rest of its path (a 2 mm pane at x = 200 rendered black, a user trial). CSG leaves have
     /// their own, stricter warning (`csg_solid`).
     fn thin_glass(&mut self, shape: &Shape, material: u32, def: &S<ShapeDef>, field: &str) {
-        if !matches!(&self.materials[material as usize], Material::Dielectric(d) if !d.thin) {
+        if !self.is_medium(material) {
             return;
         }
         let (thickness, what) = match shape {

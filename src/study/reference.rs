@@ -14,10 +14,10 @@
 use super::analytic::{Footprint, QuadIrradiance};
 use super::run::{configure, light_only, render_units, Plan, REFERENCE_SEED};
 use super::{Integral, IntegralSet};
-use crate::film::file::{build_id, profile_record, read_film, write_film, FilmHeader};
+use crate::film::file::{build_id, read_film, write_film, FilmHeader};
 use crate::film::output::{read_image, write_atomic, write_image_with, Provenance};
 use crate::film::Film;
-use crate::render::{unit_count, RenderJob, TILE};
+use crate::render::{RenderJob, TILE};
 use crate::sample::Strategy;
 use crate::scene::{Profile, Scene};
 use crate::wavefront::Settings;
@@ -294,22 +294,11 @@ fn rendered(
     // Resumable: an interrupted reference keeps its finished work units in a film beside the cache
     // (`reference-<key>.film`, named by the same key), which the same study continues.
     let partial = exr.with_extension("film");
-    let n_units = unit_count(scene.width, scene.height, TILE, 0..ref_profile.spp);
-    let header = FilmHeader {
-        width: scene.width,
-        height: scene.height,
-        spp: ref_profile.spp,
-        samples: 0..ref_profile.spp,
-        tile: TILE,
-        scene_hash: scene.hash,
-        seed: REFERENCE_SEED,
-        profile: profile_record(&ref_profile),
-        completed: vec![false; n_units],
-        build: build_id(),
-    };
+    let header = FilmHeader::fresh(scene, &ref_profile, 0..ref_profile.spp, TILE, REFERENCE_SEED);
+    let n_units = header.completed.len();
     let (film, completed) = match read_film(&partial) {
         Ok(f) if f.header == FilmHeader { completed: f.header.completed.clone(), ..header.clone() } => (f.film, f.header.completed),
-        _ => (Film::new(scene.width, scene.height), vec![false; n_units]),
+        _ => (Film::new(scene.width, scene.height), header.completed.clone()),
     };
     let resumed = completed.iter().filter(|&&c| c).count();
     let mut job = RenderJob::new(scene, Settings { profile: ref_profile.clone(), seed: REFERENCE_SEED });
@@ -333,14 +322,7 @@ fn rendered(
     let rgb = film.to_rgb();
     // The image first, then the sidecar: an interrupted write leaves no sidecar, so no stale reuse.
     let _ = std::fs::remove_file(&txt);
-    let provenance = Provenance {
-        scene_hash: scene.hash,
-        seed: REFERENCE_SEED,
-        samples: 0..ref_profile.spp,
-        spp: ref_profile.spp,
-        profile: profile_record(&ref_profile),
-        complete: true,
-    };
+    let provenance = Provenance::of(&FilmHeader { completed, ..header });
     write_image_with(&exr, scene.width, scene.height, &rgb, Some(&provenance)).map_err(RefError::Runtime)?;
     // (Hashed as read back, as a later study reads it.)
     let (_, _, written) = read_image(&exr).map_err(RefError::Runtime)?;
