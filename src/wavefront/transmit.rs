@@ -170,6 +170,12 @@ pub fn transmittance_x8(
                 // The face's normal direction in world space (the row of the world-to-object map for its
                 // axis); only |cos| is used, the side comes from the interval.
                 Shape::Box(b) => (Mat3::from(b.world_to_object.matrix3).row(r.leaf as usize).normalize_or_zero(), prim.material),
+                // A CSG leaf's normal at the unprojected point: only |cos| is used, which the shading
+                // stage's projection onto the surface changes by ULPs.
+                Shape::Csg { .. } => {
+                    let leaf = scene.csg.leaf(r.leaf);
+                    (leaf.normal(o + d * r.t - prim.motion * time[l]), leaf.material)
+                }
                 _ => {
                     let ray = RayItem { o, d, time: time[l], ..RayItem::default() };
                     let h = surface_hit(scene, &ray, r.t, r.prim, r.leaf, r.flip);
