@@ -219,7 +219,7 @@ fn degenerate_origins_are_not_cleared() {
 /// rays that cross the sphere once are left to the traversal.
 #[test]
 fn single_sphere_lanes_match_the_traversal_and_the_walk() {
-    use strata::wavefront::transmit::{pair_sphere, single_sphere_x8, transmittance_x8, Walk};
+    use strata::wavefront::transmit::{pair_sphere, single_sphere_x8, transmittance_x8, SingleSpheres, Walk};
     let mut profile = Profile::builtin("bench");
     profile.transmissive_shadows = true;
     let mut arena = CsgArena::new();
@@ -234,11 +234,13 @@ fn single_sphere_lanes_match_the_traversal_and_the_walk() {
             return;
         }
         let (ts, end) = targets(r, &ch.light);
+        let spheres = SingleSpheres::new(scene, &profile, &v.prim, lanes);
         for &t in &ts {
             let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| t[a] - ch.os[l][a])));
             let tmax = f32x8::from(std::array::from_fn(|l| if lanes & (1 << l) != 0 { end } else { -1.0 }));
             let ray = Ray8::new(o, d, tmax);
-            let (done, tr) = single_sphere_x8(scene, &profile, &v.prim, &ray, lanes);
+            let (done, tr) = single_sphere_x8(scene, &spheres, &ray, lanes);
+            let tr: [Vec3; LANES] = std::array::from_fn(|l| Vec3::new(tr.x.to_array()[l], tr.y.to_array()[l], tr.z.to_array()[l]));
             let (occ, touched) = occlusion_x8(scene, &profile, &ray, None, &mut arena, true);
             assert_eq!(occ.to_bitmask() & done, 0, "case {}: a single-sphere lane is occluded", ch.case);
             let rows = |v: Vec3x8| [v.x.to_array(), v.y.to_array(), v.z.to_array()];

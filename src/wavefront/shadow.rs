@@ -15,7 +15,7 @@ use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::pick::LightPick;
 use super::queues::{NeeQueue, PathTable};
-use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, Walk};
+use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, SingleSpheres, Walk};
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{LightBuffer, WideStack, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
@@ -495,6 +495,7 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
                 }
                 _ => (0, 0, [0; LANES]),
             };
+            let spheres = (glass != 0).then(|| SingleSpheres::new(scene, profile, &prim_of, glass));
             let samples = gather8(&nee.sample, m == LANES, base, |l| base + l.min(m - 1));
             // The cleared lanes' contributions of this light, summed over its samples in registers.
             let mut cleared_sum = Vec3x8::splat(Vec3::ZERO);
@@ -572,14 +573,13 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
                     cleared += (lanes & clear).count_ones() as u64;
                 }
                 let mut lanes = lanes & !clear;
-                if lanes & glass != 0 {
+                if let Some(spheres) = spheres.as_ref().filter(|_| lanes & glass != 0) {
                     let d = target - o;
                     let tmax = mask_from_bits(lanes & glass).select(f32x8::splat(end), f32x8::splat(-1.0));
                     // Rays crossing the sphere once (not `done`) go on to the batch.
-                    let (done, tr) = single_sphere_x8(scene, profile, &prim_of, &Ray8::new(o, d, tmax), lanes & glass);
+                    let (done, t) = single_sphere_x8(scene, spheres, &Ray8::new(o, d, tmax), lanes & glass);
                     if done != 0 {
                         let keep = mask_from_bits(done);
-                        let t = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| tr[l][a])));
                         cleared_sum = cleared_sum + Vec3x8::new((c.x * t.x) & keep, (c.y * t.y) & keep, (c.z * t.z) & keep);
                         traced += done.count_ones() as u64;
                         lanes &= !done;

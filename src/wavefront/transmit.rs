@@ -32,7 +32,7 @@ use crate::csg::{crossings_x8, CsgArena};
 use crate::geometry::{ellipsoid_interval_x8, obox_interval_x8, sphere_interval_x8};
 use crate::optics::{beer_lambert, fresnel_dielectric, fresnel_dielectric_x8, fresnel_schlick};
 use crate::scene::{Material, Prim, Profile, Scene, Shape};
-use crate::simd::{f32x8, lane_bits, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x8, lane_bits, mask_from_bits, Ray8, Vec3x8, LANES};
 use glam::{Mat3, Vec3};
 
 /// Surfaces recorded per shadow ray; a ray that crosses more is taken as blocked.
@@ -231,22 +231,80 @@ fn sphere_pairs_x8(scene: &Scene, profile: &Profile, cr: &Walk, ray: &Ray8, time
     pair_transmittance_x8(scene, profile, &prims, t, ray, time, pairs, tr);
 }
 
-/// Shadow rays that can meet no surface but one sphere `prims[l]` (the light-cone test's verdict) of a
-/// dielectric they walk through ([`pair_sphere`]): per lane of `lanes`, the transmittance of the ray,
-/// exactly as the traversal and the walk would give it (1 where it misses the sphere; the pair's
-/// `sphere_pairs_x8` where it enters and leaves it within the segment). Lanes that cross the sphere
-/// once (a segment starting or ending inside it) are left out of the returned mask: they are traced.
-pub fn single_sphere_x8(scene: &Scene, profile: &Profile, prims: &[u32; LANES], ray: &Ray8, lanes: u32) -> (u32, [Vec3; LANES]) {
-    let mut tr = [Vec3::ONE; LANES];
+/// The spheres of the lanes whose light-cone verdict is one glass sphere each ([`pair_sphere`]), with
+/// what [`single_sphere_x8`] needs of them, made once per chunk of shading points for all their light
+/// samples.
+pub struct SingleSpheres {
+    /// The distinct spheres and their lanes.
+    groups: [(u32, u32); LANES],
+    n_groups: usize,
+    /// Per lane (other lanes: the first lane's): the sphere's centre and its medium's index.
+    c: Vec3x8,
+    ior: f32x8,
+    /// Lanes whose sphere absorbs (their transmittance has a per-lane `exp`), and lanes whose sphere
+    /// stops shadow rays (of index other than 1, passable but not under `transmissive_shadows`).
+    absorbs: u32,
+    blocks: u32,
+    sigma_a: [Vec3; LANES],
+}
+
+impl SingleSpheres {
+    /// The spheres `prims[l]` of lanes `lanes` (each a [`pair_sphere`]).
+    pub fn new(scene: &Scene, profile: &Profile, prims: &[u32; LANES], lanes: u32) -> SingleSpheres {
+        let mut out = SingleSpheres {
+            groups: [(0, 0); LANES],
+            n_groups: 0,
+            c: Vec3x8::splat(Vec3::ZERO),
+            ior: f32x8::ONE,
+            absorbs: 0,
+            blocks: 0,
+            sigma_a: [Vec3::ZERO; LANES],
+        };
+        if lanes == 0 {
+            return out;
+        }
+        let l0 = lanes.trailing_zeros() as usize;
+        let (mut rows, mut ior) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
+        let mut todo = lanes;
+        while todo != 0 {
+            let pid = prims[todo.trailing_zeros() as usize];
+            let same = todo & lane_bits(|l| prims[l] == pid);
+            todo &= !same;
+            out.groups[out.n_groups] = (pid, same);
+            out.n_groups += 1;
+        }
+        for l in 0..LANES {
+            let pid = if lanes & (1 << l) != 0 { prims[l] } else { prims[l0] };
+            let prim = &scene.prims[pid as usize];
+            let Shape::Sphere { center, .. } = prim.shape else { unreachable!("pair_sphere checked the shape") };
+            let d = medium::dielectric(scene, prim.material).expect("pair_sphere checked the material");
+            (rows[0][l], rows[1][l], rows[2][l]) = (center.x, center.y, center.z);
+            ior[l] = d.ior.nominal();
+            out.sigma_a[l] = d.sigma_a;
+            out.absorbs |= ((d.sigma_a != Vec3::ZERO) as u32) << l;
+            out.blocks |= ((ior[l] != 1.0 && !profile.transmissive_shadows) as u32) << l;
+        }
+        (out.c, out.ior) = (Vec3x8::from_rows(&rows), f32x8::from(ior));
+        out
+    }
+}
+
+/// Shadow rays that can meet no surface but one sphere (the light-cone test's verdict) of a dielectric
+/// they walk through ([`pair_sphere`], gathered in `spheres`): per lane of `lanes` (a subset of those the
+/// spheres were made for), the transmittance of the ray, exactly as the traversal and the walk would
+/// give it (1 where it misses the sphere; the pair's, as `sphere_pairs_x8` gives it, where it enters and
+/// leaves it within the segment). Lanes that cross the sphere once (a segment starting or ending inside
+/// it) are left out of the returned mask: they are traced.
+pub fn single_sphere_x8(scene: &Scene, spheres: &SingleSpheres, ray: &Ray8, lanes: u32) -> (u32, Vec3x8) {
     let (mut pairs, mut done) = (0u32, 0u32);
-    let mut t = [[0.0f32; LANES]; 2];
+    let nan = f32x8::splat(f32::NAN);
+    let (mut t0, mut t1) = (nan, nan);
     let active = ray.tmax.simd_gt(f32x8::ZERO).to_bitmask();
-    let mut todo = lanes;
-    // Lanes usually share their sphere: one interval per distinct sphere.
-    while todo != 0 {
-        let pid = prims[todo.trailing_zeros() as usize];
-        let same = todo & lane_bits(|l| prims[l] == pid);
-        todo &= !same;
+    for &(pid, group) in &spheres.groups[..spheres.n_groups] {
+        let same = group & lanes;
+        if same == 0 {
+            continue;
+        }
         let Shape::Sphere { center, radius } = scene.prims[pid as usize].shape else { continue };
         // As the walk collects a sphere's crossings (`collect`).
         let (near, far) = sphere_interval_x8(center, radius, ray);
@@ -254,16 +312,33 @@ pub fn single_sphere_x8(scene: &Scene, profile: &Profile, prims: &[u32; LANES], 
         let (nb, fb) = (inside(near), inside(far));
         pairs |= same & nb & fb;
         done |= same & !(nb | fb);
-        let (n, f) = (near.to_array(), far.to_array());
-        for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
-            (t[0][l], t[1][l]) = (n[l], f[l]);
-        }
+        let keep = mask_from_bits(same);
+        (t0, t1) = (keep.select(near, t0), keep.select(far, t1));
     }
-    if pairs != 0 {
-        let l0 = pairs.trailing_zeros() as usize;
-        let prims = std::array::from_fn(|l| if pairs & (1 << l) != 0 { prims[l] } else { prims[l0] });
-        let t = t.map(|row| std::array::from_fn(|l| if pairs & (1 << l) != 0 { row[l] } else { row[l0] }));
-        pair_transmittance_x8(scene, profile, &prims, t, ray, &[0.0; LANES], pairs, &mut tr);
+    let one = Vec3x8::splat(Vec3::ONE);
+    if pairs == 0 {
+        return (done, one);
+    }
+    // Lanes outside the pairs take a pair lane's crossings (their results are not used).
+    let l0 = f32x8::splat(t0.to_array()[pairs.trailing_zeros() as usize]);
+    let l1 = f32x8::splat(t1.to_array()[pairs.trailing_zeros() as usize]);
+    let is_pair = mask_from_bits(pairs);
+    let (t0, t1) = (is_pair.select(t0, l0), is_pair.select(t1, l1));
+    let (f0, f1, s0, s1) = pair_fresnel_x8(spheres.c, spheres.ior, [t0, t1], ray);
+    let t = f0 * f1;
+    let mut tr = Vec3x8::select(is_pair & !mask_from_bits(spheres.blocks), Vec3x8::new(t, t, t), Vec3x8::splat(Vec3::ZERO));
+    tr = Vec3x8::select(mask_from_bits(done), one, tr);
+    let mut absorbing = pairs & spheres.absorbs & !spheres.blocks;
+    if absorbing != 0 {
+        let mut rows = [tr.x.to_array(), tr.y.to_array(), tr.z.to_array()];
+        let (f0, f1, s0, s1) = (f0.to_array(), f1.to_array(), s0.to_array(), s1.to_array());
+        while absorbing != 0 {
+            let l = absorbing.trailing_zeros() as usize;
+            absorbing &= absorbing - 1;
+            let v = Vec3::ONE * f0[l] * beer_lambert(spheres.sigma_a[l], s1[l] - s0[l]) * f1[l];
+            (rows[0][l], rows[1][l], rows[2][l]) = (v.x, v.y, v.z);
+        }
+        tr = Vec3x8::from_rows(&rows);
     }
     (pairs | done, tr)
 }
@@ -295,7 +370,6 @@ fn pair_transmittance_x8(
     pairs: u32,
     tr: &mut [Vec3; LANES],
 ) {
-    let (zero, one) = (f32x8::ZERO, f32x8::ONE);
     // Per lane: the sphere's centre at the lane's time and the medium's index.
     let mut rows = [[0.0f32; LANES]; 6];
     let mut ior = [1.0f32; LANES];
@@ -311,30 +385,7 @@ fn pair_transmittance_x8(
     let tm = f(time);
     // centre + motion * time, unfused as `Vec3` computes it.
     let c = Vec3x8::new(f(&rows[0]) + f(&rows[3]) * tm, f(&rows[1]) + f(&rows[4]) * tm, f(&rows[2]) + f(&rows[5]) * tm);
-    let (o, d) = (ray.o, ray.d);
-    // `normalize_or_zero`: `v * (1 / |v|)` when that reciprocal is finite and positive, else zero.
-    let normalize = |v: Vec3x8| {
-        let rcp = one / v.dot_unfused(v).sqrt();
-        let ok = rcp.is_finite() & rcp.simd_gt(zero);
-        Vec3x8::select(ok, v.scale(rcp), Vec3x8::splat(Vec3::ZERO))
-    };
-    let len = d.dot_unfused(d).sqrt();
-    let unit = normalize(d);
-    // Each crossing's distance along the segment and |cos| to its normal.
-    let crossing = |t: f32x8| {
-        let p = o + d.scale(t);
-        let n = normalize(p - c);
-        (t * len, unit.dot_unfused(n).abs())
-    };
-    let ((s0, cos0), (s1, cos1)) = (crossing(f(&t[0])), crossing(f(&t[1])));
-    let n = f(&ior);
-    // Entering (n1, n2) = (1, n), leaving (n, 1): both weighed from the air side, eta = 1 / n
-    // (`straight_eta`; glass of index below 1 too: its rarer side is inside); no Fresnel factor where
-    // n1 == n2.
-    let matched = n.simd_eq(one);
-    let eta = n.simd_gt(one).select(one / n, n);
-    let f0 = matched.select(one, one - fresnel_dielectric_x8(cos0, eta));
-    let f1 = matched.select(one, one - fresnel_dielectric_x8(cos1, eta));
+    let (f0, f1, s0, s1) = pair_fresnel_x8(c, f(&ior), [f(&t[0]), f(&t[1])], ray);
     let (f0, f1, s0, s1) = (f0.to_array(), f1.to_array(), s0.to_array(), s1.to_array());
     let mut bits = pairs;
     while bits != 0 {
@@ -351,6 +402,38 @@ fn pair_transmittance_x8(
         }
         tr[l] = v * f1[l];
     }
+}
+
+/// The two crossings `t` (entry, exit) of spheres centred at `c` of index `n`, as the per-lane walk
+/// weighs them: each one's Fresnel transmission `1 - F` and distance along the segment (`f0`, `f1`,
+/// `s0`, `s1`).
+#[inline(always)]
+fn pair_fresnel_x8(c: Vec3x8, n: f32x8, t: [f32x8; 2], ray: &Ray8) -> (f32x8, f32x8, f32x8, f32x8) {
+    let one = f32x8::ONE;
+    let (o, d) = (ray.o, ray.d);
+    // `normalize_or_zero`: `v * (1 / |v|)` when that reciprocal is finite and positive, else zero.
+    let normalize = |v: Vec3x8| {
+        let rcp = one / v.dot_unfused(v).sqrt();
+        let ok = rcp.is_finite() & rcp.simd_gt(f32x8::ZERO);
+        Vec3x8::select(ok, v.scale(rcp), Vec3x8::splat(Vec3::ZERO))
+    };
+    let len = d.dot_unfused(d).sqrt();
+    let unit = normalize(d);
+    // Each crossing's distance along the segment and |cos| to its normal.
+    let crossing = |t: f32x8| {
+        let p = o + d.scale(t);
+        let n = normalize(p - c);
+        (t * len, unit.dot_unfused(n).abs())
+    };
+    let ((s0, cos0), (s1, cos1)) = (crossing(t[0]), crossing(t[1]));
+    // Entering (n1, n2) = (1, n), leaving (n, 1): both weighed from the air side, eta = 1 / n
+    // (`straight_eta`; glass of index below 1 too: its rarer side is inside); no Fresnel factor where
+    // n1 == n2.
+    let matched = n.simd_eq(one);
+    let eta = n.simd_gt(one).select(one / n, n);
+    let f0 = matched.select(one, one - fresnel_dielectric_x8(cos0, eta));
+    let f1 = matched.select(one, one - fresnel_dielectric_x8(cos1, eta));
+    (f0, f1, s0, s1)
 }
 
 /// Transmittance of lane `l`'s segment (of length `len`) from its collected crossings: 0 at a surface that
