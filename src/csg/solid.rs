@@ -24,6 +24,7 @@
 //! taken to object space by the inverse transform *without* renormalising the direction, so the ray
 //! parameter `t` is the same in both spaces. World normals use the inverse transpose of the linear part.
 
+use crate::simd::{f32x8, Vec3x8};
 use glam::{Affine3A, DAffine3, Mat3A, Quat, Vec3, Vec3A};
 
 /// A canonical shape (see the module docs for the exact sets).
@@ -104,6 +105,32 @@ impl Leaf {
         let q = self.world_to_object.transform_point3(p);
         let n = self.normal_to_world * Vec3A::from(object_normal(self.shape, q));
         Vec3::from(n).normalize_or(Vec3::Z)
+    }
+
+    /// [`Leaf::normal`] at 8 world points, rounded as it rounds them, for the shapes whose object normal
+    /// has an 8-lane form here (sphere, box, half-space); `None` for the others.
+    #[inline]
+    pub fn normal_x8(&self, p: Vec3x8) -> Option<Vec3x8> {
+        let col = |v: Vec3A| Vec3x8::splat(Vec3::from(v));
+        // `Mat3A * Vec3A` as glam rounds it: ((x p.x + y p.y) + z p.z), no FMA.
+        let mul = |m: &Mat3A, v: Vec3x8| col(m.x_axis).scale(v.x) + col(m.y_axis).scale(v.y) + col(m.z_axis).scale(v.z);
+        let q = || mul(&self.world_to_object.matrix3, p) + col(self.world_to_object.translation);
+        let on = match self.shape {
+            Shape::Sphere => q(),
+            Shape::Box => {
+                // `box_axis`: the largest |q_i|, x before y before z on ties; its sign (`signum`).
+                let q = q();
+                let (ax, ay, az) = (q.x.abs(), q.y.abs(), q.z.abs());
+                let x = ax.simd_ge(ay) & ax.simd_ge(az);
+                let y = !x & ay.simd_ge(az);
+                let z = !(x | y);
+                let sign = |v: f32x8| (v & f32x8::splat(-0.0)) | f32x8::ONE;
+                Vec3x8::new(sign(q.x) & x, sign(q.y) & y, sign(q.z) & z)
+            }
+            Shape::HalfSpace => Vec3x8::splat(Vec3::Z),
+            _ => return None,
+        };
+        Some(mul(&self.normal_to_world, on).normalize_or(Vec3x8::splat(Vec3::Z)))
     }
 
     /// A world point `p` on (or within rounding of) this leaf's surface, moved onto it in object space

@@ -47,6 +47,8 @@ struct Event {
     entering: bool,
     /// |cos| of the angle between the segment and the surface normal.
     cos: f32,
+    /// The Fresnel transmission `1 - F` at `cos` between the material and air ([`air_eta`]).
+    tf: f32,
 }
 
 /// Whether some dielectric lets shadow rays through under this profile (else the walk is never needed).
@@ -140,7 +142,6 @@ pub fn transmittance_x8(
     arena: &mut CsgArena,
     walk: &mut Walk,
 ) -> ([Vec3; LANES], u64) {
-    let start: [Vec3; LANES] = std::array::from_fn(|l| Vec3::new(o[0][l], o[1][l], o[2][l]));
     let dir: [Vec3; LANES] = std::array::from_fn(|l| Vec3::new(d[0][l], d[1][l], d[2][l]));
     let tm = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if lanes & (1 << l) != 0 { tmax[l] } else { -1.0 }));
     let ray = Ray8::new(Vec3x8::from_rows(o), Vec3x8::from_rows(d), tm);
@@ -157,21 +158,73 @@ pub fn transmittance_x8(
         sphere_pairs_x8(scene, profile, cr, &ray, time, pairs, &mut tr);
     }
     let rest = lanes & !pairs;
-    // What the replay needs of every boundary's surface: its side, material and the angle (a sphere's
-    // normal straight from the point on the segment; other shapes as the shading stage finds them).
-    for l in (0..LANES).filter(|&l| rest & (1 << l) != 0) {
-        let (o, d) = (start[l], dir[l]);
-        let (len, unit) = (d.length(), d.normalize_or_zero());
-        for k in 0..cr.count[l] {
+    events(scene, cr, &ray, time, rest & !cr.full);
+
+    let mut bits = rest & !cr.full;
+    while bits != 0 {
+        let l = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        tr[l] = lane_transmittance(scene, profile, cr, l, (dir[l] * tmax[l]).length());
+    }
+    (tr, lanes.count_ones() as u64)
+}
+
+/// What the replay needs of every boundary's surface (its side, material, angle and Fresnel
+/// transmission) for the lanes `lanes`, the `k`-th boundaries of all lanes at once: CSG leaves' normals
+/// in 8 lanes per distinct leaf ([`Leaf::normal_x8`] at the unprojected point: only |cos| is used, which
+/// the shading stage's projection onto the surface changes by ULPs); a sphere's normal straight from the
+/// point on the segment, a box's from its face's axis, other shapes' as the shading stage finds them,
+/// lane by lane.
+///
+/// [`Leaf::normal_x8`]: crate::csg::Leaf::normal_x8
+fn events(scene: &Scene, cr: &mut Walk, ray: &Ray8, time: &[f32; LANES], lanes: u32) {
+    let (o, d) = (ray.o, ray.d);
+    // `length` and `normalize_or_zero` as glam rounds them.
+    let (len, unit) = (d.dot_unfused(d).sqrt(), d.normalize_or(Vec3x8::splat(Vec3::ZERO)));
+    let (len_l, time8) = (len.to_array(), f32x8::from(*time));
+    let mut deepest = 0;
+    let mut bits = lanes;
+    while bits != 0 {
+        deepest = deepest.max(cr.count[bits.trailing_zeros() as usize]);
+        bits &= bits - 1;
+    }
+    for k in 0..deepest {
+        let at = lanes & lane_bits(|l| cr.count[l] > k);
+        let t = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if at & (1 << l) != 0 { cr.raw[l][k].t } else { 0.0 }));
+        let mut csg = at & lane_bits(|l| at & (1 << l) != 0 && matches!(scene.prims[cr.raw[l][k].prim as usize].shape, Shape::Csg { .. }));
+        let (mut cos, mut eta) = (f32x8::ZERO, f32x8::ONE);
+        let mut material = [0u32; LANES];
+        let mut wide = 0;
+        while csg != 0 {
+            let r0 = cr.raw[csg.trailing_zeros() as usize][k];
+            let same = csg & lane_bits(|l| cr.raw[l][k].leaf == r0.leaf && cr.raw[l][k].prim == r0.prim);
+            csg &= !same;
+            let (leaf, prim) = (scene.csg.leaf(r0.leaf), &scene.prims[r0.prim as usize]);
+            let p = o + d.scale(t) - Vec3x8::splat(prim.motion).scale(time8);
+            if let Some(n) = leaf.normal_x8(p) {
+                let keep = mask_from_bits(same);
+                cos = keep.select(unit.dot_unfused(n), cos);
+                eta = keep.select(f32x8::splat(air_eta(scene, leaf.material)), eta);
+                for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
+                    material[l] = leaf.material;
+                }
+                wide |= same;
+            }
+        }
+        // The rest lane by lane.
+        let (mut cos_l, mut eta_l) = (cos.to_array(), eta.to_array());
+        let mut narrow = at & !wide;
+        while narrow != 0 {
+            let l = narrow.trailing_zeros() as usize;
+            narrow &= narrow - 1;
             let r = cr.raw[l][k];
             let prim = &scene.prims[r.prim as usize];
-            let (n, material) = match prim.shape {
+            let (o, d) = (o.lane(l), d.lane(l));
+            let (n, m) = match prim.shape {
                 Shape::Sphere { center, .. } => ((o + d * r.t - (center + prim.motion * time[l])).normalize_or_zero(), prim.material),
                 // The face's normal direction in world space (the row of the world-to-object map for its
                 // axis); only |cos| is used, the side comes from the interval.
                 Shape::Box(b) => (Mat3::from(b.world_to_object.matrix3).row(r.leaf as usize).normalize_or_zero(), prim.material),
-                // A CSG leaf's normal at the unprojected point: only |cos| is used, which the shading
-                // stage's projection onto the surface changes by ULPs.
                 Shape::Csg { .. } => {
                     let leaf = scene.csg.leaf(r.leaf);
                     (leaf.normal(o + d * r.t - prim.motion * time[l]), leaf.material)
@@ -182,19 +235,32 @@ pub fn transmittance_x8(
                     (h.n, h.material)
                 }
             };
-            let cos = unit.dot(n);
-            let entering = if r.side == SIDE_NORMAL { cos < 0.0 } else { r.side == SIDE_ENTRY };
-            cr.geo[l][k] = Event { s: r.t * len, material, entering, cos: cos.abs() };
+            (cos_l[l], eta_l[l], material[l]) = (unit.lane(l).dot(n), air_eta(scene, m), m);
+        }
+        // Each crossing's Fresnel transmission against air, for the one-medium replay.
+        let tf = (f32x8::ONE - fresnel_dielectric_x8(f32x8::from(cos_l).abs(), f32x8::from(eta_l))).to_array();
+        let mut bits = at;
+        while bits != 0 {
+            let l = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let r = &cr.raw[l][k];
+            let entering = if r.side == SIDE_NORMAL { cos_l[l] < 0.0 } else { r.side == SIDE_ENTRY };
+            cr.geo[l][k] = Event { s: r.t * len_l[l], material: material[l], entering, cos: cos_l[l].abs(), tf: tf[l] };
         }
     }
+}
 
-    let mut bits = rest & !cr.full;
-    while bits != 0 {
-        let l = bits.trailing_zeros() as usize;
-        bits &= bits - 1;
-        tr[l] = lane_transmittance(scene, profile, cr, l, (dir[l] * tmax[l]).length());
+/// The `eta` at which a crossing between material `m` (a dielectric) and air is weighed by the one-medium
+/// replay ([`straight_eta`] of its index against 1, either way); 1 for other materials (unused).
+#[inline(always)]
+fn air_eta(scene: &Scene, m: u32) -> f32 {
+    match medium::dielectric(scene, m) {
+        Some(d) => {
+            let n = d.ior.nominal();
+            straight_eta(n, 1.0)
+        }
+        None => 1.0,
     }
-    (tr, lanes.count_ones() as u64)
 }
 
 /// The lanes (among `lanes`) whose crossings are exactly a sphere's entry and exit (in that order) and
@@ -573,8 +639,8 @@ fn replay_one_medium(scene: &Scene, profile: &Profile, events: &[Event], len: f3
             if !profile.transmissive_shadows {
                 return Some(Vec3::ZERO);
             }
-            let eta = straight_eta(n1, n2);
-            tr *= 1.0 - if d.schlick { fresnel_schlick(e.cos, eta) } else { fresnel_dielectric(e.cos, eta) };
+            // (`e.tf` is `1 - fresnel_dielectric` at this eta, `straight_eta(n, 1)`.)
+            tr *= if d.schlick { 1.0 - fresnel_schlick(e.cos, straight_eta(n1, n2)) } else { e.tf };
         }
         inside = !inside;
     }
@@ -743,7 +809,7 @@ mod tests {
             let mut events: Vec<Event> = (0..n)
                 .map(|i| {
                     s += 0.01 + 2.0 * unit();
-                    Event { s, material: m, entering: (i % 2 == 0) != from_inside, cos: unit() }
+                    Event { s, material: m, entering: (i % 2 == 0) != from_inside, cos: unit(), tf: 0.0 }
                 })
                 .collect();
             // Every fifth sequence is not one medium's: another medium, a thin pane, or out of turn.
@@ -754,6 +820,9 @@ mod tests {
                     1 => events[k].material = pane,
                     _ => events[k].entering = !events[k].entering,
                 }
+            }
+            for e in &mut events {
+                e.tf = 1.0 - fresnel_dielectric(e.cos, air_eta(&scene, e.material));
             }
             let len = s + unit();
             let general = replay_media(&scene, &profile, &events, len);
