@@ -332,6 +332,53 @@ pub fn inside_object(shape: Shape, q: Vec3) -> bool {
 mod tests {
     use super::*;
 
+    /// [`Leaf::normal_x8`] is [`Leaf::normal`] bit for bit (sphere, box and half-space leaves under
+    /// rotations, non-uniform scales and translations, at points on, near and off their surfaces,
+    /// box points near edges included), and declines the other shapes.
+    #[test]
+    fn normal_x8_equals_the_scalar_normal() {
+        let mut seed = 0x0a0e_u64;
+        let mut u = move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32) / (1u64 << 24) as f32
+        };
+        let mut checked = 0;
+        for case in 0..600 {
+            let shape = [Shape::Sphere, Shape::Box, Shape::HalfSpace][case % 3];
+            let scale = Vec3::new(0.2 + 3.0 * u(), 0.2 + 3.0 * u(), 0.2 + 3.0 * u());
+            let rot = Quat::from_euler(glam::EulerRot::XYZ, 6.0 * u(), 6.0 * u(), 6.0 * u());
+            let at = Vec3::new(u(), u(), u()) * 20.0 - 10.0;
+            let leaf = Leaf::new(shape, Affine3A::from_scale_rotation_translation(scale, rot, at), 0);
+            // Object points on the unit surface (a box's face, or within 1e-6 of its edges), scaled by
+            // 0.5..1.5, then placed.
+            let q: [Vec3; 8] = std::array::from_fn(|l| {
+                let v = Vec3::new(u() * 2.0 - 1.0, u() * 2.0 - 1.0, u() * 2.0 - 1.0);
+                let on = match shape {
+                    Shape::Box if l % 2 == 0 => v.signum(),
+                    Shape::Box => {
+                        let mut e = v;
+                        e[l % 3] = v[l % 3].signum();
+                        e[(l + 1) % 3] = v[(l + 1) % 3].signum() * (1.0 - 1e-6 * u());
+                        e
+                    }
+                    _ => v.normalize(),
+                };
+                on * (0.5 + u())
+            });
+            let p: [Vec3; 8] = std::array::from_fn(|l| leaf.object_to_world.transform_point3(q[l]));
+            let rows = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| p[l][a])));
+            let got = leaf.normal_x8(rows).expect("an 8-lane normal");
+            for (l, &p) in p.iter().enumerate() {
+                assert_eq!(got.lane(l).to_array().map(f32::to_bits), leaf.normal(p).to_array().map(f32::to_bits), "case {case} lane {l}");
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 4800);
+        for shape in [Shape::Cylinder, Shape::Cone { r0: 0.5, r1: 1.0 }, Shape::Torus { major: 1.0, minor: 0.3 }] {
+            assert!(Leaf::new(shape, Affine3A::IDENTITY, 0).normal_x8(Vec3x8::splat(Vec3::ONE)).is_none());
+        }
+    }
+
     /// [`project_object`] puts points a little off each canonical surface (1e-4 along a random
     /// direction, away from edges) back on it: the surface's own distance function is ~0 there, and the
     /// point moved no farther than it was off. Undefined cases give `None`.

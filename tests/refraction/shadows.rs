@@ -197,6 +197,37 @@ fn transmissive_shadow_through_a_csg_cavity() {
     assert!(close(t, want, 1e-4), "beside the cavity: {t:?} vs {want:?}");
 }
 
+/// Through a CSG glass slab placed by a rotation inside a non-uniform scale, crossed obliquely: the walk
+/// takes each crossing's angle from the leaf's normal (in 8 lanes, `Leaf::normal_x8`), which the scale
+/// bends away from the rotated face's direction. The slab's world normal is `m = S^-1 R y` (its planes
+/// `m . p = +-h` about the centre) and its thickness `2h / |m|`: `(1 - F(theta))^2 e^(-sigma d / cos)` at
+/// the angle between the segment and `m`.
+#[test]
+fn transmissive_shadow_through_a_scaled_rotated_csg_slab() {
+    let slab = "[[shapes]]\ntype = \"csg\"\nop = \"intersection\"\nmaterial = \"glass\"\n\
+                transform = { scale = [2, 1, 1], translate = [0, 2, 0] }\nchildren = [\n\
+                { type = \"box\", min = [-30, -0.25, -30], max = [30, 0.25, 30], transform = { rotate = [0, 0, 30] } },\n\
+                { type = \"box\", min = [-20, -20, -20], max = [20, 20, 20] },\n]\n";
+    let (s, c) = (30f64.to_radians().sin(), 30f64.to_radians().cos());
+    let m = DVec3::new(-s / 2.0, c, 0.0);
+    let thickness = 0.5 / m.length();
+    let mut angles = Vec::new();
+    for x in [-3.0f64, -1.0, 1.0, 3.0, 8.0, 20.0] {
+        let (light, p) = (DVec3::new(0.0, 4.5, 0.0), DVec3::new(x, 0.0, 0.0));
+        // (The point below the slab's lower plane, the light above its upper one: m . (x - c) = -+0.25.)
+        let side = |v: DVec3| m.dot(v - DVec3::new(0.0, 2.0, 0.0));
+        assert!(side(p) < -0.3 && side(light) > 0.3, "x = {x}: the slab must lie between the point and the light");
+        let cos = (light - p).normalize().dot(m.normalize()).abs();
+        let t = transmittance(slab, GLASS, light.as_vec3(), p.as_vec3(), true);
+        let want = (-SIGMA * thickness / cos).exp() * (1.0 - fresnel64(cos, 1.0, 1.5)).powi(2);
+        eprintln!("scaled rotated slab at {:.1} degrees: {t:?}, expected {want:?}", cos.acos().to_degrees());
+        assert!(close(t, want, 1e-4), "x = {x}: {t:?} vs {want:?}");
+        angles.push(cos.acos().to_degrees());
+    }
+    // The cases cross the slab from near its normal to steeply.
+    assert!(angles.iter().cloned().fold(f64::MAX, f64::min) < 15.0 && angles.iter().cloned().fold(0.0, f64::max) > 55.0, "{angles:?}");
+}
+
 /// A point light inside a glass ball: the segment enters the ball once and ends inside it (the ball's far
 /// crossing seen from the light is that same entry, counted once), then is absorbed over the radius.
 #[test]
