@@ -107,30 +107,70 @@ impl Leaf {
         Vec3::from(n).normalize_or(Vec3::Z)
     }
 
-    /// [`Leaf::normal`] at 8 world points, rounded as it rounds them, for the shapes whose object normal
-    /// has an 8-lane form here (sphere, box, half-space); `None` for the others.
+    /// Whether [`Leaf::normal_x8`] and [`Leaf::refine_x8`] have an 8-lane form of this leaf's shape
+    /// (sphere, box, cylinder, half-space).
+    #[inline]
+    pub fn has_x8(&self) -> bool {
+        matches!(self.shape, Shape::Sphere | Shape::Box | Shape::Cylinder | Shape::HalfSpace)
+    }
+
+    /// [`Leaf::normal`] at 8 world points, rounded as it rounds them (NaN lanes aside), for the shapes of
+    /// [`Leaf::has_x8`]; `None` for the others.
     #[inline]
     pub fn normal_x8(&self, p: Vec3x8) -> Option<Vec3x8> {
-        let col = |v: Vec3A| Vec3x8::splat(Vec3::from(v));
-        // `Mat3A * Vec3A` as glam rounds it: ((x p.x + y p.y) + z p.z), no FMA.
-        let mul = |m: &Mat3A, v: Vec3x8| col(m.x_axis).scale(v.x) + col(m.y_axis).scale(v.y) + col(m.z_axis).scale(v.z);
-        let q = || mul(&self.world_to_object.matrix3, p) + col(self.world_to_object.translation);
+        let q = affine_x8(&self.world_to_object, p);
         let on = match self.shape {
-            Shape::Sphere => q(),
+            Shape::Sphere => q,
             Shape::Box => {
-                // `box_axis`: the largest |q_i|, x before y before z on ties; its sign (`signum`).
-                let q = q();
-                let (ax, ay, az) = (q.x.abs(), q.y.abs(), q.z.abs());
-                let x = ax.simd_ge(ay) & ax.simd_ge(az);
-                let y = !x & ay.simd_ge(az);
-                let z = !(x | y);
-                let sign = |v: f32x8| (v & f32x8::splat(-0.0)) | f32x8::ONE;
-                Vec3x8::new(sign(q.x) & x, sign(q.y) & y, sign(q.z) & z)
+                let (x, y, z) = box_axis_x8(q);
+                Vec3x8::new(signum_x8(q.x) & x, signum_x8(q.y) & y, signum_x8(q.z) & z)
+            }
+            Shape::Cylinder => {
+                let rho = (q.x * q.x + q.y * q.y).sqrt();
+                let cap = cylinder_on_cap_x8(q, rho);
+                let zero = f32x8::ZERO;
+                Vec3x8::new(cap.select(zero, q.x / rho), cap.select(zero, q.y / rho), cap.select(signum_x8(q.z), zero))
             }
             Shape::HalfSpace => Vec3x8::splat(Vec3::Z),
             _ => return None,
         };
-        Some(mul(&self.normal_to_world, on).normalize_or(Vec3x8::splat(Vec3::Z)))
+        Some(mat3_x8(&self.normal_to_world, on).normalize_or(Vec3x8::splat(Vec3::Z)))
+    }
+
+    /// [`Leaf::refine`] of 8 world points, rounded as it rounds them, for the shapes of
+    /// [`Leaf::has_x8`] (`None` for the others): the points, their error magnitudes, and the lanes where
+    /// the scalar gives `Some` (elsewhere both are unspecified).
+    #[inline]
+    pub fn refine_x8(&self, p: Vec3x8) -> Option<(Vec3x8, f32x8, f32x8)> {
+        let q = affine_x8(&self.world_to_object, p);
+        let (zero, one) = (f32x8::ZERO, f32x8::ONE);
+        // `if v < 0 { -1 } else { 1 }`, the projection's side (a -0 goes to +1, unlike `signum`).
+        let side = |v: f32x8| v.simd_lt(zero).select(-one, one);
+        let all = zero.simd_eq(zero);
+        let (on, defined) = match self.shape {
+            Shape::Sphere => {
+                // `normalize_or_zero`, `None` for the zero vector.
+                let rcp = one / q.dot_unfused(q).sqrt();
+                (q.scale(rcp), rcp.is_finite() & rcp.simd_gt(zero))
+            }
+            Shape::Box => {
+                let (x, y, z) = box_axis_x8(q);
+                (Vec3x8::new(x.select(side(q.x), q.x), y.select(side(q.y), q.y), z.select(side(q.z), q.z)), all)
+            }
+            Shape::Cylinder => {
+                let rho = (q.x * q.x + q.y * q.y).sqrt();
+                let cap = cylinder_on_cap_x8(q, rho);
+                (Vec3x8::new(cap.select(q.x, q.x / rho), cap.select(q.y, q.y / rho), cap.select(side(q.z), q.z)), all)
+            }
+            Shape::HalfSpace => (Vec3x8::new(q.x, q.y, zero), all),
+            _ => return None,
+        };
+        let w = mat3_x8(&self.object_to_world.matrix3, on);
+        let t = Vec3x8::splat(Vec3::from(self.object_to_world.translation));
+        let out = w + t;
+        let finite = out.x.is_finite() & out.y.is_finite() & out.z.is_finite();
+        let mag = |v: Vec3x8| v.x.abs().max(v.y.abs().max(v.z.abs()));
+        Some((out, mag(t).max(mag(w)), defined & finite))
     }
 
     /// A world point `p` on (or within rounding of) this leaf's surface, moved onto it in object space
@@ -212,6 +252,41 @@ fn box_axis(q: Vec3) -> usize {
 #[inline(always)]
 fn cylinder_on_cap(q: Vec3, rho: f32) -> bool {
     (1.0 - q.z.abs()).abs() < (rho - 1.0).abs() || rho == 0.0
+}
+
+/// [`cylinder_on_cap`] in 8 lanes.
+#[inline(always)]
+fn cylinder_on_cap_x8(q: Vec3x8, rho: f32x8) -> f32x8 {
+    let one = f32x8::ONE;
+    (one - q.z.abs()).abs().simd_lt((rho - one).abs()) | rho.simd_eq(f32x8::ZERO)
+}
+
+/// [`box_axis`] in 8 lanes, as three lane masks (x, y, z).
+#[inline(always)]
+fn box_axis_x8(q: Vec3x8) -> (f32x8, f32x8, f32x8) {
+    let (ax, ay, az) = (q.x.abs(), q.y.abs(), q.z.abs());
+    let x = ax.simd_ge(ay) & ax.simd_ge(az);
+    let y = !x & ay.simd_ge(az);
+    (x, y, !(x | y))
+}
+
+/// `f32::signum` in 8 lanes, NaN lanes aside (they give +-1).
+#[inline(always)]
+fn signum_x8(v: f32x8) -> f32x8 {
+    (v & f32x8::splat(-0.0)) | f32x8::ONE
+}
+
+/// `Mat3A * Vec3A` in 8 lanes, as glam rounds it: `(x v.x + y v.y) + z v.z`, no FMA.
+#[inline(always)]
+fn mat3_x8(m: &Mat3A, v: Vec3x8) -> Vec3x8 {
+    let col = |c: Vec3A| Vec3x8::splat(Vec3::from(c));
+    col(m.x_axis).scale(v.x) + col(m.y_axis).scale(v.y) + col(m.z_axis).scale(v.z)
+}
+
+/// `Affine3A::transform_point3` in 8 lanes, as glam rounds it.
+#[inline(always)]
+fn affine_x8(a: &Affine3A, p: Vec3x8) -> Vec3x8 {
+    mat3_x8(&a.matrix3, p) + Vec3x8::splat(Vec3::from(a.translation))
 }
 
 /// The signed distance of `q` from the cone's slanted side `rho = m z + k` in the (rho, z) half-plane,
@@ -332,34 +407,45 @@ pub fn inside_object(shape: Shape, q: Vec3) -> bool {
 mod tests {
     use super::*;
 
-    /// [`Leaf::normal_x8`] is [`Leaf::normal`] bit for bit (sphere, box and half-space leaves under
-    /// rotations, non-uniform scales and translations, at points on, near and off their surfaces,
-    /// box points near edges included), and declines the other shapes.
+    /// [`Leaf::normal_x8`] and [`Leaf::refine_x8`] are [`Leaf::normal`] and [`Leaf::refine`] bit for bit
+    /// (sphere, box, cylinder and half-space leaves under rotations, non-uniform scales and
+    /// translations, at points on, near and off their surfaces, points within 1e-6 of edges included),
+    /// and decline the other shapes.
     #[test]
-    fn normal_x8_equals_the_scalar_normal() {
+    fn x8_forms_equal_the_scalar_ones() {
         let mut seed = 0x0a0e_u64;
         let mut u = move || {
             seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
             ((seed >> 40) as f32) / (1u64 << 24) as f32
         };
-        let mut checked = 0;
-        for case in 0..600 {
-            let shape = [Shape::Sphere, Shape::Box, Shape::HalfSpace][case % 3];
+        let (mut checked, mut refined) = (0, 0);
+        for case in 0..800 {
+            let shape = [Shape::Sphere, Shape::Box, Shape::HalfSpace, Shape::Cylinder][case % 4];
             let scale = Vec3::new(0.2 + 3.0 * u(), 0.2 + 3.0 * u(), 0.2 + 3.0 * u());
             let rot = Quat::from_euler(glam::EulerRot::XYZ, 6.0 * u(), 6.0 * u(), 6.0 * u());
             let at = Vec3::new(u(), u(), u()) * 20.0 - 10.0;
             let leaf = Leaf::new(shape, Affine3A::from_scale_rotation_translation(scale, rot, at), 0);
-            // Object points on the unit surface (a box's face, or within 1e-6 of its edges), scaled by
-            // 0.5..1.5, then placed.
+            assert!(leaf.has_x8());
+            // Object points on the canonical surface (a box's face or near its edges, a cylinder's side
+            // or caps or near their rims), scaled by 0.5..1.5, then placed.
             let q: [Vec3; 8] = std::array::from_fn(|l| {
                 let v = Vec3::new(u() * 2.0 - 1.0, u() * 2.0 - 1.0, u() * 2.0 - 1.0);
+                let edge = 1.0 - 1e-6 * u();
                 let on = match shape {
                     Shape::Box if l % 2 == 0 => v.signum(),
                     Shape::Box => {
                         let mut e = v;
                         e[l % 3] = v[l % 3].signum();
-                        e[(l + 1) % 3] = v[(l + 1) % 3].signum() * (1.0 - 1e-6 * u());
+                        e[(l + 1) % 3] = v[(l + 1) % 3].signum() * edge;
                         e
+                    }
+                    Shape::Cylinder => {
+                        let a = u() * std::f32::consts::TAU;
+                        match l % 3 {
+                            0 => Vec3::new(a.cos(), a.sin(), v.z),
+                            1 => Vec3::new(v.x * 0.7, v.y * 0.7, v.z.signum()),
+                            _ => Vec3::new(a.cos() * edge, a.sin() * edge, v.z.signum() * edge),
+                        }
                     }
                     _ => v.normalize(),
                 };
@@ -367,15 +453,33 @@ mod tests {
             });
             let p: [Vec3; 8] = std::array::from_fn(|l| leaf.object_to_world.transform_point3(q[l]));
             let rows = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| p[l][a])));
-            let got = leaf.normal_x8(rows).expect("an 8-lane normal");
+            let n = leaf.normal_x8(rows).expect("an 8-lane normal");
+            let (r, mag, ok) = leaf.refine_x8(rows).expect("an 8-lane refinement");
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
             for (l, &p) in p.iter().enumerate() {
-                assert_eq!(got.lane(l).to_array().map(f32::to_bits), leaf.normal(p).to_array().map(f32::to_bits), "case {case} lane {l}");
+                assert_eq!(bits(n.lane(l)), bits(leaf.normal(p)), "case {case} lane {l}: normal");
+                match leaf.refine(p) {
+                    Some((want, m)) => {
+                        assert!(ok.to_bitmask() & (1 << l) != 0, "case {case} lane {l}: refinement declined");
+                        assert_eq!(bits(r.lane(l)), bits(want), "case {case} lane {l}: refined point");
+                        assert_eq!(mag.to_array()[l].to_bits(), m.to_bits(), "case {case} lane {l}: error magnitude");
+                        refined += 1;
+                    }
+                    None => assert_eq!(ok.to_bitmask() & (1 << l), 0, "case {case} lane {l}: refinement given"),
+                }
                 checked += 1;
             }
         }
-        assert_eq!(checked, 4800);
-        for shape in [Shape::Cylinder, Shape::Cone { r0: 0.5, r1: 1.0 }, Shape::Torus { major: 1.0, minor: 0.3 }] {
-            assert!(Leaf::new(shape, Affine3A::IDENTITY, 0).normal_x8(Vec3x8::splat(Vec3::ONE)).is_none());
+        assert_eq!((checked, refined), (6400, 6400));
+        // A sphere's centre has no projection, in 8 lanes too.
+        let ball = Leaf::new(Shape::Sphere, Affine3A::from_translation(Vec3::new(1.0, 2.0, 3.0)), 0);
+        let (_, _, ok) = ball.refine_x8(Vec3x8::splat(Vec3::new(1.0, 2.0, 3.0))).unwrap();
+        assert!(ball.refine(Vec3::new(1.0, 2.0, 3.0)).is_none() && ok.to_bitmask() == 0);
+        for shape in [Shape::Cone { r0: 0.5, r1: 1.0 }, Shape::Torus { major: 1.0, minor: 0.3 }] {
+            let leaf = Leaf::new(shape, Affine3A::IDENTITY, 0);
+            assert!(
+                !leaf.has_x8() && leaf.normal_x8(Vec3x8::splat(Vec3::ONE)).is_none() && leaf.refine_x8(Vec3x8::splat(Vec3::ONE)).is_none()
+            );
         }
     }
 

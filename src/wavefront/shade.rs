@@ -190,6 +190,8 @@ fn hit_rows_x8(
     let mut sr = [1.0f32; LANES];
     // Flat lanes' planes and motion shifts.
     let (mut fw, mut fs, mut fshift) = ([0.0f32; LANES], [0.0f32; LANES], [[0.0f32; LANES]; 3]);
+    // CSG lanes taken in 8 lanes: their leaves, and those whose leaf is subtracted (normal flipped).
+    let (mut csg, mut flipped, mut leaf_of) = (0u32, 0u32, [0u32; LANES]);
     for (l, &i) in idx.iter().enumerate() {
         let g = &scene.prim_geo[prims[l] as usize];
         if g.r > 0.0 {
@@ -213,6 +215,11 @@ fn hit_rows_x8(
             }
             (fw[l], fs[l]) = (g.w, g.w_scale);
             material[l] = g.material;
+        } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Csg { .. }) && scene.csg.leaf(hits.leaf[i as usize]).has_x8() {
+            // CSG leaves of shapes with 8-lane forms: after the loop, per distinct leaf.
+            csg |= 1 << l;
+            leaf_of[l] = hits.leaf[i as usize];
+            flipped |= (hits.flip[i as usize] as u32) << l;
         } else {
             // (`surface_hit` reads the ray's origin, direction and time only.)
             let r = RayItem { o: o.lane(l), d: d.lane(l), time: times[l], ..RayItem::default() };
@@ -236,6 +243,33 @@ fn hit_rows_x8(
         nv = Vec3x8::select(mask, flip(ahead, n), n);
         sv = mask.select(fscale, sv);
         front |= ahead.to_bitmask() & pla;
+    }
+    while csg != 0 {
+        // `surface_hit` of the hits on one leaf: the point refined in the leaf's frame at the ray's time
+        // (or left where that is undefined, with the error magnitude of the origin), the leaf's normal
+        // there, flipped for a subtracted leaf.
+        let l0 = csg.trailing_zeros() as usize;
+        let same = csg & lane_bits(|l| prims[l] == prims[l0] && leaf_of[l] == leaf_of[l0]);
+        csg &= !same;
+        let (prim, leaf) = (&scene.prims[prims[l0] as usize], scene.csg.leaf(leaf_of[l0]));
+        let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
+        let (q, s, ok) = leaf.refine_x8(naive - shift).expect("a leaf with 8-lane forms");
+        let p = Vec3x8::select(ok, q + shift, naive);
+        let mag = |v: Vec3x8| v.x.abs().max(v.y.abs().max(v.z.abs()));
+        let scale = ok.select(s.max(mag(shift)), mag(o));
+        let n = leaf.normal_x8(p - shift).expect("a leaf with 8-lane forms");
+        let n = Vec3x8::select(mask_from_bits(flipped), Vec3x8::new(-n.x, -n.y, -n.z), n);
+        let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
+        let mask = mask_from_bits(same);
+        pv = Vec3x8::select(mask, p, pv);
+        nv = Vec3x8::select(mask, flip(ahead, n), nv);
+        sv = mask.select(scale, sv);
+        front |= ahead.to_bitmask() & same;
+        for (l, m) in material.iter_mut().enumerate() {
+            if same & (1 << l) != 0 {
+                *m = leaf.material;
+            }
+        }
     }
     if sph != 0 {
         let (ps, n, ahead) = sphere_hits_x8(naive, d, &sc, &sr);
@@ -1597,6 +1631,75 @@ mod tests {
     /// five bounces of scenes with checker textures, spheres, boxes, CSG, glass (whose split branching
     /// gives two rays one path, so that path ids repeat within a chunk) and motion, with and without
     /// diffuse bounces.
+    /// `hit_rows_x8` gives each lane what `surface_hit` gives that hit, bit for bit: point, facing normal,
+    /// error magnitude, side and material, for chunks of hits of every material in scenes of spheres,
+    /// flat prims, boxes and CSG leaves of every shape (the 8-lane leaves and the rest), some moving, at
+    /// camera and bounce depths.
+    #[test]
+    fn hit_rows_x8_equal_surface_hit() {
+        let (mut csg_lanes, mut lanes) = (0usize, 0usize);
+        // Moving CSG solids of every leaf shape, some subtracted, one cut by a half-space.
+        let moving = "[image]\nwidth = 64\nheight = 48\n[camera]\nposition = [0, 1.5, 6]\nlook_at = [0, 0.5, 0]\nfov = 45\n\
+                      shutter = [0, 1]\n[materials.a]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
+                      [materials.b]\ntype = \"lambert\"\nalbedo = [0.2, 0.6, 0.3]\n\
+                      [[shapes]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 1, 0]\nmaterial = \"a\"\n\
+                      [[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmotion = [3.0, 0.2, 0.1]\n\
+                      transform = { rotate = [10, 30, 0], scale = [1.2, 0.8, 1], translate = [-2.5, 0.6, 0] }\nchildren = [\n\
+                      { type = \"box\", min = [-0.6, -0.6, -0.6], max = [0.6, 0.6, 0.6], material = \"a\" },\n\
+                      { type = \"sphere\", center = [0.5, 0.5, 0.5], radius = 0.5, material = \"b\" },\n\
+                      { type = \"cylinder\", center = [0, 0, 0], radius = 0.25, height = 2, material = \"b\" },\n]\n\
+                      [[shapes]]\ntype = \"csg\"\nop = \"intersection\"\nmotion = [-0.3, 0.0, 0.4]\nchildren = [\n\
+                      { type = \"sphere\", center = [1, 0.7, 0], radius = 0.7, material = \"b\" },\n\
+                      { type = \"halfspace\", point = [1, 1.0, 0], normal = [0.3, 1, 0.2], material = \"a\" },\n\
+                      { type = \"cone\", center = [1, 0.7, 0], radius = 0.8, radius_top = 0.2, height = 1.6, material = \"a\" },\n]\n\
+                      [[lights]]\ntype = \"point\"\nposition = [2, 5, 4]\nintensity = [20, 20, 20]\n";
+        let scenes = ["csg", "showcase", "bench_csg", "glass", "motion", "csg_glass", "nested"]
+            .map(|name| (name, crate::scene::load_scene(std::path::Path::new(&format!("scenes/{name}.toml"))).unwrap()))
+            .into_iter()
+            .chain([("moving", crate::scene::parse_scene(std::path::Path::new("moving.toml"), moving).unwrap())]);
+        for (name, scene) in scenes {
+            let mut profile = Profile::builtin("bench");
+            (profile.spp, profile.max_depth, profile.diffuse_depth) = (2, 4, 2);
+            let tiles = [(0.3, 0.5), (0.5, 0.5), (0.7, 0.6), (0.5, 0.8)].map(|(fx, fy)| {
+                let (x0, y0) = ((scene.width as f32 * fx) as u32 - 8, (scene.height as f32 * fy) as u32 - 8);
+                Tile { x0, y0, x1: x0 + 16, y1: y0 + 16 }
+            });
+            bounces(&scene, &profile, 5, &tiles, |rays, hits, _| {
+                let all = hits_of(
+                    &scene,
+                    rays,
+                    hits,
+                    &[MaterialKind::Lambert, MaterialKind::Mirror, MaterialKind::Glossy, MaterialKind::Dielectric],
+                );
+                for chunk in all.chunks(LANES) {
+                    let get =
+                        |f: &dyn Fn(usize) -> f32| std::array::from_fn::<f32, LANES, _>(|l| chunk.get(l).map_or(0.0, |&i| f(i as usize)));
+                    let o = Vec3x8::from_rows(&[get(&|i| rays.ox[i]), get(&|i| rays.oy[i]), get(&|i| rays.oz[i])]);
+                    let d = Vec3x8::from_rows(&[get(&|i| rays.dx[i]), get(&|i| rays.dy[i]), get(&|i| rays.dz[i])]);
+                    let t = get(&|i| hits.t[i]);
+                    let times = get(&|i| if rays.with_time { rays.time[i] } else { 0.0 });
+                    let prims = std::array::from_fn(|l| chunk.get(l).map_or(chunk[0], |&i| i) as usize).map(|i| hits.prim[i]);
+                    let geo = hit_rows_x8(&scene, hits, chunk, o, d, &t, &times, &prims);
+                    for (l, &i) in chunk.iter().enumerate() {
+                        let i = i as usize;
+                        let r = RayItem { o: o.lane(l), d: d.lane(l), time: times[l], ..RayItem::default() };
+                        let h = surface_hit(&scene, &r, t[l], hits.prim[i], hits.leaf[i], hits.flip[i]);
+                        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                        let at = format!("{name}: hit {i} (prim {}, leaf {})", hits.prim[i], hits.leaf[i]);
+                        assert_eq!(bits(geo.p.lane(l)), bits(h.p), "{at}: point");
+                        assert_eq!(bits(geo.n_facing.lane(l)), bits(h.n_facing), "{at}: normal");
+                        assert_eq!(geo.error_scale.to_array()[l].to_bits(), h.error_scale.to_bits(), "{at}: error magnitude");
+                        assert_eq!(geo.front & (1 << l) != 0, h.front, "{at}: side");
+                        assert_eq!(geo.material[l], h.material, "{at}: material");
+                        lanes += 1;
+                        csg_lanes += (hits.leaf[i] != NONE) as usize;
+                    }
+                }
+            });
+        }
+        assert!(lanes > 20_000 && csg_lanes > 5_000, "{lanes} hits compared, {csg_lanes} on CSG leaves");
+    }
+
     #[test]
     fn lambert_x8_chunks_equal_single_hits() {
         let (mut compared, mut uniform) = (0usize, 0usize);
