@@ -146,6 +146,45 @@ pub fn intersect_obox_f64(world_to_object: DAffine3, half: DVec3, o: DVec3, d: D
     nearest_f64(tn, tf, tmax)
 }
 
+/// `Mat3 * Vec3` in 8 lanes, as glam rounds it: `(x v.x + y v.y) + z v.z`, no FMA.
+#[inline(always)]
+fn mat3_x8(m: &Mat3, v: Vec3x8) -> Vec3x8 {
+    Vec3x8::splat(m.x_axis).scale(v.x) + Vec3x8::splat(m.y_axis).scale(v.y) + Vec3x8::splat(m.z_axis).scale(v.z)
+}
+
+/// [`obox_face`] of 8 world points: their object points and the face axis as three lane masks.
+#[inline(always)]
+fn obox_face_x8(b: &OBox, p: Vec3x8) -> (Vec3x8, [f32x8; 3]) {
+    let q = mat3_x8(&Mat3::from(b.world_to_object.matrix3), p - Vec3x8::splat(b.center));
+    let (rx, ry, rz) = ((q.x / f32x8::splat(b.half.x)).abs(), (q.y / f32x8::splat(b.half.y)).abs(), (q.z / f32x8::splat(b.half.z)).abs());
+    let x = rx.simd_ge(ry) & rx.simd_ge(rz);
+    let y = !x & ry.simd_ge(rz);
+    (q, [x, y, !(x | y)])
+}
+
+/// [`normal_obox`] and [`super::refine_obox_point`] of 8 world points `p` at once, rounded as they
+/// round them: the refined points, their error magnitudes, the lanes where the refinement is defined
+/// (finite), and the normals at `at(refined or p)` (the scalar code takes the normal at the refined
+/// point, moved by the caller's shift: `at` gives that point).
+#[inline]
+pub fn obox_hits_x8(b: &OBox, p: Vec3x8, at: impl Fn(Vec3x8, f32x8) -> Vec3x8) -> (Vec3x8, f32x8, f32x8, Vec3x8) {
+    let (zero, one) = (f32x8::ZERO, f32x8::ONE);
+    let (q, axis) = obox_face_x8(b, p);
+    // The face's coordinate set to `+-half` (`q < 0` gives the minus side).
+    let onto = |v: f32x8, h: f32, on: f32x8| on.select(v.simd_lt(zero).select(f32x8::splat(-h), f32x8::splat(h)), v);
+    let moved = Vec3x8::new(onto(q.x, b.half.x, axis[0]), onto(q.y, b.half.y, axis[1]), onto(q.z, b.half.z, axis[2]));
+    let w = mat3_x8(&b.to_world, moved);
+    let out = Vec3x8::splat(b.center) + w;
+    let ok = out.x.is_finite() & out.y.is_finite() & out.z.is_finite();
+    let mag = |v: Vec3x8| v.x.abs().max(v.y.abs().max(v.z.abs()));
+    let scale = f32x8::splat(b.center.abs().max_element()).max(mag(w));
+    let (qn, axis) = obox_face_x8(b, at(out, ok));
+    let sign = |v: f32x8| v.simd_lt(zero).select(-one, one);
+    let col = |i: usize, s: f32x8| Vec3x8::splat(b.normal_matrix.col(i)).scale(s);
+    let n = Vec3x8::select(axis[0], col(0, sign(qn.x)), Vec3x8::select(axis[1], col(1, sign(qn.y)), col(2, sign(qn.z))));
+    (out, scale, ok, n.normalize_or(Vec3x8::splat(Vec3::ZERO)))
+}
+
 /// Outward unit normal at a world point `p` on the box: the face whose object-space coordinate
 /// is closest to `+-half` relative to `half` (largest `|p'_i| / half_i`), mapped by the normal
 /// matrix.

@@ -10,8 +10,8 @@ use super::queues::{
     HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, RayRows, FLAG_DIFFUSE, FLAG_GLOSSY, FLAG_SPECULAR, NONE,
 };
 use crate::geometry::{
-    normal_ellipsoid, normal_obox, normal_sphere, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, refine_ellipsoid_point,
-    refine_flat_point, refine_flat_point_x8, refine_obox_point, refine_sphere_point, refine_sphere_point_x8,
+    normal_ellipsoid, normal_obox, normal_sphere, obox_hits_x8, offset_ray_origin_scaled, offset_ray_origin_scaled_x8,
+    refine_ellipsoid_point, refine_flat_point, refine_flat_point_x8, refine_obox_point, refine_sphere_point, refine_sphere_point_x8,
 };
 use crate::light::{power_heuristic, sample_pdf, samples_for};
 use crate::optics::{
@@ -192,6 +192,7 @@ fn hit_rows_x8(
     let (mut fw, mut fs, mut fshift) = ([0.0f32; LANES], [0.0f32; LANES], [[0.0f32; LANES]; 3]);
     // CSG lanes taken in 8 lanes: their leaves, and those whose leaf is subtracted (normal flipped).
     let (mut csg, mut flipped, mut leaf_of) = (0u32, 0u32, [0u32; LANES]);
+    let mut boxes = 0u32;
     for (l, &i) in idx.iter().enumerate() {
         let g = &scene.prim_geo[prims[l] as usize];
         if g.r > 0.0 {
@@ -215,6 +216,9 @@ fn hit_rows_x8(
             }
             (fw[l], fs[l]) = (g.w, g.w_scale);
             material[l] = g.material;
+        } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Box(_)) {
+            // Boxes: after the loop, per distinct box.
+            boxes |= 1 << l;
         } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Csg { .. }) && scene.csg.leaf(hits.leaf[i as usize]).has_x8() {
             // CSG leaves of shapes with 8-lane forms: after the loop, per distinct leaf.
             csg |= 1 << l;
@@ -244,6 +248,30 @@ fn hit_rows_x8(
         sv = mask.select(fscale, sv);
         front |= ahead.to_bitmask() & pla;
     }
+    let mag = |v: Vec3x8| v.x.abs().max(v.y.abs().max(v.z.abs()));
+    while boxes != 0 {
+        // `surface_hit` of the hits on one box: the point moved onto its face in its frame at the ray's
+        // time (or left where that is not finite), the face's normal there.
+        let l0 = boxes.trailing_zeros() as usize;
+        let same = boxes & lane_bits(|l| prims[l] == prims[l0]);
+        boxes &= !same;
+        let prim = &scene.prims[prims[l0] as usize];
+        let Shape::Box(b) = &prim.shape else { unreachable!("a box lane") };
+        let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
+        let point = |q: Vec3x8, ok: f32x8| Vec3x8::select(ok, q + shift, naive);
+        let (q, s, ok, n) = obox_hits_x8(b, naive - shift, |q, ok| point(q, ok) - shift);
+        let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
+        let mask = mask_from_bits(same);
+        pv = Vec3x8::select(mask, point(q, ok), pv);
+        nv = Vec3x8::select(mask, flip(ahead, n), nv);
+        sv = mask.select(ok.select(s.max(mag(shift)), mag(o)), sv);
+        front |= ahead.to_bitmask() & same;
+        for (l, m) in material.iter_mut().enumerate() {
+            if same & (1 << l) != 0 {
+                *m = prim.material;
+            }
+        }
+    }
     while csg != 0 {
         // `surface_hit` of the hits on one leaf: the point refined in the leaf's frame at the ray's time
         // (or left where that is undefined, with the error magnitude of the origin), the leaf's normal
@@ -255,7 +283,6 @@ fn hit_rows_x8(
         let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
         let (q, s, ok) = leaf.refine_x8(naive - shift).expect("a leaf with 8-lane forms");
         let p = Vec3x8::select(ok, q + shift, naive);
-        let mag = |v: Vec3x8| v.x.abs().max(v.y.abs().max(v.z.abs()));
         let scale = ok.select(s.max(mag(shift)), mag(o));
         let n = leaf.normal_x8(p - shift).expect("a leaf with 8-lane forms");
         let n = Vec3x8::select(mask_from_bits(flipped), Vec3x8::new(-n.x, -n.y, -n.z), n);
@@ -1637,7 +1664,7 @@ mod tests {
     /// camera and bounce depths.
     #[test]
     fn hit_rows_x8_equal_surface_hit() {
-        let (mut csg_lanes, mut lanes) = (0usize, 0usize);
+        let (mut csg_lanes, mut box_lanes, mut lanes) = (0usize, 0usize, 0usize);
         // Moving CSG solids of every leaf shape, some subtracted, one cut by a half-space.
         let moving = "[image]\nwidth = 64\nheight = 48\n[camera]\nposition = [0, 1.5, 6]\nlook_at = [0, 0.5, 0]\nfov = 45\n\
                       shutter = [0, 1]\n[materials.a]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
@@ -1652,8 +1679,10 @@ mod tests {
                       { type = \"sphere\", center = [1, 0.7, 0], radius = 0.7, material = \"b\" },\n\
                       { type = \"halfspace\", point = [1, 1.0, 0], normal = [0.3, 1, 0.2], material = \"a\" },\n\
                       { type = \"cone\", center = [1, 0.7, 0], radius = 0.8, radius_top = 0.2, height = 1.6, material = \"a\" },\n]\n\
+                      [[shapes]]\ntype = \"box\"\nmin = [-0.4, 0, -0.3]\nmax = [0.4, 0.5, 0.3]\nmaterial = \"b\"\nmotion = [2.5, 0, 0.3]\n\
+                      transform = { rotate = [0, 40, 15], scale = [1, 1.5, 0.7], translate = [-1, 0, 1.2] }\n\
                       [[lights]]\ntype = \"point\"\nposition = [2, 5, 4]\nintensity = [20, 20, 20]\n";
-        let scenes = ["csg", "showcase", "bench_csg", "glass", "motion", "csg_glass", "nested"]
+        let scenes = ["csg", "showcase", "bench_csg", "glass", "motion", "csg_glass", "nested", "cornell", "absorption"]
             .map(|name| (name, crate::scene::load_scene(std::path::Path::new(&format!("scenes/{name}.toml"))).unwrap()))
             .into_iter()
             .chain([("moving", crate::scene::parse_scene(std::path::Path::new("moving.toml"), moving).unwrap())]);
@@ -1693,11 +1722,15 @@ mod tests {
                         assert_eq!(geo.material[l], h.material, "{at}: material");
                         lanes += 1;
                         csg_lanes += (hits.leaf[i] != NONE) as usize;
+                        box_lanes += matches!(scene.prims[hits.prim[i] as usize].shape, Shape::Box(_)) as usize;
                     }
                 }
             });
         }
-        assert!(lanes > 20_000 && csg_lanes > 5_000, "{lanes} hits compared, {csg_lanes} on CSG leaves");
+        assert!(
+            lanes > 20_000 && csg_lanes > 5_000 && box_lanes > 1_000,
+            "{lanes} hits compared, {csg_lanes} on CSG leaves, {box_lanes} on boxes"
+        );
     }
 
     #[test]
