@@ -243,6 +243,11 @@ impl Vec3x8 {
     pub fn mul_add(self, s: f32x8, o: Self) -> Self {
         Self { x: self.x.mul_add(s, o.x), y: self.y.mul_add(s, o.y), z: self.z.mul_add(s, o.z) }
     }
+    /// The largest `|component|` per lane, as glam's `v.abs().max_element()` rounds it (NaN aside).
+    #[inline(always)]
+    pub fn max_abs_element(self) -> f32x8 {
+        self.x.abs().max(self.y.abs().max(self.z.abs()))
+    }
     #[inline(always)]
     pub fn lane(&self, i: usize) -> Vec3 {
         Vec3::new(self.x.to_array()[i], self.y.to_array()[i], self.z.to_array()[i])
@@ -319,6 +324,21 @@ pub fn mask_from_bits(bits: u32) -> f32x8 {
 #[inline(always)]
 pub fn lane_bits(f: impl Fn(usize) -> bool) -> u32 {
     (0..LANES).filter(|&l| f(l)).fold(0, |m, l| m | (1 << l))
+}
+
+/// The lanes of `mask` grouped by `key` (evaluated for every lane, in `mask` or not): `f(first, lanes)`
+/// once per distinct key, with its first lane and all the lanes of `mask` that share it, in the order
+/// of the first lanes.
+#[inline(always)]
+pub fn for_each_group<K: PartialEq>(mask: u32, key: impl Fn(usize) -> K, mut f: impl FnMut(usize, u32)) {
+    let mut todo = mask;
+    while todo != 0 {
+        let first = todo.trailing_zeros() as usize;
+        let k = key(first);
+        let same = todo & lane_bits(|l| key(l) == k);
+        todo &= !same;
+        f(first, same);
+    }
 }
 
 /// Whether any lane of mask `m` is set.

@@ -26,14 +26,15 @@ impl R {
     }
 }
 
-/// A random scene at scale `k`: a floor, spheres and boxes of diffuse and glass material, a CSG part,
-/// and one light of kind `light`.
+/// A random scene at scale `k`: a floor, spheres and boxes of diffuse, glass and absorbing glass
+/// material, a CSG part, and one light of kind `light`.
 fn scene(r: &mut R, k: f32, light: usize) -> String {
     let v = |x: f32, y: f32, z: f32| format!("[{}, {}, {}]", x * k, y * k, z * k);
     let mut t = format!(
         "[image]\nwidth = 8\nheight = 8\n[camera]\nposition = {}\nlook_at = {}\nfov = 40\n\
          [materials.m]\ntype = \"lambert\"\nalbedo = [0.6, 0.6, 0.6]\n\
          [materials.g]\ntype = \"dielectric\"\nior = 1.5\n\
+         [materials.a]\ntype = \"dielectric\"\nior = 1.5\nabsorption = [0.3, 0.1, 0.05]\n\
          [[shapes]]\ntype = \"plane\"\npoint = {}\nnormal = [0, 1, 0]\nmaterial = \"m\"\n",
         v(0.0, 3.0, 9.0),
         v(0.0, 0.0, 0.0),
@@ -42,7 +43,13 @@ fn scene(r: &mut R, k: f32, light: usize) -> String {
     for i in 0..6 {
         let (x, z) = (r.range(-4.0, 4.0), r.range(-4.0, 4.0));
         let s = r.range(0.2, 0.9);
-        let m = if i % 3 == 0 { "g" } else { "m" };
+        // Clear glass, and absorbing glass of the same index (so that both are passable: shadow rays
+        // may meet index-matched interfaces, and walk even without `transmissive_shadows`).
+        let m = match i {
+            0 | 3 => "g",
+            2 => "a",
+            _ => "m",
+        };
         t += &if i % 2 == 0 {
             format!("[[shapes]]\ntype = \"sphere\"\ncenter = {}\nradius = {}\nmaterial = \"{m}\"\n", v(x, s, z), s * k)
         } else {
@@ -215,58 +222,72 @@ fn degenerate_origins_are_not_cleared() {
 
 /// Lanes whose cones meet one glass sphere only: `single_sphere_x8` gives, bit for bit, what the any-hit
 /// traversal and the walk through glass give their rays (unoccluded; transmittance 1 where a ray misses
-/// the sphere, the pair's Fresnel product where it enters and leaves it), for every target on the light;
-/// rays that cross the sphere once are left to the traversal.
+/// the sphere, the pair's Fresnel product, with absorption for the absorbing glass, where it enters and
+/// leaves it), for every target on the light, called with all the lanes its spheres were gathered for
+/// and with random subsets of them (as the shadow stage calls it, with the lanes a sample lights);
+/// rays that cross the sphere once are left to the traversal. Without `transmissive_shadows` the
+/// spheres are still walked (index-matched glasses are passable) and their real interfaces block.
 #[test]
 fn single_sphere_lanes_match_the_traversal_and_the_walk() {
     use strata::wavefront::transmit::{pair_sphere, single_sphere_x8, transmittance_x8, SingleSpheres, Walk};
-    let mut profile = Profile::builtin("bench");
-    profile.transmissive_shadows = true;
-    let mut arena = CsgArena::new();
-    let mut walk = Walk::new();
-    let (mut crossed, mut missed) = (0usize, 0usize);
-    chunks(0x5_9e7e, 240, 8, |ch, r| {
-        let (scene, v, o) = (ch.scene, &ch.v, ch.o);
-        assert_eq!(v.clear & v.single, 0);
-        let lanes =
-            (0..LANES).filter(|&l| v.single & (1 << l) != 0 && pair_sphere(scene, &profile, v.prim[l])).fold(0u32, |m, l| m | 1 << l);
-        if lanes == 0 {
-            return;
-        }
-        let (ts, end) = targets(r, &ch.light);
-        let spheres = SingleSpheres::new(scene, &profile, &v.prim, lanes);
-        for &t in &ts {
-            let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| t[a] - ch.os[l][a])));
-            let tmax = f32x8::from(std::array::from_fn(|l| if lanes & (1 << l) != 0 { end } else { -1.0 }));
-            let ray = Ray8::new(o, d, tmax);
-            let (done, tr) = single_sphere_x8(scene, &spheres, &ray, lanes);
-            let tr: [Vec3; LANES] = std::array::from_fn(|l| Vec3::new(tr.x.to_array()[l], tr.y.to_array()[l], tr.z.to_array()[l]));
-            let (occ, touched) = occlusion_x8(scene, &profile, &ray, None, &mut arena, true);
-            assert_eq!(occ.to_bitmask() & done, 0, "case {}: a single-sphere lane is occluded", ch.case);
-            let rows = |v: Vec3x8| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
-            let (walked, _) = transmittance_x8(
-                scene,
-                &profile,
-                &rows(o),
-                &rows(d),
-                &tmax.to_array(),
-                &[0.0; LANES],
-                touched & done,
-                &mut arena,
-                &mut walk,
-            );
-            for l in (0..LANES).filter(|&l| done & (1 << l) != 0) {
-                let want = if touched & (1 << l) != 0 { walked[l] } else { Vec3::ONE };
-                assert_eq!(tr[l].to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "case {} lane {l}", ch.case);
-                if touched & (1 << l) != 0 {
-                    crossed += 1;
-                } else {
-                    missed += 1;
+    for transmissive in [true, false] {
+        let mut profile = Profile::builtin("bench");
+        profile.transmissive_shadows = transmissive;
+        let mut arena = CsgArena::new();
+        let mut walk = Walk::new();
+        let (mut crossed, mut missed, mut absorbed, mut subsets) = (0usize, 0usize, 0usize, 0usize);
+        chunks(0x5_9e7e, 240, 8, |ch, r| {
+            let (scene, v, o) = (ch.scene, &ch.v, ch.o);
+            assert_eq!(v.clear & v.single, 0);
+            let lanes =
+                (0..LANES).filter(|&l| v.single & (1 << l) != 0 && pair_sphere(scene, &profile, v.prim[l])).fold(0u32, |m, l| m | 1 << l);
+            if lanes == 0 {
+                return;
+            }
+            let (ts, end) = targets(r, &ch.light);
+            let spheres = SingleSpheres::new(scene, &profile, &v.prim, lanes);
+            for &t in &ts {
+                let d = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| t[a] - ch.os[l][a])));
+                // Every other target with a random subset of the lanes.
+                let sub = if r.0.next_u32() % 2 == 0 { lanes } else { lanes & r.0.next_u32() };
+                subsets += (sub != lanes) as usize;
+                let tmax = f32x8::from(std::array::from_fn(|l| if sub & (1 << l) != 0 { end } else { -1.0 }));
+                let ray = Ray8::new(o, d, tmax);
+                let (done, tr) = single_sphere_x8(scene, &spheres, &ray, sub);
+                assert_eq!(done & !sub, 0, "case {}: lanes outside the call answered", ch.case);
+                let tr: [Vec3; LANES] = std::array::from_fn(|l| tr.lane(l));
+                let (occ, touched) = occlusion_x8(scene, &profile, &ray, None, &mut arena, true);
+                assert_eq!(occ.to_bitmask() & done, 0, "case {}: a single-sphere lane is occluded", ch.case);
+                let rows = |v: Vec3x8| [v.x.to_array(), v.y.to_array(), v.z.to_array()];
+                let (walked, _) = transmittance_x8(
+                    scene,
+                    &profile,
+                    &rows(o),
+                    &rows(d),
+                    &tmax.to_array(),
+                    &[0.0; LANES],
+                    touched & done,
+                    &mut arena,
+                    &mut walk,
+                );
+                for l in (0..LANES).filter(|&l| done & (1 << l) != 0) {
+                    let want = if touched & (1 << l) != 0 { walked[l] } else { Vec3::ONE };
+                    assert_eq!(tr[l].to_array().map(f32::to_bits), want.to_array().map(f32::to_bits), "case {} lane {l}", ch.case);
+                    if touched & (1 << l) != 0 {
+                        crossed += 1;
+                        absorbed += (want != Vec3::ZERO && want.x != want.z) as usize;
+                        // (Absorbing glass at the largest scales lets nothing through either.)
+                        assert!(transmissive || want == Vec3::ZERO, "case {} lane {l}: {want:?} through a real interface", ch.case);
+                    } else {
+                        missed += 1;
+                    }
                 }
             }
-        }
-    });
-    assert!(crossed > 200 && missed > 200, "{crossed} rays through a sphere, {missed} past it");
+        });
+        eprintln!("transmissive {transmissive}: {crossed} through, {missed} past, {absorbed} absorbed, {subsets} subsets");
+        assert!(crossed > 200 && missed > 200 && subsets > 200, "{crossed} rays through a sphere, {missed} past it, {subsets} subsets");
+        assert!(!transmissive || absorbed > 50, "{absorbed} rays through absorbing glass");
+    }
 }
 
 /// Lanes whose cones meet one opaque prim only (a sphere, a box, the CSG part, the light's own quad seen

@@ -114,8 +114,8 @@ impl Leaf {
         matches!(self.shape, Shape::Sphere | Shape::Box | Shape::Cylinder | Shape::HalfSpace)
     }
 
-    /// [`Leaf::normal`] at 8 world points, rounded as it rounds them (NaN lanes aside), for the shapes of
-    /// [`Leaf::has_x8`]; `None` for the others.
+    /// [`Leaf::normal`] at 8 world points, rounded as it rounds them, for the shapes of [`Leaf::has_x8`];
+    /// `None` for the others.
     #[inline]
     pub fn normal_x8(&self, p: Vec3x8) -> Option<Vec3x8> {
         let q = affine_x8(&self.world_to_object, p);
@@ -169,8 +169,7 @@ impl Leaf {
         let t = Vec3x8::splat(Vec3::from(self.object_to_world.translation));
         let out = w + t;
         let finite = out.x.is_finite() & out.y.is_finite() & out.z.is_finite();
-        let mag = |v: Vec3x8| v.x.abs().max(v.y.abs().max(v.z.abs()));
-        Some((out, mag(t).max(mag(w)), defined & finite))
+        Some((out, t.max_abs_element().max(w.max_abs_element()), defined & finite))
     }
 
     /// A world point `p` on (or within rounding of) this leaf's surface, moved onto it in object space
@@ -270,10 +269,10 @@ fn box_axis_x8(q: Vec3x8) -> (f32x8, f32x8, f32x8) {
     (x, y, !(x | y))
 }
 
-/// `f32::signum` in 8 lanes, NaN lanes aside (they give +-1).
+/// `f32::signum` in 8 lanes (NaN stays NaN).
 #[inline(always)]
 fn signum_x8(v: f32x8) -> f32x8 {
-    (v & f32x8::splat(-0.0)) | f32x8::ONE
+    v.simd_eq(v).select((v & f32x8::splat(-0.0)) | f32x8::ONE, v)
 }
 
 /// `Mat3A * Vec3A` in 8 lanes, as glam rounds it: `(x v.x + y v.y) + z v.z`, no FMA.
@@ -409,8 +408,8 @@ mod tests {
 
     /// [`Leaf::normal_x8`] and [`Leaf::refine_x8`] are [`Leaf::normal`] and [`Leaf::refine`] bit for bit
     /// (sphere, box, cylinder and half-space leaves under rotations, non-uniform scales and
-    /// translations, at points on, near and off their surfaces, points within 1e-6 of edges included),
-    /// and decline the other shapes.
+    /// translations, at points on, near and off their surfaces, points within 1e-6 of edges included,
+    /// and at non-finite points), and decline the other shapes.
     #[test]
     fn x8_forms_equal_the_scalar_ones() {
         let mut seed = 0x0a0e_u64;
@@ -451,7 +450,14 @@ mod tests {
                 };
                 on * (0.5 + u())
             });
-            let p: [Vec3; 8] = std::array::from_fn(|l| leaf.object_to_world.transform_point3(q[l]));
+            let mut p: [Vec3; 8] = std::array::from_fn(|l| leaf.object_to_world.transform_point3(q[l]));
+            // Every tenth case, non-finite and overflowing points in some lanes.
+            if case % 10 == 9 {
+                let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 3e38];
+                for (l, p) in p.iter_mut().enumerate().take(4) {
+                    p[l % 3] = bad[l];
+                }
+            }
             let rows = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| p[l][a])));
             let n = leaf.normal_x8(rows).expect("an 8-lane normal");
             let (r, mag, ok) = leaf.refine_x8(rows).expect("an 8-lane refinement");
@@ -470,7 +476,8 @@ mod tests {
                 checked += 1;
             }
         }
-        assert_eq!((checked, refined), (6400, 6400));
+        assert_eq!(checked, 6400);
+        assert!(refined > 6000 && refined < 6400, "{refined} refined: the non-finite lanes are not");
         // A sphere's centre has no projection, in 8 lanes too.
         let ball = Leaf::new(Shape::Sphere, Affine3A::from_translation(Vec3::new(1.0, 2.0, 3.0)), 0);
         let (_, _, ok) = ball.refine_x8(Vec3x8::splat(Vec3::new(1.0, 2.0, 3.0))).unwrap();

@@ -176,8 +176,7 @@ pub fn obox_hits_x8(b: &OBox, p: Vec3x8, at: impl Fn(Vec3x8, f32x8) -> Vec3x8) -
     let w = mat3_x8(&b.to_world, moved);
     let out = Vec3x8::splat(b.center) + w;
     let ok = out.x.is_finite() & out.y.is_finite() & out.z.is_finite();
-    let mag = |v: Vec3x8| v.x.abs().max(v.y.abs().max(v.z.abs()));
-    let scale = f32x8::splat(b.center.abs().max_element()).max(mag(w));
+    let scale = f32x8::splat(b.center.abs().max_element()).max(w.max_abs_element());
     let (qn, axis) = obox_face_x8(b, at(out, ok));
     let sign = |v: f32x8| v.simd_lt(zero).select(-one, one);
     let col = |i: usize, s: f32x8| Vec3x8::splat(b.normal_matrix.col(i)).scale(s);

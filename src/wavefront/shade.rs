@@ -20,7 +20,7 @@ use crate::optics::{
 };
 use crate::sample::{hash_combine, random_f32, stream_key, Sampler2d, Strategy};
 use crate::scene::{checker_eval_x8, Branching, Dielectric, Material, MaterialKind, Profile, Scene, Shape, Texture, NOT_A_LIGHT};
-use crate::simd::{consecutive8, f32x8, gather8, lane_bits, mask_from_bits, u32x8, Vec3x8, LANES};
+use crate::simd::{consecutive8, f32x8, for_each_group, gather8, lane_bits, mask_from_bits, u32x8, Vec3x8, LANES};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
@@ -143,9 +143,30 @@ struct HitRows {
     uniform: bool,
 }
 
+/// Hits' point, outward normal and error magnitude (`hit`) into the lanes `same` of a chunk's rows
+/// (`rows`: point, facing normal, error magnitude), the normal turned to face the ray (direction `d`)
+/// as `surface_hit` turns it, and their sides into `front`.
+#[inline(always)]
+fn rows_into(
+    same: u32,
+    hit: (Vec3x8, Vec3x8, f32x8),
+    rows: (Vec3x8, Vec3x8, f32x8),
+    front: &mut u32,
+    d: Vec3x8,
+) -> (Vec3x8, Vec3x8, f32x8) {
+    let (p, n, scale) = hit;
+    let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
+    let mask = mask_from_bits(same);
+    *front |= ahead.to_bitmask() & same;
+    let facing = Vec3x8::select(ahead, n, Vec3x8::new(-n.x, -n.y, -n.z));
+    (Vec3x8::select(mask, p, rows.0), Vec3x8::select(mask, facing, rows.1), mask.select(scale, rows.2))
+}
+
 /// [`surface_hit`] of hits `idx` of a queue (`m` lanes), for rays `o + t d` (lane rows) at `times`
-/// hitting `prims`: spheres and flat prims (planes, quads, disks: the common cases) in 8 lanes with
-/// the same operations, other shapes one at a time.
+/// hitting `prims`, bit for bit: spheres and flat prims (planes, quads, disks: the common cases) in 8
+/// lanes with the same operations, boxes and CSG hits on sphere, box, cylinder and half-space leaves in
+/// 8 lanes per distinct box or leaf (`obox_hits_x8`, `Leaf::refine_x8`, `Leaf::normal_x8`), other
+/// shapes (ellipsoids, cone and torus leaves) one at a time.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn hit_rows_x8(
@@ -248,56 +269,48 @@ fn hit_rows_x8(
         sv = mask.select(fscale, sv);
         front |= ahead.to_bitmask() & pla;
     }
-    let mag = |v: Vec3x8| v.x.abs().max(v.y.abs().max(v.z.abs()));
-    while boxes != 0 {
-        // `surface_hit` of the hits on one box: the point moved onto its face in its frame at the ray's
-        // time (or left where that is not finite), the face's normal there.
-        let l0 = boxes.trailing_zeros() as usize;
-        let same = boxes & lane_bits(|l| prims[l] == prims[l0]);
-        boxes &= !same;
-        let prim = &scene.prims[prims[l0] as usize];
-        let Shape::Box(b) = &prim.shape else { unreachable!("a box lane") };
-        let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
-        let point = |q: Vec3x8, ok: f32x8| Vec3x8::select(ok, q + shift, naive);
-        let (q, s, ok, n) = obox_hits_x8(b, naive - shift, |q, ok| point(q, ok) - shift);
-        let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
-        let mask = mask_from_bits(same);
-        pv = Vec3x8::select(mask, point(q, ok), pv);
-        nv = Vec3x8::select(mask, flip(ahead, n), nv);
-        sv = mask.select(ok.select(s.max(mag(shift)), mag(o)), sv);
-        front |= ahead.to_bitmask() & same;
-        for (l, m) in material.iter_mut().enumerate() {
-            if same & (1 << l) != 0 {
-                *m = prim.material;
+    for_each_group(
+        boxes,
+        |l| prims[l],
+        |first, same| {
+            // `surface_hit` of the hits on one box: the point moved onto its face in its frame at the ray's
+            // time (or left where that is not finite), the face's normal there.
+            let prim = &scene.prims[prims[first] as usize];
+            let Shape::Box(b) = &prim.shape else { unreachable!("a box lane") };
+            let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
+            let point = |q: Vec3x8, ok: f32x8| Vec3x8::select(ok, q + shift, naive);
+            let (q, s, ok, n) = obox_hits_x8(b, naive - shift, |q, ok| point(q, ok) - shift);
+            let scale = ok.select(s.max(shift.max_abs_element()), o.max_abs_element());
+            (pv, nv, sv) = rows_into(same, (point(q, ok), n, scale), (pv, nv, sv), &mut front, d);
+            for (l, m) in material.iter_mut().enumerate() {
+                if same & (1 << l) != 0 {
+                    *m = prim.material;
+                }
             }
-        }
-    }
-    while csg != 0 {
-        // `surface_hit` of the hits on one leaf: the point refined in the leaf's frame at the ray's time
-        // (or left where that is undefined, with the error magnitude of the origin), the leaf's normal
-        // there, flipped for a subtracted leaf.
-        let l0 = csg.trailing_zeros() as usize;
-        let same = csg & lane_bits(|l| prims[l] == prims[l0] && leaf_of[l] == leaf_of[l0]);
-        csg &= !same;
-        let (prim, leaf) = (&scene.prims[prims[l0] as usize], scene.csg.leaf(leaf_of[l0]));
-        let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
-        let (q, s, ok) = leaf.refine_x8(naive - shift).expect("a leaf with 8-lane forms");
-        let p = Vec3x8::select(ok, q + shift, naive);
-        let scale = ok.select(s.max(mag(shift)), mag(o));
-        let n = leaf.normal_x8(p - shift).expect("a leaf with 8-lane forms");
-        let n = Vec3x8::select(mask_from_bits(flipped), Vec3x8::new(-n.x, -n.y, -n.z), n);
-        let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
-        let mask = mask_from_bits(same);
-        pv = Vec3x8::select(mask, p, pv);
-        nv = Vec3x8::select(mask, flip(ahead, n), nv);
-        sv = mask.select(scale, sv);
-        front |= ahead.to_bitmask() & same;
-        for (l, m) in material.iter_mut().enumerate() {
-            if same & (1 << l) != 0 {
-                *m = leaf.material;
+        },
+    );
+    for_each_group(
+        csg,
+        |l| (prims[l], leaf_of[l]),
+        |first, same| {
+            // `surface_hit` of the hits on one leaf: the point refined in the leaf's frame at the ray's time
+            // (or left where that is undefined, with the error magnitude of the origin), the leaf's normal
+            // there, flipped for a subtracted leaf.
+            let (prim, leaf) = (&scene.prims[prims[first] as usize], scene.csg.leaf(leaf_of[first]));
+            let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
+            let (q, s, ok) = leaf.refine_x8(naive - shift).expect("a leaf with 8-lane forms");
+            let p = Vec3x8::select(ok, q + shift, naive);
+            let scale = ok.select(s.max(shift.max_abs_element()), o.max_abs_element());
+            let n = leaf.normal_x8(p - shift).expect("a leaf with 8-lane forms");
+            let n = Vec3x8::select(mask_from_bits(flipped), Vec3x8::new(-n.x, -n.y, -n.z), n);
+            (pv, nv, sv) = rows_into(same, (p, n, scale), (pv, nv, sv), &mut front, d);
+            for (l, m) in material.iter_mut().enumerate() {
+                if same & (1 << l) != 0 {
+                    *m = leaf.material;
+                }
             }
-        }
-    }
+        },
+    );
     if sph != 0 {
         let (ps, n, ahead) = sphere_hits_x8(naive, d, &sc, &sr);
         let mask = mask_from_bits(sph);
@@ -1652,12 +1665,6 @@ mod tests {
             .collect()
     }
 
-    /// `lambert_x8`'s fast paths (whole chunks of one prim, one texture and one point key; pixels and
-    /// samples of consecutive paths as one load; runs of consecutive rays) give the requests and
-    /// diffuse rays its lane-by-lane path gives (chunks of one hit), bit for bit and in the same order:
-    /// five bounces of scenes with checker textures, spheres, boxes, CSG, glass (whose split branching
-    /// gives two rays one path, so that path ids repeat within a chunk) and motion, with and without
-    /// diffuse bounces.
     /// `hit_rows_x8` gives each lane what `surface_hit` gives that hit, bit for bit: point, facing normal,
     /// error magnitude, side and material, for chunks of hits of every material in scenes of spheres,
     /// flat prims, boxes and CSG leaves of every shape (the 8-lane leaves and the rest), some moving, at
@@ -1721,7 +1728,8 @@ mod tests {
                         assert_eq!(geo.front & (1 << l) != 0, h.front, "{at}: side");
                         assert_eq!(geo.material[l], h.material, "{at}: material");
                         lanes += 1;
-                        csg_lanes += (hits.leaf[i] != NONE) as usize;
+                        // (CSG hits the 8-lane leaf forms take.)
+                        csg_lanes += (hits.leaf[i] != NONE && scene.csg.leaf(hits.leaf[i]).has_x8()) as usize;
                         box_lanes += matches!(scene.prims[hits.prim[i] as usize].shape, Shape::Box(_)) as usize;
                     }
                 }
@@ -1729,10 +1737,16 @@ mod tests {
         }
         assert!(
             lanes > 20_000 && csg_lanes > 5_000 && box_lanes > 1_000,
-            "{lanes} hits compared, {csg_lanes} on CSG leaves, {box_lanes} on boxes"
+            "{lanes} hits compared, {csg_lanes} on CSG leaves of 8-lane forms, {box_lanes} on boxes"
         );
     }
 
+    /// `lambert_x8`'s fast paths (whole chunks of one prim, one texture and one point key; pixels and
+    /// samples of consecutive paths as one load; runs of consecutive rays) give the requests and
+    /// diffuse rays its lane-by-lane path gives (chunks of one hit), bit for bit and in the same order:
+    /// five bounces of scenes with checker textures, spheres, boxes, CSG, glass (whose split branching
+    /// gives two rays one path, so that path ids repeat within a chunk) and motion, with and without
+    /// diffuse bounces.
     #[test]
     fn lambert_x8_chunks_equal_single_hits() {
         let (mut compared, mut uniform) = (0usize, 0usize);

@@ -28,7 +28,8 @@ use crate::sample::hash::{random_bits, RUN_MAX};
 use crate::sample::{hash_combine, sample_1d_keyed, stream_key, Sampler2d, Strategy};
 use crate::scene::{Light, Profile, Scene, Shape, NOT_A_LIGHT};
 use crate::simd::{
-    chunk8, f32x16, f32x8, gather8, i32x16, lane_bits, load8, mask_from_bits, store8, u32x16, u32x8, Lanes, Ray8, Vec3x8, LANES,
+    chunk8, f32x16, f32x8, for_each_group, gather8, i32x16, lane_bits, load8, mask_from_bits, store8, u32x16, u32x8, Lanes, Ray8, Vec3x8,
+    LANES,
 };
 use glam::Vec3;
 
@@ -599,20 +600,21 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
                         traced += resolve_buffered(scene, profile, lb, li, nee, first.as_ref(), job.as_ref(), &mut credit, arena);
                     }
                 }
-                let mut todo = lanes & opaque;
-                while todo != 0 {
-                    let pid = prim_of[todo.trailing_zeros() as usize];
-                    let same = todo & lane_bits(|l| prim_of[l] == pid);
-                    todo &= !same;
-                    let tmax = mask_from_bits(same).select(f32x8::splat(end), f32x8::splat(-1.0));
-                    let mut touched = 0;
-                    let occ = prim_occlusion(scene, profile, pid, &Ray8::new(o, target - o, tmax), None, arena, walk, &mut touched);
-                    debug_assert_eq!(touched, 0, "an opaque prim lets no ray through");
-                    let keep = mask_from_bits(same & !occ.to_bitmask());
-                    cleared_sum = cleared_sum + Vec3x8::masked(c, keep);
-                    traced += same.count_ones() as u64;
-                    lanes &= !same;
-                }
+                for_each_group(
+                    lanes & opaque,
+                    |l| prim_of[l],
+                    |first, same| {
+                        let pid = prim_of[first];
+                        let tmax = mask_from_bits(same).select(f32x8::splat(end), f32x8::splat(-1.0));
+                        let mut touched = 0;
+                        let occ = prim_occlusion(scene, profile, pid, &Ray8::new(o, target - o, tmax), None, arena, walk, &mut touched);
+                        debug_assert_eq!(touched, 0, "an opaque prim lets no ray through");
+                        let keep = mask_from_bits(same & !occ.to_bitmask());
+                        cleared_sum = cleared_sum + Vec3x8::masked(c, keep);
+                        traced += same.count_ones() as u64;
+                        lanes &= !same;
+                    },
+                );
                 if lanes == 0 {
                     continue;
                 }

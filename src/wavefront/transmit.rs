@@ -32,7 +32,7 @@ use crate::csg::{crossings_x8, CsgArena};
 use crate::geometry::{ellipsoid_interval_x8, obox_interval_x8, sphere_interval_x8};
 use crate::optics::{beer_lambert, fresnel_dielectric, fresnel_dielectric_x8, fresnel_schlick};
 use crate::scene::{Material, Prim, Profile, Scene, Shape};
-use crate::simd::{f32x8, lane_bits, mask_from_bits, Ray8, Vec3x8, LANES};
+use crate::simd::{f32x8, for_each_group, lane_bits, mask_from_bits, Ray8, Vec3x8, LANES};
 use glam::{Mat3, Vec3};
 
 /// Surfaces recorded per shadow ray; a ray that crosses more is taken as blocked.
@@ -127,9 +127,10 @@ impl Walk {
 /// One traversal collects every surface the segment crosses: a CSG solid's boundaries from its merged
 /// interval list, a convex prim's (sphere, ellipsoid, box) entry and exit from one interval, a flat
 /// prim's one hit. Their sides come from the intervals (a flat prim's from its normal), their angles from
-/// the normals (a sphere's from the point, a box's from the face of its slab, others' from the shading
-/// stage's `surface_hit`); sorted along the segment (entries before exits, then prim and leaf at equal
-/// distance, whatever the traversal order), they are replayed.
+/// the normals ([`events`]: a sphere's from the point, a box's from the face of its slab, a CSG leaf's at
+/// the point on the segment, others' from the shading stage's `surface_hit`); sorted along the segment
+/// (entries before exits, then prim and leaf at equal distance, whatever the traversal order), they are
+/// replayed.
 #[allow(clippy::too_many_arguments)]
 pub fn transmittance_x8(
     scene: &Scene,
@@ -170,11 +171,13 @@ pub fn transmittance_x8(
 }
 
 /// What the replay needs of every boundary's surface (its side, material, angle and Fresnel
-/// transmission) for the lanes `lanes`, the `k`-th boundaries of all lanes at once: CSG leaves' normals
-/// in 8 lanes per distinct leaf ([`Leaf::normal_x8`] at the unprojected point: only |cos| is used, which
-/// the shading stage's projection onto the surface changes by ULPs); a sphere's normal straight from the
-/// point on the segment, a box's from its face's axis, other shapes' as the shading stage finds them,
-/// lane by lane.
+/// transmission against air) for the lanes `lanes`, the `k`-th boundaries of all lanes at once. A CSG
+/// leaf's normal is taken at the point on the segment, not projected onto the leaf as the shading stage
+/// does: only |cos| is used, which the projection changes by ULPs (within rounding of a box's or a
+/// cylinder's edge it could pick the other face), in 8 lanes per distinct leaf for the shapes of
+/// [`Leaf::normal_x8`] and lane by lane for cones and tori. Lane by lane too: a sphere's normal straight
+/// from the point on the segment, a box's from its face's axis, other shapes' as the shading stage
+/// finds them (`surface_hit`).
 ///
 /// [`Leaf::normal_x8`]: crate::csg::Leaf::normal_x8
 fn events(scene: &Scene, cr: &mut Walk, ray: &Ray8, time: &[f32; LANES], lanes: u32) {
@@ -191,26 +194,28 @@ fn events(scene: &Scene, cr: &mut Walk, ray: &Ray8, time: &[f32; LANES], lanes: 
     for k in 0..deepest {
         let at = lanes & lane_bits(|l| cr.count[l] > k);
         let t = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if at & (1 << l) != 0 { cr.raw[l][k].t } else { 0.0 }));
-        let mut csg = at & lane_bits(|l| at & (1 << l) != 0 && matches!(scene.prims[cr.raw[l][k].prim as usize].shape, Shape::Csg { .. }));
+        let csg = at & lane_bits(|l| at & (1 << l) != 0 && matches!(scene.prims[cr.raw[l][k].prim as usize].shape, Shape::Csg { .. }));
         let (mut cos, mut eta) = (f32x8::ZERO, f32x8::ONE);
         let mut material = [0u32; LANES];
         let mut wide = 0;
-        while csg != 0 {
-            let r0 = cr.raw[csg.trailing_zeros() as usize][k];
-            let same = csg & lane_bits(|l| cr.raw[l][k].leaf == r0.leaf && cr.raw[l][k].prim == r0.prim);
-            csg &= !same;
-            let (leaf, prim) = (scene.csg.leaf(r0.leaf), &scene.prims[r0.prim as usize]);
-            let p = o + d.scale(t) - Vec3x8::splat(prim.motion).scale(time8);
-            if let Some(n) = leaf.normal_x8(p) {
-                let keep = mask_from_bits(same);
-                cos = keep.select(unit.dot_unfused(n), cos);
-                eta = keep.select(f32x8::splat(air_eta(scene, leaf.material)), eta);
-                for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
-                    material[l] = leaf.material;
+        for_each_group(
+            csg,
+            |l| (cr.raw[l][k].leaf, cr.raw[l][k].prim),
+            |first, same| {
+                let r0 = cr.raw[first][k];
+                let (leaf, prim) = (scene.csg.leaf(r0.leaf), &scene.prims[r0.prim as usize]);
+                let p = o + d.scale(t) - Vec3x8::splat(prim.motion).scale(time8);
+                if let Some(n) = leaf.normal_x8(p) {
+                    let keep = mask_from_bits(same);
+                    cos = keep.select(unit.dot_unfused(n), cos);
+                    eta = keep.select(f32x8::splat(air_eta(scene, leaf.material)), eta);
+                    for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
+                        material[l] = leaf.material;
+                    }
+                    wide |= same;
                 }
-                wide |= same;
-            }
-        }
+            },
+        );
         // The rest lane by lane.
         let (mut cos_l, mut eta_l) = (cos.to_array(), eta.to_array());
         let mut narrow = at & !wide;
@@ -285,7 +290,7 @@ fn sphere_pair_lanes(scene: &Scene, profile: &Profile, cr: &Walk, lanes: u32) ->
 }
 
 /// Transmittance of the `pairs` lanes ([`sphere_pair_lanes`]) into `tr`, in 8 lanes: bit for bit what the
-/// per-lane path gives them (the same unfused point, normal and cosine as `transmittance_x8`'s loop, the
+/// per-lane path gives them (the same unfused point, normal and cosine as [`events`] gives a sphere's crossing, the
 /// exact Fresnel reflectance in 8 lanes, and [`replay_one_medium`]'s products in its order; absorption,
 /// whose `exp` has no 8-lane twin, lane by lane).
 fn sphere_pairs_x8(scene: &Scene, profile: &Profile, cr: &Walk, ray: &Ray8, time: &[f32; LANES], pairs: u32, tr: &mut [Vec3; LANES]) {
@@ -297,14 +302,16 @@ fn sphere_pairs_x8(scene: &Scene, profile: &Profile, cr: &Walk, ray: &Ray8, time
     pair_transmittance_x8(scene, profile, &prims, t, ray, time, pairs, tr);
 }
 
-/// The spheres of the lanes whose light-cone verdict is one glass sphere each ([`pair_sphere`]), with
-/// what [`single_sphere_x8`] needs of them, made once per chunk of shading points for all their light
-/// samples.
+/// Spheres of a dielectric that shadow rays walk through, one per lane ([`paired_sphere`]), with what
+/// the transmittance of their entry-exit pairs needs ([`SingleSpheres::pairs_x8`]). For the lanes whose
+/// light-cone verdict is one glass sphere each ([`pair_sphere`]) it is made once per chunk of shading
+/// points, for all their light samples ([`single_sphere_x8`]); the walk makes one per packet.
 pub struct SingleSpheres {
-    /// The distinct spheres and their lanes.
+    /// The distinct spheres and their lanes (for [`single_sphere_x8`]).
     groups: [(u32, u32); LANES],
     n_groups: usize,
-    /// Per lane (other lanes: the first lane's): the sphere's centre and its medium's index.
+    /// Per lane (lanes outside those given: the first one's): the sphere's centre at the lane's time
+    /// (`centre + motion * time`, unfused as `Vec3` computes it) and its medium's index.
     c: Vec3x8,
     ior: f32x8,
     /// Lanes whose sphere absorbs (their transmittance has a per-lane `exp`), and lanes whose sphere
@@ -315,8 +322,22 @@ pub struct SingleSpheres {
 }
 
 impl SingleSpheres {
-    /// The spheres `prims[l]` of lanes `lanes` (each a [`pair_sphere`]).
+    /// The static spheres `prims[l]` of lanes `lanes` (each a [`pair_sphere`]).
     pub fn new(scene: &Scene, profile: &Profile, prims: &[u32; LANES], lanes: u32) -> SingleSpheres {
+        let mut out = SingleSpheres::at(scene, profile, prims, lanes, &[0.0; LANES]);
+        for_each_group(
+            lanes,
+            |l| prims[l],
+            |first, same| {
+                out.groups[out.n_groups] = (prims[first], same);
+                out.n_groups += 1;
+            },
+        );
+        out
+    }
+
+    /// The spheres `prims[l]` of lanes `lanes` (each a [`paired_sphere`]) at the lanes' times `time`.
+    fn at(scene: &Scene, profile: &Profile, prims: &[u32; LANES], lanes: u32, time: &[f32; LANES]) -> SingleSpheres {
         let mut out = SingleSpheres {
             groups: [(0, 0); LANES],
             n_groups: 0,
@@ -330,28 +351,48 @@ impl SingleSpheres {
             return out;
         }
         let l0 = lanes.trailing_zeros() as usize;
-        let (mut rows, mut ior) = ([[0.0f32; LANES]; 3], [1.0f32; LANES]);
-        let mut todo = lanes;
-        while todo != 0 {
-            let pid = prims[todo.trailing_zeros() as usize];
-            let same = todo & lane_bits(|l| prims[l] == pid);
-            todo &= !same;
-            out.groups[out.n_groups] = (pid, same);
-            out.n_groups += 1;
-        }
+        let (mut rows, mut ior) = ([[0.0f32; LANES]; 6], [1.0f32; LANES]);
         for l in 0..LANES {
             let pid = if lanes & (1 << l) != 0 { prims[l] } else { prims[l0] };
             let prim = &scene.prims[pid as usize];
-            let Shape::Sphere { center, .. } = prim.shape else { unreachable!("pair_sphere checked the shape") };
-            let d = medium::dielectric(scene, prim.material).expect("pair_sphere checked the material");
-            (rows[0][l], rows[1][l], rows[2][l]) = (center.x, center.y, center.z);
+            let Shape::Sphere { center, .. } = prim.shape else { unreachable!("the callers checked the shape") };
+            let d = medium::dielectric(scene, prim.material).expect("the callers checked the material");
+            for a in 0..3 {
+                (rows[a][l], rows[3 + a][l]) = (center[a], prim.motion[a]);
+            }
             ior[l] = d.ior.nominal();
             out.sigma_a[l] = d.sigma_a;
             out.absorbs |= ((d.sigma_a != Vec3::ZERO) as u32) << l;
             out.blocks |= ((ior[l] != 1.0 && !profile.transmissive_shadows) as u32) << l;
         }
-        (out.c, out.ior) = (Vec3x8::from_rows(&rows), f32x8::from(ior));
+        let (f, tm) = (|a: &[f32; LANES]| f32x8::from(*a), f32x8::from(*time));
+        out.c = Vec3x8::new(f(&rows[0]) + f(&rows[3]) * tm, f(&rows[1]) + f(&rows[4]) * tm, f(&rows[2]) + f(&rows[5]) * tm);
+        out.ior = f32x8::from(ior);
         out
+    }
+
+    /// The transmittance of the entry-exit pairs `t` (entry, exit) of the lanes `pairs` along `ray`, as
+    /// the per-lane replay ([`replay_one_medium`]) gives it, bit for bit: the two crossings' Fresnel
+    /// transmissions ([`pair_fresnel_x8`]) and, for absorbing spheres, Beer-Lambert between them (lane by
+    /// lane: `exp` has no 8-lane twin), in its order; 0 in the lanes whose sphere blocks. Other lanes:
+    /// unspecified.
+    fn pairs_x8(&self, t: [f32x8; 2], ray: &Ray8, pairs: u32) -> Vec3x8 {
+        let (f0, f1, s0, s1) = pair_fresnel_x8(self.c, self.ior, t, ray);
+        let f = f0 * f1;
+        let mut tr = Vec3x8::masked(Vec3x8::new(f, f, f), !mask_from_bits(self.blocks));
+        let mut absorbing = pairs & self.absorbs & !self.blocks;
+        if absorbing != 0 {
+            let mut rows = tr.rows();
+            let (f0, f1, s0, s1) = (f0.to_array(), f1.to_array(), s0.to_array(), s1.to_array());
+            while absorbing != 0 {
+                let l = absorbing.trailing_zeros() as usize;
+                absorbing &= absorbing - 1;
+                let v = Vec3::ONE * f0[l] * beer_lambert(self.sigma_a[l], s1[l] - s0[l]) * f1[l];
+                (rows[0][l], rows[1][l], rows[2][l]) = (v.x, v.y, v.z);
+            }
+            tr = Vec3x8::from_rows(&rows);
+        }
+        tr
     }
 }
 
@@ -386,27 +427,10 @@ pub fn single_sphere_x8(scene: &Scene, spheres: &SingleSpheres, ray: &Ray8, lane
         return (done, one);
     }
     // Lanes outside the pairs take a pair lane's crossings (their results are not used).
-    let l0 = f32x8::splat(t0.to_array()[pairs.trailing_zeros() as usize]);
-    let l1 = f32x8::splat(t1.to_array()[pairs.trailing_zeros() as usize]);
+    let first = pairs.trailing_zeros() as usize;
     let is_pair = mask_from_bits(pairs);
-    let (t0, t1) = (is_pair.select(t0, l0), is_pair.select(t1, l1));
-    let (f0, f1, s0, s1) = pair_fresnel_x8(spheres.c, spheres.ior, [t0, t1], ray);
-    let t = f0 * f1;
-    let mut tr = Vec3x8::select(is_pair & !mask_from_bits(spheres.blocks), Vec3x8::new(t, t, t), Vec3x8::splat(Vec3::ZERO));
-    tr = Vec3x8::select(mask_from_bits(done), one, tr);
-    let mut absorbing = pairs & spheres.absorbs & !spheres.blocks;
-    if absorbing != 0 {
-        let mut rows = [tr.x.to_array(), tr.y.to_array(), tr.z.to_array()];
-        let (f0, f1, s0, s1) = (f0.to_array(), f1.to_array(), s0.to_array(), s1.to_array());
-        while absorbing != 0 {
-            let l = absorbing.trailing_zeros() as usize;
-            absorbing &= absorbing - 1;
-            let v = Vec3::ONE * f0[l] * beer_lambert(spheres.sigma_a[l], s1[l] - s0[l]) * f1[l];
-            (rows[0][l], rows[1][l], rows[2][l]) = (v.x, v.y, v.z);
-        }
-        tr = Vec3x8::from_rows(&rows);
-    }
-    (pairs | done, tr)
+    let t = [t0, t1].map(|t| is_pair.select(t, f32x8::splat(t.to_array()[first])));
+    (pairs | done, Vec3x8::select(is_pair, spheres.pairs_x8(t, ray, pairs), one))
 }
 
 /// Whether prim `pid` is a static sphere whose crossings [`single_sphere_x8`] replays.
@@ -436,37 +460,10 @@ fn pair_transmittance_x8(
     pairs: u32,
     tr: &mut [Vec3; LANES],
 ) {
-    // Per lane: the sphere's centre at the lane's time and the medium's index.
-    let mut rows = [[0.0f32; LANES]; 6];
-    let mut ior = [1.0f32; LANES];
-    for l in 0..LANES {
-        let prim = &scene.prims[prims[l] as usize];
-        let Shape::Sphere { center, .. } = prim.shape else { unreachable!("the callers checked the shape") };
-        for a in 0..3 {
-            (rows[a][l], rows[3 + a][l]) = (center[a], prim.motion[a]);
-        }
-        ior[l] = medium::dielectric(scene, prim.material).map_or(1.0, |d| d.ior.nominal());
-    }
-    let f = |a: &[f32; LANES]| f32x8::from(*a);
-    let tm = f(time);
-    // centre + motion * time, unfused as `Vec3` computes it.
-    let c = Vec3x8::new(f(&rows[0]) + f(&rows[3]) * tm, f(&rows[1]) + f(&rows[4]) * tm, f(&rows[2]) + f(&rows[5]) * tm);
-    let (f0, f1, s0, s1) = pair_fresnel_x8(c, f(&ior), [f(&t[0]), f(&t[1])], ray);
-    let (f0, f1, s0, s1) = (f0.to_array(), f1.to_array(), s0.to_array(), s1.to_array());
-    let mut bits = pairs;
-    while bits != 0 {
-        let l = bits.trailing_zeros() as usize;
-        bits &= bits - 1;
-        if ior[l] != 1.0 && !profile.transmissive_shadows {
-            tr[l] = Vec3::ZERO;
-            continue;
-        }
-        let d = medium::dielectric(scene, scene.prims[prims[l] as usize].material).expect("a dielectric");
-        let mut v = Vec3::ONE * f0[l];
-        if d.sigma_a != Vec3::ZERO {
-            v *= beer_lambert(d.sigma_a, s1[l] - s0[l]);
-        }
-        tr[l] = v * f1[l];
+    let spheres = SingleSpheres::at(scene, profile, prims, u32::MAX >> (32 - LANES), time);
+    let v = spheres.pairs_x8(t.map(f32x8::from), ray, pairs);
+    for l in (0..LANES).filter(|&l| pairs & (1 << l) != 0) {
+        tr[l] = v.lane(l);
     }
 }
 
@@ -477,12 +474,8 @@ fn pair_transmittance_x8(
 fn pair_fresnel_x8(c: Vec3x8, n: f32x8, t: [f32x8; 2], ray: &Ray8) -> (f32x8, f32x8, f32x8, f32x8) {
     let one = f32x8::ONE;
     let (o, d) = (ray.o, ray.d);
-    // `normalize_or_zero`: `v * (1 / |v|)` when that reciprocal is finite and positive, else zero.
-    let normalize = |v: Vec3x8| {
-        let rcp = one / v.dot_unfused(v).sqrt();
-        let ok = rcp.is_finite() & rcp.simd_gt(f32x8::ZERO);
-        Vec3x8::select(ok, v.scale(rcp), Vec3x8::splat(Vec3::ZERO))
-    };
+    // `normalize_or_zero` as glam rounds it.
+    let normalize = |v: Vec3x8| v.normalize_or(Vec3x8::splat(Vec3::ZERO));
     let len = d.dot_unfused(d).sqrt();
     let unit = normalize(d);
     // Each crossing's distance along the segment and |cos| to its normal.

@@ -197,6 +197,26 @@ fn transmissive_shadow_through_a_csg_cavity() {
     assert!(close(t, want, 1e-4), "beside the cavity: {t:?} vs {want:?}");
 }
 
+/// The CSG block with a cavity of `transmissive_shadow_through_a_csg_cavity`, moving across the shadow
+/// ray: over it at t = 0.5 (four normal-incidence crossings: each crossing's normal is taken in the
+/// solid's frame at the ray's time), off it at the shutter's ends.
+#[test]
+fn transmissive_shadow_through_a_moving_csg_cavity() {
+    let block = "[[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmaterial = \"glass\"\nmotion = [6, 0, 0]\nchildren = [\n\
+                 { type = \"box\", min = [-4, 1, -1], max = [-2, 3, 1] },\n\
+                 { type = \"sphere\", center = [-3, 2, 0], radius = 0.5 },\n]\n";
+    let light = Vec3::new(0.0, 6.0, 0.0);
+    let f0 = fresnel64(1.0, 1.0, 1.5);
+    let want = (-SIGMA * 1.0).exp() * (1.0 - f0).powi(4);
+    let t = transmittance_at(block, GLASS, light, Vec3::ZERO, true, 0.5);
+    eprintln!("moving cavity at t = 0.5: {t:?}, expected {want:?}");
+    assert!(close(t, want, 1e-4), "{t:?} vs {want:?}");
+    for time in [0.0, 1.0] {
+        let t = transmittance_at(block, GLASS, light, Vec3::ZERO, true, time);
+        assert!(close(t, DVec3::ONE, 1e-6), "time {time}: {t:?}, the block is off the ray");
+    }
+}
+
 /// Through a CSG glass slab placed by a rotation inside a non-uniform scale, crossed obliquely: the walk
 /// takes each crossing's angle from the leaf's normal (in 8 lanes, `Leaf::normal_x8`), which the scale
 /// bends away from the rotated face's direction. The slab's world normal is `m = S^-1 R y` (its planes
