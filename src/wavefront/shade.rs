@@ -957,9 +957,12 @@ impl<'a> Ctx<'a> {
         // (`interface_children`: a refracted direction exists and the coin passes reflectance).
         let mut trans = 0u32;
         if real != 0 {
-            // (A plain loop: it vectorises; `array::from_fn` made it a call per lane.)
+            // (Lane by lane, for the lanes that toss it: see `lambert_x8`'s roulette.)
             let mut coin = [0.0f32; LANES];
-            for l in 0..LANES {
+            let mut bits = real & !tir;
+            while bits != 0 {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
                 coin[l] = self.fresnel_coin(pixel[l], branch[l], sample[l], depth[l]);
             }
             trans = real & !tir & lane_bits(|l| coin[l] >= fres[l]);
