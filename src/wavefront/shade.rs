@@ -784,11 +784,10 @@ impl<'a> Ctx<'a> {
         let u = self.diffuse.sample_x8(&dkeys, &samples, true);
         let wi = sample_hemisphere_cos_x8(nv, u);
         let (wx, wy, wz) = (wi.x.to_array(), wi.y.to_array(), wi.z.to_array());
-        // Russian roulette, as `spawn` plays it: continuation probabilities per lane, then the roulette
-        // numbers of the lanes that play, lane by lane. (A branch-free loop over all 8 lanes, which the
-        // compiler vectorised with `vpmullq`, was 2.7% slower on peer scene (b)'s shade stage: each
-        // number is a chain of 18 dependent 64-bit multiplies, 15 cycles each in a vector against 3 in
-        // scalar registers, where the lanes' chains overlap.)
+        // Russian roulette, as `spawn` plays it: continuation probabilities per lane, then (only when
+        // some lane needs one) the roulette numbers of all 8 lanes in one branch-free loop of 64-bit
+        // hashes, which the compiler vectorises (`vpmullq`; lane by lane for the lanes that play measured
+        // a tie, unlike the glass chunks' Fresnel coins).
         let cutoff = profile.throughput_cutoff;
         let mut q = [1.0f32; LANES];
         let (mut alive, mut play) = (0u32, 0u32);
@@ -805,10 +804,7 @@ impl<'a> Ctx<'a> {
         let mut roll = [0.0f32; LANES];
         if play != 0 {
             let seed = self.seed;
-            let mut bits = play;
-            while bits != 0 {
-                let l = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
+            for l in 0..LANES {
                 let key = hash_combine(branch_stream(pixels[l], branch[l]), samples[l] as u64);
                 roll[l] = random_f32(seed, key, dims::ROULETTE + (depth[l] as u32 + 1) * 4, 0);
             }
@@ -957,7 +953,10 @@ impl<'a> Ctx<'a> {
         // (`interface_children`: a refracted direction exists and the coin passes reflectance).
         let mut trans = 0u32;
         if real != 0 {
-            // (Lane by lane, for the lanes that toss it: see `lambert_x8`'s roulette.)
+            // (Lane by lane, for the lanes that toss one. A branch-free loop over all 8 lanes, which the
+            // compiler vectorised with `vpmullq`, made `glass.toml`'s shade stage 1.06x slower: each coin
+            // is a chain of 18 dependent 64-bit multiplies, 15 cycles each in a vector against 3 in
+            // scalar registers, where the lanes' chains overlap.)
             let mut coin = [0.0f32; LANES];
             let mut bits = real & !tir;
             while bits != 0 {
