@@ -406,17 +406,21 @@ pub fn inside_object(shape: Shape, q: Vec3) -> bool {
 mod tests {
     use super::*;
 
+    /// A seeded LCG of floats in `[0, 1)` (24 bits), for the tests' random points and placements.
+    fn lcg(mut seed: u64) -> impl FnMut() -> f32 {
+        move || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32) / (1u64 << 24) as f32
+        }
+    }
+
     /// [`Leaf::normal_x8`] and [`Leaf::refine_x8`] are [`Leaf::normal`] and [`Leaf::refine`] bit for bit
     /// (sphere, box, cylinder and half-space leaves under rotations, non-uniform scales and
     /// translations, at points on, near and off their surfaces, points within 1e-6 of edges included,
     /// and at non-finite points), and decline the other shapes.
     #[test]
     fn x8_forms_equal_the_scalar_ones() {
-        let mut seed = 0x0a0e_u64;
-        let mut u = move || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((seed >> 40) as f32) / (1u64 << 24) as f32
-        };
+        let mut u = lcg(0x0a0e);
         let (mut checked, mut refined) = (0, 0);
         for case in 0..800 {
             let shape = [Shape::Sphere, Shape::Box, Shape::HalfSpace, Shape::Cylinder][case % 4];
@@ -495,11 +499,7 @@ mod tests {
     /// point moved no farther than it was off. Undefined cases give `None`.
     #[test]
     fn projection_lands_on_each_surface() {
-        let mut seed = 0x5eed_u64;
-        let mut u = move || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((seed >> 40) as f32) / (1u64 << 24) as f32
-        };
+        let mut u = lcg(0x5eed);
         let (m, k) = cone_line(0.3, 0.8);
         // Each shape with its signed distance function (exact near the part the points lie on).
         type Distance = fn(Vec3) -> f32;

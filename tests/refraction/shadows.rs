@@ -205,15 +205,21 @@ fn transmissive_shadow_through_a_moving_csg_cavity() {
     let block = "[[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmaterial = \"glass\"\nmotion = [6, 0, 0]\nchildren = [\n\
                  { type = \"box\", min = [-4, 1, -1], max = [-2, 3, 1] },\n\
                  { type = \"sphere\", center = [-3, 2, 0], radius = 0.5 },\n]\n";
-    let light = Vec3::new(0.0, 6.0, 0.0);
     let f0 = fresnel64(1.0, 1.0, 1.5);
-    let want = (-SIGMA * 1.0).exp() * (1.0 - f0).powi(4);
-    let t = transmittance_at(block, GLASS, light, Vec3::ZERO, true, 0.5);
-    eprintln!("moving cavity at t = 0.5: {t:?}, expected {want:?}");
-    assert!(close(t, want, 1e-4), "{t:?} vs {want:?}");
+    moving_across(block, (-SIGMA * 1.0).exp() * (1.0 - f0).powi(4), "cavity");
+}
+
+/// A glass shape (`shapes`) moving across the shadow ray from the origin to a point light above it: the
+/// transmittance `want` at t = 0.5, where it lies over the point, and 1 at the shutter's ends, where it
+/// is off the ray.
+fn moving_across(shapes: &str, want: DVec3, what: &str) {
+    let light = Vec3::new(0.0, 6.0, 0.0);
+    let t = transmittance_at(shapes, GLASS, light, Vec3::ZERO, true, 0.5);
+    eprintln!("moving {what} at t = 0.5: {t:?}, expected {want:?}");
+    assert!(close(t, want, 1e-4), "{what}: {t:?} vs {want:?}");
     for time in [0.0, 1.0] {
-        let t = transmittance_at(block, GLASS, light, Vec3::ZERO, true, time);
-        assert!(close(t, DVec3::ONE, 1e-6), "time {time}: {t:?}, the block is off the ray");
+        let t = transmittance_at(shapes, GLASS, light, Vec3::ZERO, true, time);
+        assert!(close(t, DVec3::ONE, 1e-6), "time {time}: {t:?}, the {what} is off the ray");
     }
 }
 
@@ -301,16 +307,8 @@ fn transmissive_shadow_through_an_ellipsoid() {
 #[test]
 fn transmissive_shadow_through_a_moving_ball() {
     let ball = "[[shapes]]\ntype = \"sphere\"\ncenter = [-3, 2, 0]\nradius = 1\nmaterial = \"glass\"\nmotion = [6, 0, 0]\n";
-    let light = Vec3::new(0.0, 6.0, 0.0);
     let f0 = fresnel64(1.0, 1.0, 1.5);
-    let want = (-SIGMA * 2.0).exp() * (1.0 - f0) * (1.0 - f0);
-    let t = transmittance_at(ball, GLASS, light, Vec3::ZERO, true, 0.5);
-    eprintln!("moving ball at t = 0.5: {t:?}, expected {want:?}");
-    assert!(close(t, want, 1e-4), "{t:?} vs {want:?}");
-    for time in [0.0, 1.0] {
-        let t = transmittance_at(ball, GLASS, light, Vec3::ZERO, true, time);
-        assert!(close(t, DVec3::ONE, 1e-6), "time {time}: {t:?}, the ball is off the ray");
-    }
+    moving_across(ball, (-SIGMA * 2.0).exp() * (1.0 - f0) * (1.0 - f0), "ball");
 }
 
 /// Entry and exit of a segment through an axis-aligned box in f64 (slab test), with the axes of the
