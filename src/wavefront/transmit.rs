@@ -127,8 +127,8 @@ impl Walk {
 /// One traversal collects every surface the segment crosses: a CSG solid's boundaries from its merged
 /// interval list, a convex prim's (sphere, ellipsoid, box) entry and exit from one interval, a flat
 /// prim's one hit. Their sides come from the intervals (a flat prim's from its normal), their angles from
-/// the normals ([`events`]: a sphere's from the point, a box's from the face of its slab, a CSG leaf's at
-/// the point on the segment, others' from the shading stage's `surface_hit`); sorted along the segment
+/// the normals ([`events`]: a sphere's from the point, a box's from the face of its slab, others' as the
+/// shading stage's `surface_hit` finds them); sorted along the segment
 /// (entries before exits, then prim and leaf at equal distance, whatever the traversal order), they are
 /// replayed.
 #[allow(clippy::too_many_arguments)]
@@ -172,14 +172,15 @@ pub fn transmittance_x8(
 
 /// What the replay needs of every boundary's surface (its side, material, angle and Fresnel
 /// transmission against air) for the lanes `lanes`, the `k`-th boundaries of all lanes at once. A CSG
-/// leaf's normal is taken at the point on the segment, not projected onto the leaf as the shading stage
-/// does: only |cos| is used, which the projection changes by ULPs (within rounding of a box's or a
-/// cylinder's edge it could pick the other face), in 8 lanes per distinct leaf for the shapes of
-/// [`Leaf::normal_x8`] and lane by lane for cones and tori. Lane by lane too: a sphere's normal straight
-/// from the point on the segment, a box's from its face's axis, other shapes' as the shading stage
-/// finds them (`surface_hit`).
+/// leaf's normal is found as the shading stage's `surface_hit` finds it (the point projected onto the
+/// leaf, the normal there), bit for bit: in 8 lanes per distinct leaf for the shapes of
+/// [`Leaf::refine_x8`], lane by lane for cones and tori. (Taking the normal at the unprojected point
+/// instead changed a light sample's transmittance by percents where the point fell past a box's or
+/// cylinder's edge onto the neighbouring face: a user trial.) Lane by lane too: a sphere's normal
+/// straight from the point on the segment, a box's from its face's axis, other shapes' through
+/// `surface_hit`.
 ///
-/// [`Leaf::normal_x8`]: crate::csg::Leaf::normal_x8
+/// [`Leaf::refine_x8`]: crate::csg::Leaf::refine_x8
 fn events(scene: &Scene, cr: &mut Walk, ray: &Ray8, time: &[f32; LANES], lanes: u32) {
     let (o, d) = (ray.o, ray.d);
     // `length` and `normalize_or_zero` as glam rounds them.
@@ -204,8 +205,11 @@ fn events(scene: &Scene, cr: &mut Walk, ray: &Ray8, time: &[f32; LANES], lanes: 
             |first, same| {
                 let r0 = cr.raw[first][k];
                 let (leaf, prim) = (scene.csg.leaf(r0.leaf), &scene.prims[r0.prim as usize]);
-                let p = o + d.scale(t) - Vec3x8::splat(prim.motion).scale(time8);
-                if let Some(n) = leaf.normal_x8(p) {
+                // As `surface_hit` finds it: the point projected onto the leaf in its frame at the ray's
+                // time (where defined), the normal there.
+                let (naive, shift) = (o + d.scale(t), Vec3x8::splat(prim.motion).scale(time8));
+                if let Some((q, _, ok)) = leaf.refine_x8(naive - shift) {
+                    let n = leaf.normal_x8(Vec3x8::select(ok, q + shift, naive) - shift).expect("a leaf with 8-lane forms");
                     let keep = mask_from_bits(same);
                     cos = keep.select(unit.dot_unfused(n), cos);
                     eta = keep.select(f32x8::splat(air_eta(scene, leaf.material)), eta);
@@ -230,10 +234,6 @@ fn events(scene: &Scene, cr: &mut Walk, ray: &Ray8, time: &[f32; LANES], lanes: 
                 // The face's normal direction in world space (the row of the world-to-object map for its
                 // axis); only |cos| is used, the side comes from the interval.
                 Shape::Box(b) => (Mat3::from(b.world_to_object.matrix3).row(r.leaf as usize).normalize_or_zero(), prim.material),
-                Shape::Csg { .. } => {
-                    let leaf = scene.csg.leaf(r.leaf);
-                    (leaf.normal(o + d * r.t - prim.motion * time[l]), leaf.material)
-                }
                 _ => {
                     let ray = RayItem { o, d, time: time[l], ..RayItem::default() };
                     let h = surface_hit(scene, &ray, r.t, r.prim, r.leaf, r.flip);
@@ -706,6 +706,114 @@ fn replay_media(scene: &Scene, profile: &Profile, events: &[Event], len: f32) ->
 mod tests {
     use super::*;
     use crate::scene::parse_scene;
+
+    /// `events` gives every crossing what the per-lane walk gave it, bit for bit: the distance, side and
+    /// material, the cosine from the normal the shading stage's `surface_hit` finds (the point projected
+    /// onto the leaf) or, for spheres and boxes, from the point and the slab's face, and the Fresnel
+    /// transmission against air. Glass CSG solids of every leaf shape, rotated, scaled and moving, and a
+    /// glass sphere, box and ellipsoid; segments from random points, half of them aimed through a point
+    /// on an edge of a CSG box or cylinder leaf, where the face is decided by rounding. (Normals taken at
+    /// the unprojected point there picked the neighbouring face: a user trial.)
+    #[test]
+    fn events_equal_the_per_lane_crossings() {
+        let text = "[image]\nwidth = 4\nheight = 4\n[camera]\nposition = [0, 0, 9]\nlook_at = [0, 0, 0]\nfov = 40\nshutter = [0, 1]\n\
+                    [materials.glass]\ntype = \"dielectric\"\nior = 1.5\n\
+                    [materials.tinted]\ntype = \"dielectric\"\nior = 1.33\nabsorption = [0.5, 0.1, 0.0]\n\
+                    [[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmaterial = \"glass\"\n\
+                    transform = { rotate = [30, 45, 0], scale = [0.9, 1.2, 0.8], translate = [-1.5, 0.5, 0] }\nchildren = [\n\
+                      { type = \"box\", min = [-0.8, -0.8, -0.8], max = [0.8, 0.8, 0.8] },\n\
+                      { type = \"sphere\", center = [0, 0, 0], radius = 0.6 },\n\
+                      { type = \"cylinder\", radius = 0.3, height = 3.0 },\n]\n\
+                    [[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmaterial = \"tinted\"\nmotion = [0.4, 0.2, 0]\n\
+                    transform = { rotate = [0, 20, 70], translate = [1.5, 0.5, 0] }\nchildren = [\n\
+                      { type = \"csg\", op = \"union\", children = [\n\
+                        { type = \"cone\", radius = 0.7, radius_top = 0.2, height = 1.2 },\n\
+                        { type = \"torus\", major_radius = 0.6, minor_radius = 0.2 },\n] },\n\
+                      { type = \"box\", min = [-0.2, -1, -1], max = [0.2, 1, 1] },\n\
+                      { type = \"halfspace\", point = [0, 0.5, 0], normal = [0.2, 1, 0.1] },\n]\n\
+                    [[shapes]]\ntype = \"sphere\"\ncenter = [0, -2, 0]\nradius = 0.7\nmaterial = \"glass\"\n\
+                    [[shapes]]\ntype = \"box\"\nmin = [-2.5, -2.5, -0.5]\nmax = [-1.5, -1.5, 0.5]\nmaterial = \"glass\"\n\
+                    transform = { rotate = [10, 0, 25] }\n\
+                    [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"tinted\"\n\
+                    transform = { scale = [0.8, 0.4, 0.6], rotate = [0, 30, 0], translate = [2, -2, 0] }\n";
+        let scene = parse_scene(std::path::Path::new("events.toml"), text).unwrap();
+        // The CSG box and cylinder leaves, whose edges the aimed segments pass through.
+        let edged: Vec<u32> = (0..scene.csg.leaf_count() as u32)
+            .filter(|&i| matches!(scene.csg.leaf(i).shape, crate::csg::Shape::Box | crate::csg::Shape::Cylinder))
+            .collect();
+        assert_eq!(edged.len(), 3);
+        let mut f = crate::sample::hash::test_uniforms(0xe7e7_5eed);
+        let mut arena = CsgArena::new();
+        let mut walk = Walk::new();
+        walk.sphere_pairs = false;
+        let profile = Profile::builtin("bench");
+        let (mut crossings, mut csg) = (0usize, 0usize);
+        for case in 0..8000 {
+            let (mut o, mut d) = ([[0.0f32; LANES]; 3], [[0.0f32; LANES]; 3]);
+            let (mut tmax, mut time) = ([0.0f32; LANES], [0.0f32; LANES]);
+            for l in 0..LANES {
+                let start = Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5) * 8.0;
+                let through = if (case + l) % 2 == 0 {
+                    // A point on an edge of a box leaf (two coordinates at +-1) or on a cylinder's rim.
+                    let leaf = scene.csg.leaf(edged[(f() * edged.len() as f32) as usize % edged.len()]);
+                    let sign = |x: f32| if x < 0.5 { -1.0 } else { 1.0 };
+                    let q = match leaf.shape {
+                        crate::csg::Shape::Box => {
+                            let mut q = Vec3::splat(f() * 2.0 - 1.0);
+                            let axis = (f() * 3.0) as usize % 3;
+                            q[axis] = sign(f());
+                            q[(axis + 1) % 3] = sign(f());
+                            q
+                        }
+                        _ => {
+                            let a = f() * std::f32::consts::TAU;
+                            Vec3::new(a.cos(), a.sin(), sign(f()))
+                        }
+                    };
+                    leaf.object_to_world.transform_point3(q)
+                } else {
+                    Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5) * 8.0
+                };
+                // (Past the aimed point: the segment crosses the edge, not ends on it.)
+                let dir = (through - start) * 1.5;
+                for a in 0..3 {
+                    (o[a][l], d[a][l]) = (start[a], dir[a]);
+                }
+                (tmax[l], time[l]) = (1.0, if case % 3 == 0 { 0.0 } else { f() });
+            }
+            let lanes = (f() * 256.0) as u32 | 1;
+            transmittance_x8(&scene, &profile, &o, &d, &tmax, &time, lanes, &mut arena, &mut walk);
+            for l in (0..LANES).filter(|&l| lanes & !walk.full & (1 << l) != 0) {
+                let (o, d) = (Vec3::new(o[0][l], o[1][l], o[2][l]), Vec3::new(d[0][l], d[1][l], d[2][l]));
+                let (len, unit) = (d.length(), d.normalize_or_zero());
+                for k in 0..walk.count[l] {
+                    let r = walk.raw[l][k];
+                    let prim = &scene.prims[r.prim as usize];
+                    let (n, material) = match prim.shape {
+                        Shape::Sphere { center, .. } => {
+                            ((o + d * r.t - (center + prim.motion * time[l])).normalize_or_zero(), prim.material)
+                        }
+                        Shape::Box(b) => (Mat3::from(b.world_to_object.matrix3).row(r.leaf as usize).normalize_or_zero(), prim.material),
+                        _ => {
+                            let h =
+                                surface_hit(&scene, &RayItem { o, d, time: time[l], ..RayItem::default() }, r.t, r.prim, r.leaf, r.flip);
+                            (h.n, h.material)
+                        }
+                    };
+                    let cos = unit.dot(n);
+                    let entering = if r.side == SIDE_NORMAL { cos < 0.0 } else { r.side == SIDE_ENTRY };
+                    let tf = 1.0 - fresnel_dielectric(cos.abs(), air_eta(&scene, material));
+                    let want = [(r.t * len).to_bits(), material, entering as u32, cos.abs().to_bits(), tf.to_bits()];
+                    let e = walk.geo[l][k];
+                    let got = [e.s.to_bits(), e.material, e.entering as u32, e.cos.to_bits(), e.tf.to_bits()];
+                    assert_eq!(got, want, "case {case} lane {l} crossing {k} of prim {} leaf {}", r.prim, r.leaf);
+                    crossings += 1;
+                    csg += matches!(prim.shape, Shape::Csg { .. }) as usize;
+                }
+            }
+        }
+        assert!(crossings > 20_000 && csg > 16_000, "{crossings} crossings, {csg} of CSG leaves");
+    }
 
     /// The 8-lane replay of sphere entry-exit pairs equals the per-lane one bit for bit: random segments
     /// (through, into, out of and past spheres of clear, absorbing, index-1 and Schlick dielectrics, a
