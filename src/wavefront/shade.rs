@@ -260,14 +260,8 @@ fn hit_rows_x8(
     let (mut pv, mut nv, mut sv) = (Vec3x8::from_rows(&p), Vec3x8::from_rows(&nf), f32x8::from(scale));
     if pla != 0 {
         // The point o + t d projected onto the plane, and the normal turned to face the ray.
-        let n = nv;
-        let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
-        let mask = mask_from_bits(pla);
-        let (fp, fscale) = flat_hits_x8(naive, n, Vec3x8::from_rows(&fshift), f32x8::from(fw), f32x8::from(fs));
-        pv = Vec3x8::select(mask, fp, pv);
-        nv = Vec3x8::select(mask, flip(ahead, n), n);
-        sv = mask.select(fscale, sv);
-        front |= ahead.to_bitmask() & pla;
+        let (fp, fscale) = flat_hits_x8(naive, nv, Vec3x8::from_rows(&fshift), f32x8::from(fw), f32x8::from(fs));
+        (pv, nv, sv) = rows_into(pla, (fp, nv, fscale), (pv, nv, sv), &mut front, d);
     }
     for_each_group(
         boxes,
@@ -282,10 +276,8 @@ fn hit_rows_x8(
             let (q, s, ok, n) = obox_hits_x8(b, naive - shift, |q, ok| point(q, ok) - shift);
             let scale = ok.select(s.max(shift.max_abs_element()), o.max_abs_element());
             (pv, nv, sv) = rows_into(same, (point(q, ok), n, scale), (pv, nv, sv), &mut front, d);
-            for (l, m) in material.iter_mut().enumerate() {
-                if same & (1 << l) != 0 {
-                    *m = prim.material;
-                }
+            for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
+                material[l] = prim.material;
             }
         },
     );
@@ -304,10 +296,8 @@ fn hit_rows_x8(
             let n = leaf.normal_x8(p - shift).expect("a leaf with 8-lane forms");
             let n = Vec3x8::select(mask_from_bits(flipped), Vec3x8::new(-n.x, -n.y, -n.z), n);
             (pv, nv, sv) = rows_into(same, (p, n, scale), (pv, nv, sv), &mut front, d);
-            for (l, m) in material.iter_mut().enumerate() {
-                if same & (1 << l) != 0 {
-                    *m = leaf.material;
-                }
+            for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
+                material[l] = leaf.material;
             }
         },
     );

@@ -195,7 +195,7 @@ fn events(scene: &Scene, cr: &mut Walk, ray: &Ray8, time: &[f32; LANES], lanes: 
     for k in 0..deepest {
         let at = lanes & lane_bits(|l| cr.count[l] > k);
         let t = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if at & (1 << l) != 0 { cr.raw[l][k].t } else { 0.0 }));
-        let csg = at & lane_bits(|l| at & (1 << l) != 0 && matches!(scene.prims[cr.raw[l][k].prim as usize].shape, Shape::Csg { .. }));
+        let csg = lane_bits(|l| at & (1 << l) != 0 && matches!(scene.prims[cr.raw[l][k].prim as usize].shape, Shape::Csg { .. }));
         let (mut cos, mut eta) = (f32x8::ZERO, f32x8::ONE);
         let mut material = [0u32; LANES];
         let mut wide = 0;
