@@ -107,18 +107,11 @@ impl Leaf {
         Vec3::from(n).normalize_or(Vec3::Z)
     }
 
-    /// Whether [`Leaf::normal_x8`] and [`Leaf::refine_x8`] have an 8-lane form of this leaf's shape
-    /// (sphere, box, cylinder, half-space).
+    /// [`Leaf::normal`] at 8 world points, rounded as it rounds them (the same operations lane by lane).
     #[inline]
-    pub fn has_x8(&self) -> bool {
-        matches!(self.shape, Shape::Sphere | Shape::Box | Shape::Cylinder | Shape::HalfSpace)
-    }
-
-    /// [`Leaf::normal`] at 8 world points, rounded as it rounds them, for the shapes of [`Leaf::has_x8`];
-    /// `None` for the others.
-    #[inline]
-    pub fn normal_x8(&self, p: Vec3x8) -> Option<Vec3x8> {
+    pub fn normal_x8(&self, p: Vec3x8) -> Vec3x8 {
         let q = affine_x8(&self.world_to_object, p);
+        let zero = f32x8::ZERO;
         let on = match self.shape {
             Shape::Sphere => q,
             Shape::Box => {
@@ -128,31 +121,42 @@ impl Leaf {
             Shape::Cylinder => {
                 let rho = (q.x * q.x + q.y * q.y).sqrt();
                 let cap = cylinder_on_cap_x8(q, rho);
-                let zero = f32x8::ZERO;
                 Vec3x8::new(cap.select(zero, q.x / rho), cap.select(zero, q.y / rho), cap.select(signum_x8(q.z), zero))
             }
+            Shape::Cone { r0, r1 } => {
+                let (m, k) = cone_line(r0, r1);
+                let rho = (q.x * q.x + q.y * q.y).sqrt();
+                let (_, cap) = cone_side_x8(q, rho, m, k);
+                Vec3x8::new(cap.select(zero, q.x / rho), cap.select(zero, q.y / rho), cap.select(signum_x8(q.z), f32x8::splat(-m)))
+            }
+            Shape::Torus { major, .. } => {
+                let rho = (q.x * q.x + q.y * q.y).sqrt();
+                let axis = rho.simd_eq(zero);
+                let s = f32x8::ONE - f32x8::splat(major) / rho;
+                Vec3x8::new(axis.select(zero, q.x * s), axis.select(zero, q.y * s), axis.select(signum_x8(q.z), q.z))
+            }
             Shape::HalfSpace => Vec3x8::splat(Vec3::Z),
-            _ => return None,
         };
-        Some(mat3_x8(&self.normal_to_world, on).normalize_or(Vec3x8::splat(Vec3::Z)))
+        mat3_x8(&self.normal_to_world, on).normalize_or(Vec3x8::splat(Vec3::Z))
     }
 
-    /// [`Leaf::refine`] of 8 world points, rounded as it rounds them, for the shapes of
-    /// [`Leaf::has_x8`] (`None` for the others): the points, their error magnitudes, and the lanes where
-    /// the scalar gives `Some` (elsewhere both are unspecified).
+    /// [`Leaf::refine`] of 8 world points, rounded as it rounds them (the same operations lane by
+    /// lane): the points, their error magnitudes, and the lanes where the scalar gives `Some`
+    /// (elsewhere both are unspecified).
     #[inline]
-    pub fn refine_x8(&self, p: Vec3x8) -> Option<(Vec3x8, f32x8, f32x8)> {
+    pub fn refine_x8(&self, p: Vec3x8) -> (Vec3x8, f32x8, f32x8) {
         let q = affine_x8(&self.world_to_object, p);
         let (zero, one) = (f32x8::ZERO, f32x8::ONE);
         // `if v < 0 { -1 } else { 1 }`, the projection's side (a -0 goes to +1, unlike `signum`).
         let side = |v: f32x8| v.simd_lt(zero).select(-one, one);
         let all = zero.simd_eq(zero);
+        // `normalize_or_zero` (its reciprocal length), and where it is not the zero vector.
+        let unit = |v: Vec3x8| {
+            let rcp = one / v.dot_unfused(v).sqrt();
+            (v.scale(rcp), rcp.is_finite() & rcp.simd_gt(zero))
+        };
         let (on, defined) = match self.shape {
-            Shape::Sphere => {
-                // `normalize_or_zero`, `None` for the zero vector.
-                let rcp = one / q.dot_unfused(q).sqrt();
-                (q.scale(rcp), rcp.is_finite() & rcp.simd_gt(zero))
-            }
+            Shape::Sphere => unit(q),
             Shape::Box => {
                 let (x, y, z) = box_axis_x8(q);
                 (Vec3x8::new(x.select(side(q.x), q.x), y.select(side(q.y), q.y), z.select(side(q.z), q.z)), all)
@@ -162,14 +166,31 @@ impl Leaf {
                 let cap = cylinder_on_cap_x8(q, rho);
                 (Vec3x8::new(cap.select(q.x, q.x / rho), cap.select(q.y, q.y / rho), cap.select(side(q.z), q.z)), all)
             }
+            Shape::Cone { r0, r1 } => {
+                let (m, k) = cone_line(r0, r1);
+                let rho = (q.x * q.x + q.y * q.y).sqrt();
+                let len = f32x8::splat(m.mul_add(m, 1.0).sqrt());
+                let (s, cap) = cone_side_x8(q, rho, m, k);
+                // Along the side's normal (1, -m) / len in the (rho, z) half-plane.
+                let (rho2, z2) = (rho - s / len, q.z + s * f32x8::splat(m) / len);
+                let f = rho2 / rho;
+                (Vec3x8::new(cap.select(q.x, q.x * f), cap.select(q.y, q.y * f), cap.select(side(q.z), z2)), all)
+            }
+            Shape::Torus { major, minor } => {
+                // The nearest point of the tube's centre circle, then the tube's surface along the way to q.
+                let rho = (q.x * q.x + q.y * q.y).sqrt();
+                let f = f32x8::splat(major) / rho;
+                let c = Vec3x8::new(q.x * f, q.y * f, zero);
+                let (v, ok) = unit(q - c);
+                (c + v.scale(f32x8::splat(minor)), ok & !rho.simd_eq(zero))
+            }
             Shape::HalfSpace => (Vec3x8::new(q.x, q.y, zero), all),
-            _ => return None,
         };
         let w = mat3_x8(&self.object_to_world.matrix3, on);
         let t = Vec3x8::splat(Vec3::from(self.object_to_world.translation));
         let out = w + t;
         let finite = out.x.is_finite() & out.y.is_finite() & out.z.is_finite();
-        Some((out, t.max_abs_element().max(w.max_abs_element()), defined & finite))
+        (out, t.max_abs_element().max(w.max_abs_element()), defined & finite)
     }
 
     /// A world point `p` on (or within rounding of) this leaf's surface, moved onto it in object space
@@ -296,6 +317,13 @@ fn cone_side(q: Vec3, rho: f32, m: f32, k: f32) -> (f32, bool) {
     (s, (1.0 - q.z.abs()).abs() < s.abs() || rho == 0.0)
 }
 
+/// [`cone_side`] in 8 lanes.
+#[inline(always)]
+fn cone_side_x8(q: Vec3x8, rho: f32x8, m: f32, k: f32) -> (f32x8, f32x8) {
+    let s = (rho - f32x8::splat(m).mul_add(q.z, f32x8::splat(k))) / f32x8::splat(m.mul_add(m, 1.0).sqrt());
+    (s, (f32x8::ONE - q.z.abs()).abs().simd_lt(s.abs()) | rho.simd_eq(f32x8::ZERO))
+}
+
 /// Object-space outward normal (not normalised) at an object-space point `q`.
 pub fn object_normal(shape: Shape, q: Vec3) -> Vec3 {
     match shape {
@@ -415,20 +443,22 @@ mod tests {
     }
 
     /// [`Leaf::normal_x8`] and [`Leaf::refine_x8`] are [`Leaf::normal`] and [`Leaf::refine`] bit for bit
-    /// (sphere, box, cylinder and half-space leaves under rotations, non-uniform scales and
-    /// translations, at points on, near and off their surfaces, points within 1e-6 of edges included,
-    /// and at non-finite points), and decline the other shapes.
+    /// (every leaf shape under rotations, non-uniform scales and translations, at points on, near and off
+    /// their surfaces, points within 1e-6 of edges and rims included, points on a torus's axis, and at
+    /// non-finite points).
     #[test]
     fn x8_forms_equal_the_scalar_ones() {
         let mut u = lcg(0x0a0e);
         let (mut checked, mut refined) = (0, 0);
-        for case in 0..800 {
-            let shape = [Shape::Sphere, Shape::Box, Shape::HalfSpace, Shape::Cylinder][case % 4];
+        for case in 0..1200 {
+            // (Cones narrowing either way, to a point, and tori thin and fat.)
+            let cone = Shape::Cone { r0: [0.3, 1.2, 0.0][case % 3], r1: [1.0, 0.4, 0.9][case % 3] };
+            let torus = Shape::Torus { major: 1.0, minor: [0.25, 0.6, 1.0][case % 3] };
+            let shape = [Shape::Sphere, Shape::Box, Shape::HalfSpace, Shape::Cylinder, cone, torus][case % 6];
             let scale = Vec3::new(0.2 + 3.0 * u(), 0.2 + 3.0 * u(), 0.2 + 3.0 * u());
             let rot = Quat::from_euler(glam::EulerRot::XYZ, 6.0 * u(), 6.0 * u(), 6.0 * u());
             let at = Vec3::new(u(), u(), u()) * 20.0 - 10.0;
             let leaf = Leaf::new(shape, Affine3A::from_scale_rotation_translation(scale, rot, at), 0);
-            assert!(leaf.has_x8());
             // Object points on the canonical surface (a box's face or near its edges, a cylinder's side
             // or caps or near their rims), scaled by 0.5..1.5, then placed.
             let q: [Vec3; 8] = std::array::from_fn(|l| {
@@ -450,6 +480,25 @@ mod tests {
                             _ => Vec3::new(a.cos() * edge, a.sin() * edge, v.z.signum() * edge),
                         }
                     }
+                    Shape::Cone { r0, r1 } => {
+                        let (a, (m, k)) = (u() * std::f32::consts::TAU, cone_line(r0, r1));
+                        let z = match l % 4 {
+                            0 | 1 => v.z,
+                            2 => v.z.signum() * edge,
+                            _ => v.z.signum(),
+                        };
+                        let rho = m.mul_add(z, k) * if l % 4 == 3 { 0.6 * u() } else { 1.0 };
+                        Vec3::new(a.cos() * rho, a.sin() * rho, z)
+                    }
+                    Shape::Torus { major, minor } => {
+                        let (a, b) = (u() * std::f32::consts::TAU, u() * std::f32::consts::TAU);
+                        match l % 4 {
+                            // On the axis (no projection), and near it.
+                            0 => Vec3::new(0.0, 0.0, v.z),
+                            1 => Vec3::new(1e-7 * v.x, 1e-7 * v.y, v.z),
+                            _ => Vec3::new(a.cos() * (major + minor * b.cos()), a.sin() * (major + minor * b.cos()), minor * b.sin()),
+                        }
+                    }
                     _ => v.normalize(),
                 };
                 on * (0.5 + u())
@@ -463,8 +512,8 @@ mod tests {
                 }
             }
             let rows = Vec3x8::from_rows(&std::array::from_fn(|a| std::array::from_fn(|l| p[l][a])));
-            let n = leaf.normal_x8(rows).expect("an 8-lane normal");
-            let (r, mag, ok) = leaf.refine_x8(rows).expect("an 8-lane refinement");
+            let n = leaf.normal_x8(rows);
+            let (r, mag, ok) = leaf.refine_x8(rows);
             let bits = |v: Vec3| v.to_array().map(f32::to_bits);
             for (l, &p) in p.iter().enumerate() {
                 assert_eq!(bits(n.lane(l)), bits(leaf.normal(p)), "case {case} lane {l}: normal");
@@ -480,18 +529,16 @@ mod tests {
                 checked += 1;
             }
         }
-        assert_eq!(checked, 6400);
-        assert!(refined > 6000 && refined < 6400, "{refined} refined: the non-finite lanes are not");
-        // A sphere's centre has no projection, in 8 lanes too.
+        assert_eq!(checked, 9600);
+        // (The non-finite lanes, and the torus's on-axis points, have no projection.)
+        assert!(refined > 8500 && refined < 9600, "{refined} refined");
+        // A sphere's centre and a torus's axis have no projection, in 8 lanes too.
         let ball = Leaf::new(Shape::Sphere, Affine3A::from_translation(Vec3::new(1.0, 2.0, 3.0)), 0);
-        let (_, _, ok) = ball.refine_x8(Vec3x8::splat(Vec3::new(1.0, 2.0, 3.0))).unwrap();
+        let (_, _, ok) = ball.refine_x8(Vec3x8::splat(Vec3::new(1.0, 2.0, 3.0)));
         assert!(ball.refine(Vec3::new(1.0, 2.0, 3.0)).is_none() && ok.to_bitmask() == 0);
-        for shape in [Shape::Cone { r0: 0.5, r1: 1.0 }, Shape::Torus { major: 1.0, minor: 0.3 }] {
-            let leaf = Leaf::new(shape, Affine3A::IDENTITY, 0);
-            assert!(
-                !leaf.has_x8() && leaf.normal_x8(Vec3x8::splat(Vec3::ONE)).is_none() && leaf.refine_x8(Vec3x8::splat(Vec3::ONE)).is_none()
-            );
-        }
+        let ring = Leaf::new(Shape::Torus { major: 1.0, minor: 0.3 }, Affine3A::from_translation(Vec3::new(1.0, 2.0, 3.0)), 0);
+        let (_, _, ok) = ring.refine_x8(Vec3x8::splat(Vec3::new(1.0, 2.0, 3.5)));
+        assert!(ring.refine(Vec3::new(1.0, 2.0, 3.5)).is_none() && ok.to_bitmask() == 0);
     }
 
     /// [`project_object`] puts points a little off each canonical surface (1e-4 along a random

@@ -164,9 +164,8 @@ fn rows_into(
 
 /// [`surface_hit`] of hits `idx` of a queue (`m` lanes), for rays `o + t d` (lane rows) at `times`
 /// hitting `prims`, bit for bit: spheres and flat prims (planes, quads, disks: the common cases) in 8
-/// lanes with the same operations, boxes and CSG hits on sphere, box, cylinder and half-space leaves in
-/// 8 lanes per distinct box or leaf (`obox_hits_x8`, `Leaf::refine_x8`, `Leaf::normal_x8`), other
-/// shapes (ellipsoids, cone and torus leaves) one at a time.
+/// lanes with the same operations, boxes and CSG hits in 8 lanes per distinct box or leaf
+/// (`obox_hits_x8`, `Leaf::refine_x8`, `Leaf::normal_x8`), other shapes (ellipsoids) one at a time.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn hit_rows_x8(
@@ -240,8 +239,8 @@ fn hit_rows_x8(
         } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Box(_)) {
             // Boxes: after the loop, per distinct box.
             boxes |= 1 << l;
-        } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Csg { .. }) && scene.csg.leaf(hits.leaf[i as usize]).has_x8() {
-            // CSG leaves of shapes with 8-lane forms: after the loop, per distinct leaf.
+        } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Csg { .. }) {
+            // CSG leaves: after the loop, per distinct leaf.
             csg |= 1 << l;
             leaf_of[l] = hits.leaf[i as usize];
             flipped |= (hits.flip[i as usize] as u32) << l;
@@ -290,10 +289,10 @@ fn hit_rows_x8(
             // there, flipped for a subtracted leaf.
             let (prim, leaf) = (&scene.prims[prims[first] as usize], scene.csg.leaf(leaf_of[first]));
             let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
-            let (q, s, ok) = leaf.refine_x8(naive - shift).expect("a leaf with 8-lane forms");
+            let (q, s, ok) = leaf.refine_x8(naive - shift);
             let p = Vec3x8::select(ok, q + shift, naive);
             let scale = ok.select(s.max(shift.max_abs_element()), o.max_abs_element());
-            let n = leaf.normal_x8(p - shift).expect("a leaf with 8-lane forms");
+            let n = leaf.normal_x8(p - shift);
             let n = Vec3x8::select(mask_from_bits(flipped), Vec3x8::new(-n.x, -n.y, -n.z), n);
             (pv, nv, sv) = rows_into(same, (p, n, scale), (pv, nv, sv), &mut front, d);
             for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
@@ -1668,7 +1667,7 @@ mod tests {
     /// camera and bounce depths.
     #[test]
     fn hit_rows_x8_equal_surface_hit() {
-        let (mut csg_lanes, mut box_lanes, mut lanes) = (0usize, 0usize, 0usize);
+        let (mut csg_lanes, mut box_lanes, mut lanes, mut curved) = (0usize, 0usize, 0usize, [0usize; 2]);
         // Moving CSG solids of every leaf shape, some subtracted, one cut by a half-space.
         let moving = "[image]\nwidth = 64\nheight = 48\n[camera]\nposition = [0, 1.5, 6]\nlook_at = [0, 0.5, 0]\nfov = 45\n\
                       shutter = [0, 1]\n[materials.a]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
@@ -1683,6 +1682,10 @@ mod tests {
                       { type = \"sphere\", center = [1, 0.7, 0], radius = 0.7, material = \"b\" },\n\
                       { type = \"halfspace\", point = [1, 1.0, 0], normal = [0.3, 1, 0.2], material = \"a\" },\n\
                       { type = \"cone\", center = [1, 0.7, 0], radius = 0.8, radius_top = 0.2, height = 1.6, material = \"a\" },\n]\n\
+                      [[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmotion = [0.5, 0.3, 0.0]\n\
+                      transform = { rotate = [60, 20, 0], scale = [1.3, 1, 0.8], translate = [0.2, 1.6, -0.5] }\nchildren = [\n\
+                      { type = \"torus\", major_radius = 0.6, minor_radius = 0.25, material = \"a\" },\n\
+                      { type = \"cone\", center = [0.6, 0, 0], radius = 0.2, radius_top = 0.05, height = 0.8, material = \"b\" },\n]\n\
                       [[shapes]]\ntype = \"box\"\nmin = [-0.4, 0, -0.3]\nmax = [0.4, 0.5, 0.3]\nmaterial = \"b\"\nmotion = [2.5, 0, 0.3]\n\
                       transform = { rotate = [0, 40, 15], scale = [1, 1.5, 0.7], translate = [-1, 0, 1.2] }\n\
                       [[lights]]\ntype = \"point\"\nposition = [2, 5, 4]\nintensity = [20, 20, 20]\n";
@@ -1725,16 +1728,25 @@ mod tests {
                         assert_eq!(geo.front & (1 << l) != 0, h.front, "{at}: side");
                         assert_eq!(geo.material[l], h.material, "{at}: material");
                         lanes += 1;
-                        // (CSG hits the 8-lane leaf forms take.)
-                        csg_lanes += (hits.leaf[i] != NONE && scene.csg.leaf(hits.leaf[i]).has_x8()) as usize;
+                        // (CSG hits, which the 8-lane leaf forms take.)
+                        csg_lanes += (hits.leaf[i] != NONE) as usize;
+                        if hits.leaf[i] != NONE {
+                            match scene.csg.leaf(hits.leaf[i]).shape {
+                                crate::csg::Shape::Cone { .. } => curved[0] += 1,
+                                crate::csg::Shape::Torus { .. } => curved[1] += 1,
+                                _ => {}
+                            }
+                        }
                         box_lanes += matches!(scene.prims[hits.prim[i] as usize].shape, Shape::Box(_)) as usize;
                     }
                 }
             });
         }
         assert!(
-            lanes > 20_000 && csg_lanes > 5_000 && box_lanes > 1_000,
-            "{lanes} hits compared, {csg_lanes} on CSG leaves of 8-lane forms, {box_lanes} on boxes"
+            lanes > 20_000 && csg_lanes > 5_000 && box_lanes > 1_000 && curved[0] > 100 && curved[1] > 100,
+            "{lanes} hits compared, {csg_lanes} on CSG leaves ({} cones, {} tori), {box_lanes} on boxes",
+            curved[0],
+            curved[1]
         );
     }
 

@@ -173,14 +173,14 @@ pub fn transmittance_x8(
 /// What the replay needs of every boundary's surface (its side, material, angle and Fresnel
 /// transmission against air) for the lanes `lanes`, the `k`-th boundaries of all lanes at once. A CSG
 /// leaf's normal is found as the shading stage's `surface_hit` finds it (the point projected onto the
-/// leaf, the normal there), bit for bit: in 8 lanes per distinct leaf for the shapes of
-/// [`Leaf::refine_x8`], lane by lane for cones and tori. (Taking the normal at the unprojected point
-/// instead changed a light sample's transmittance by percents where the point fell past a box's or
-/// cylinder's edge onto the neighbouring face: a user trial.) Lane by lane too: a sphere's normal
-/// straight from the point on the segment, a box's from its face's axis, other shapes' through
-/// `surface_hit`.
+/// leaf, the normal there), bit for bit: in 8 lanes per distinct leaf ([`Leaf::refine_x8`],
+/// [`Leaf::normal_x8`]). (Taking the normal at the unprojected point instead changed a light sample's
+/// transmittance by percents where the point fell past a box's or cylinder's edge onto the neighbouring
+/// face: a user trial.) Lane by lane: a sphere's normal straight from the point on the segment, a box's
+/// from its face's axis, other shapes' through `surface_hit`.
 ///
 /// [`Leaf::refine_x8`]: crate::csg::Leaf::refine_x8
+/// [`Leaf::normal_x8`]: crate::csg::Leaf::normal_x8
 fn events(scene: &Scene, cr: &mut Walk, ray: &Ray8, time: &[f32; LANES], lanes: u32) {
     let (o, d) = (ray.o, ray.d);
     // `length` and `normalize_or_zero` as glam rounds them.
@@ -208,16 +208,15 @@ fn events(scene: &Scene, cr: &mut Walk, ray: &Ray8, time: &[f32; LANES], lanes: 
                 // As `surface_hit` finds it: the point projected onto the leaf in its frame at the ray's
                 // time (where defined), the normal there.
                 let (naive, shift) = (o + d.scale(t), Vec3x8::splat(prim.motion).scale(time8));
-                if let Some((q, _, ok)) = leaf.refine_x8(naive - shift) {
-                    let n = leaf.normal_x8(Vec3x8::select(ok, q + shift, naive) - shift).expect("a leaf with 8-lane forms");
-                    let keep = mask_from_bits(same);
-                    cos = keep.select(unit.dot_unfused(n), cos);
-                    eta = keep.select(f32x8::splat(air_eta(scene, leaf.material)), eta);
-                    for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
-                        material[l] = leaf.material;
-                    }
-                    wide |= same;
+                let (q, _, ok) = leaf.refine_x8(naive - shift);
+                let n = leaf.normal_x8(Vec3x8::select(ok, q + shift, naive) - shift);
+                let keep = mask_from_bits(same);
+                cos = keep.select(unit.dot_unfused(n), cos);
+                eta = keep.select(f32x8::splat(air_eta(scene, leaf.material)), eta);
+                for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
+                    material[l] = leaf.material;
                 }
+                wide |= same;
             },
         );
         // The rest lane by lane.
