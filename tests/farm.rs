@@ -454,5 +454,7 @@ fn cli_films_of_other_builds_are_warned_of() {
     let resumed = ok(render(&sc, &["-o", s(&p("r.exr")), "--resume", s(&p("b.film")), "--samples", "3..6"]));
     let err = String::from_utf8_lossy(&resumed.stderr);
     assert!(err.contains("b.film was rendered by another build of strata than this one"), "{err}");
+    // The film it writes back holds samples of two builds: it records none.
+    assert_eq!(strata::film::file::read_film(&p("b.film")).unwrap().header.build, 0);
     let _ = std::fs::remove_dir_all(&d);
 }

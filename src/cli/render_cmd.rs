@@ -1,7 +1,7 @@
 //! `strata render`, including sample ranges, film files, checkpoints and resume (see `docs/farm.md`).
 
 use super::{Failure, Progress};
-use crate::film::file::{check_film_writable, other_builds_warning, read_film, write_film, FilmHeader};
+use crate::film::file::{build_id, check_film_writable, other_builds_warning, read_film, write_film, FilmHeader};
 use crate::film::output::{check_file_writable, check_writable, write_image_with, Provenance};
 use crate::film::Film;
 use crate::render::{check_render_size, render_resumable, Checkpoint, RenderJob, RenderStats};
@@ -249,6 +249,8 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
 
     let mut header = FilmHeader::fresh(&scene, &profile, samples.clone(), a.tile, a.seed);
+    // Whether the film resumed holds samples of another build (a film of several builds records none).
+    let mut mixed = false;
     let n_units = header.completed.len();
     // A partial film of this very render where --film would write (or beside the image, where an earlier
     // interrupt left it): refused, so that running the command again does not throw its work away.
@@ -274,13 +276,12 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         if let Some(why) = resume_mismatch(&saved.header, &header) {
             return Err(Failure::input(format!("{}: cannot resume: the film is from a different render: {why}", r.display())));
         }
-        if let Some(w) = other_builds_warning(&[(r.display().to_string(), saved.header.build)], header.build, "this one") {
+        let this = build_id();
+        if let Some(w) = other_builds_warning(&[(r.display().to_string(), saved.header.build)], this, "this one") {
             errln!("{w}");
         }
-        // (A film of several builds' samples records none; a film of unknown build, 0, is taken as this one's.)
-        if saved.header.units_done() > 0 && saved.header.build != 0 && saved.header.build != header.build {
-            header.build = 0;
-        }
+        // (A film of unknown build, 0, is taken as this one's.)
+        mixed = saved.header.units_done() > 0 && saved.header.build != 0 && saved.header.build != this;
         header.completed = saved.header.completed;
         film = saved.film;
     }
@@ -308,8 +309,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     );
     let write_checkpoint = |f: &Film, completed: &[bool]| {
         let path = film_path.as_deref().expect("checkpoints need a film path");
-        let h = FilmHeader { completed: completed.to_vec(), ..header.clone() };
-        match write_film(path, &h, f) {
+        match write_film(path, &header.stamped(completed.to_vec(), mixed), f) {
             Ok(()) => checkpointed.store(true, Ordering::SeqCst),
             Err(e) => progress.println(&format!("warning: checkpoint not written: {e}")),
         }
@@ -369,7 +369,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         let _ = write_stats();
     }
     if let Some(f) = &film_out {
-        write_film(f, &header, &film).map_err(|fe| match &image {
+        write_film(f, &header.stamped(header.completed.clone(), mixed), &film).map_err(|fe| match &image {
             Ok(()) => Failure::runtime(fe),
             Err(e) => Failure::runtime(format!("{e}; {fe}")),
         })?;

@@ -110,8 +110,9 @@ pub fn profile_record(p: &Profile) -> String {
 }
 
 impl FilmHeader {
-    /// The header of a render of `samples` of `scene` under `profile` and `seed` in units of `tile`, by
-    /// this build, no unit done yet.
+    /// The header of a render of `samples` of `scene` under `profile` and `seed` in units of `tile`, no
+    /// unit done yet, its build not yet stamped (0: [`FilmHeader::stamped`] stamps it where a film is
+    /// written, so that a render that writes none does not read its own executable).
     pub fn fresh(scene: &crate::scene::Scene, profile: &Profile, samples: Range<u32>, tile: u32, seed: u64) -> FilmHeader {
         let n_units = crate::render::unit_count(scene.width, scene.height, tile, samples.clone());
         FilmHeader {
@@ -124,8 +125,14 @@ impl FilmHeader {
             seed,
             profile: profile_record(profile),
             completed: vec![false; n_units],
-            build: build_id(),
+            build: 0,
         }
+    }
+
+    /// This header with `completed`, stamped with this strata's [`build_id`], or 0 for a film whose
+    /// samples come from several builds (`mixed`).
+    pub fn stamped(&self, completed: Vec<bool>, mixed: bool) -> FilmHeader {
+        FilmHeader { completed, build: if mixed { 0 } else { build_id() }, ..self.clone() }
     }
 
     pub fn profile_hash(&self) -> u64 {
