@@ -62,7 +62,7 @@ pub fn dim_warning(film: &Film, lit: bool) -> Option<String> {
     if film.total_samples() == 0 || !lit {
         return None;
     }
-    let brightest = film.pixels().map(|p| p.mean().abs().max_element()).fold(0.0f32, f32::max);
+    let brightest = (0..film.len()).map(|i| film.mean(i).abs().max_element()).fold(0.0f32, f32::max);
     let fix = "if the scene's light should be brighter, scale every radiance and intensity up by one factor (the image is linear)";
     if brightest == 0.0 {
         Some(format!(
@@ -301,6 +301,17 @@ impl Cell {
     fn to_pixel(self) -> Pixel {
         Pixel { sum: self.sum.map(i128::from), sum_sq: self.sum_sq.map(i128::from), count: self.count as u64 }
     }
+
+    /// [`Pixel::mean`] of [`Cell::to_pixel`], from the 64-bit sums (each converts to the same `f64`
+    /// as its 128-bit widening: without the 128-bit pixel and its software conversions).
+    #[inline]
+    fn mean(&self) -> Vec3 {
+        if self.count == 0 {
+            return Vec3::ZERO;
+        }
+        let n = self.count as f64 * FIXED_ONE;
+        Vec3::new((self.sum[0] as f64 / n) as f32, (self.sum[1] as f64 / n) as f32, (self.sum[2] as f64 / n) as f32)
+    }
 }
 
 /// Per pixel sums of a render (row-major), exact integers whatever the order of additions (see the
@@ -409,8 +420,18 @@ impl Film {
     }
 
     /// Linear radiance, row-major RGB.
+    /// Pixel `i`'s mean radiance ([`Pixel::mean`] of [`Film::pixel`]).
+    #[inline]
+    pub fn mean(&self, i: usize) -> Vec3 {
+        match &self.cells[i] {
+            c @ Cell { wide: 0, .. } => c.mean(),
+            Cell { wide, .. } => self.wide[*wide as usize - 1].mean(),
+        }
+    }
+
+    /// Every pixel's mean radiance, row-major.
     pub fn to_rgb(&self) -> Vec<Vec3> {
-        self.pixels().map(|p| p.mean()).collect()
+        (0..self.len()).map(|i| self.mean(i)).collect()
     }
 
     pub fn merge(&mut self, o: &Film) {
@@ -421,7 +442,7 @@ impl Film {
     }
 
     pub fn total_samples(&self) -> u64 {
-        self.pixels().map(|p| p.count).sum()
+        self.cells.iter().map(|c| if c.wide == 0 { c.count as u64 } else { self.wide[c.wide as usize - 1].count }).sum()
     }
 }
 

@@ -31,8 +31,52 @@ pub fn linear_to_srgb(x: f32) -> f32 {
     }
 }
 
+/// The 8-bit sRGB code of a linear value: [`linear_to_srgb`] scaled and rounded (non-finite values
+/// give 0).
+#[inline]
+pub fn srgb8(x: f32) -> u8 {
+    (linear_to_srgb(if x.is_finite() { x } else { 0.0 }) * 255.0 + 0.5) as u8
+}
+
+/// For each code `b` in 1..=255, the least non-negative `f32` whose [`srgb8`] is at least `b`
+/// (`[0]` is -inf): found by bisection over the bit patterns of `[0, 1]`, which order as the values do.
+fn srgb8_thresholds() -> &'static [f32; 256] {
+    static T: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    T.get_or_init(|| {
+        let mut t = [f32::NEG_INFINITY; 256];
+        for (b, t) in t.iter_mut().enumerate().skip(1) {
+            let (mut lo, mut hi) = (0u32, 1.0f32.to_bits());
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if srgb8(f32::from_bits(mid)) >= b as u8 {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            *t = f32::from_bits(lo);
+        }
+        t
+    })
+}
+
+/// [`srgb8`] of every channel, by a binary search of its thresholds (8 comparisons, no `powf`): the
+/// same codes, as long as the codes rise with the value, which `srgb8_thresholds_give_srgb8` checks
+/// around every threshold.
 pub fn to_srgb8(rgb: &[Vec3]) -> Vec<u8> {
-    rgb.iter().flat_map(|c| c.to_array()).map(|x| (linear_to_srgb(if x.is_finite() { x } else { 0.0 }) * 255.0 + 0.5) as u8).collect()
+    let t = srgb8_thresholds();
+    let code = |x: f32| {
+        // (NaN compares false: code 0, as `srgb8` gives it; so do +inf, by the test below.)
+        let x = if x.is_finite() { x } else { 0.0 };
+        let mut b = 0usize;
+        for step in [128, 64, 32, 16, 8, 4, 2, 1] {
+            if x >= t[b + step] {
+                b += step;
+            }
+        }
+        b as u8
+    };
+    rgb.iter().flat_map(|c| c.to_array()).map(code).collect()
 }
 
 /// Check before rendering that `path` can be written: format known, directory exists and is writable.
@@ -220,5 +264,46 @@ fn srgb_to_linear(v: u8) -> f32 {
         x / 12.92
     } else {
         ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The threshold search gives [`srgb8`]'s codes: at every `f32` within 4096 ULPs of each threshold
+    /// (where a code that did not rise with the value would show), at a million values spread over
+    /// [-0.1, 1.2], and at zeros, negatives, values past 1, subnormals and non-finite values. The
+    /// thresholds rise and span (0, 1].
+    #[test]
+    fn srgb8_thresholds_give_srgb8() {
+        let t = srgb8_thresholds();
+        assert!(t[1] > 0.0 && t[255] <= 1.0 && t.windows(2).all(|w| w[0] < w[1]), "{t:?}");
+        let check = |xs: &[f32]| {
+            let rgb: Vec<Vec3> = xs.chunks(3).map(|c| Vec3::new(c[0], c[1 % c.len()], c[2 % c.len()])).collect();
+            let got = to_srgb8(&rgb);
+            for (i, c) in rgb.iter().enumerate() {
+                for (k, x) in c.to_array().into_iter().enumerate() {
+                    assert_eq!(got[3 * i + k], srgb8(x), "value {x:e} ({:#x})", x.to_bits());
+                }
+            }
+        };
+        let mut near = Vec::new();
+        for &x in &t[1..] {
+            let b = x.to_bits() as i64;
+            near.extend((b - 4096..=b + 4096).map(|v| f32::from_bits(v.max(0) as u32)));
+        }
+        check(&near);
+        let mut seed = 0x5ab1_e5eed_u64;
+        let spread: Vec<f32> = (0..1_000_000)
+            .map(|_| {
+                seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                ((seed >> 40) as f32 / (1u64 << 24) as f32) * 1.3 - 0.1
+            })
+            .collect();
+        check(&spread);
+        let odd = [0.0, -0.0, -1.0, 1.0, 1.5, 3e38, f32::MIN_POSITIVE, 1e-45, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.0031308];
+        check(&odd);
+        assert_eq!(to_srgb8(&[Vec3::new(f32::NAN, f32::INFINITY, 2.0)]), [0, 0, 255]);
     }
 }

@@ -119,6 +119,12 @@ mod tests {
             assert!(want_bad > 0 && kept > 200, "round {round}: {want_bad} bad, {kept} kept");
             let wide = |p: &Pixel| p.sum.iter().chain(&p.sum_sq).any(|s| i64::try_from(*s).is_err());
             assert!(want.iter().any(wide), "round {round}: no pixel outgrew the film's 64-bit cells");
+            // The film's means and count from its cells (64-bit or moved to the side table) are the
+            // 128-bit pixels' own.
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            let rgb = film.to_rgb();
+            assert!(want.iter().zip(&rgb).all(|(p, &m)| bits(p.mean()) == bits(m)), "round {round}: means differ");
+            assert_eq!(film.total_samples(), kept, "round {round}");
         }
     }
 }
