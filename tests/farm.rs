@@ -456,5 +456,27 @@ fn cli_films_of_other_builds_are_warned_of() {
     assert!(err.contains("b.film was rendered by another build of strata than this one"), "{err}");
     // The film it writes back holds samples of two builds: it records none.
     assert_eq!(strata::film::file::read_film(&p("b.film")).unwrap().header.build, 0);
+    // A copy of this build whose file is replaced (as a rebuild replaces it) or deleted while it renders
+    // still stamps its film with its own build, which it reads when it writes the film (a user trial:
+    // such films were stamped 0, unknown, when the stamp was read from the file at the path).
+    #[cfg(target_os = "linux")]
+    for delete in [false, true] {
+        let exe = p("strata-copy");
+        std::fs::copy(env!("CARGO_BIN_EXE_strata"), &exe).unwrap();
+        let (film, image) = (p("c.film"), p("c.exr"));
+        let mut cmd = Command::new(&exe);
+        let args = ["render", s(&sc), "-q", "--spp", "6", "-o", s(&image), "--film", s(&film)];
+        // (`spawn` returns once the copy is executing.)
+        let child = cmd.current_dir(env!("CARGO_MANIFEST_DIR")).args(args).stderr(std::process::Stdio::piped()).spawn().unwrap();
+        if delete {
+            std::fs::remove_file(&exe).unwrap();
+        } else {
+            std::fs::write(p("other"), b"another build").unwrap();
+            std::fs::rename(p("other"), &exe).unwrap();
+        }
+        ok(child.wait_with_output().unwrap());
+        assert_eq!(strata::film::file::read_film(&film).unwrap().header.build, build, "deleted: {delete}");
+        let _ = std::fs::remove_file(&exe);
+    }
     let _ = std::fs::remove_dir_all(&d);
 }

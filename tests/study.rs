@@ -967,5 +967,15 @@ fn cli_interrupted_reference_is_continued() {
     assert!(kept1 >= 1);
     let (first2, kept2) = run();
     assert!(first2 >= kept1 && kept2 > kept1, "first run kept {kept1}; the second began at {first2}, kept {kept2}");
-    assert_eq!(std::fs::read_dir(&dir).unwrap().filter(|e| e.as_ref().unwrap().path().extension() == Some("film".as_ref())).count(), 1);
+    let films: Vec<_> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension() == Some("film".as_ref())).collect();
+    assert_eq!(films.len(), 1);
+    // The partial film names its build (a trial found it stamped 0, unknown, which any build would
+    // have continued), and one of another build is not continued: the run starts over.
+    let mut film = strata::film::file::read_film(&films[0]).unwrap();
+    assert_ne!(film.header.build, 0);
+    film.header.build ^= 1;
+    strata::film::file::write_film(&films[0], &film.header, &film.film).unwrap();
+    let (first3, _) = run();
+    assert!(first3 < kept2, "a film of another build was continued: the third run began at {first3} of {kept2} kept");
 }

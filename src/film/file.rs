@@ -75,10 +75,19 @@ pub struct FilmHeader {
 }
 
 /// This strata's build: xxh64 of its executable (another build, a pulled change or a local edit, gives
-/// another; ~10 ms for a 46 MB executable, once per process); 0 where the executable cannot be read.
+/// another; 10-40 ms for a 46 MB executable, once per process, and only where a film is written or
+/// read); 0 where the executable cannot be read. On Linux the running image is read through
+/// `/proc/self/exe`, which still opens it after the file at its path was replaced (a rebuild during a
+/// render) or deleted; elsewhere, the file at its path.
 pub fn build_id() -> u64 {
     static ID: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
-    *ID.get_or_init(|| std::env::current_exe().and_then(std::fs::read).map_or(0, |bytes| xxh64(&bytes).max(1)))
+    *ID.get_or_init(|| {
+        #[cfg(target_os = "linux")]
+        if let Ok(bytes) = std::fs::read("/proc/self/exe") {
+            return xxh64(&bytes).max(1);
+        }
+        std::env::current_exe().and_then(std::fs::read).map_or(0, |bytes| xxh64(&bytes).max(1))
+    })
 }
 
 /// The warning for films of other builds than `this` among `films` (name, build), or None: builds 0

@@ -294,7 +294,10 @@ fn rendered(
     // Resumable: an interrupted reference keeps its finished work units in a film beside the cache
     // (`reference-<key>.film`, named by the same key), which the same study continues.
     let partial = exr.with_extension("film");
-    let header = FilmHeader::fresh(scene, &ref_profile, 0..ref_profile.spp, TILE, REFERENCE_SEED);
+    // Stamped with this build (which the cache key names anyway): a partial film of another build is
+    // not continued.
+    let fresh = FilmHeader::fresh(scene, &ref_profile, 0..ref_profile.spp, TILE, REFERENCE_SEED);
+    let header = fresh.stamped(fresh.completed.clone(), false);
     let n_units = header.completed.len();
     let (film, completed) = match read_film(&partial) {
         Ok(f) if f.header == FilmHeader { completed: f.header.completed.clone(), ..header.clone() } => (f.film, f.header.completed),
