@@ -64,6 +64,46 @@ fn negative_radius_names_line_and_field() {
     assert!(msg.contains("> 0"), "{msg}");
 }
 
+/// In a file large enough to be read section by section (`scene::sections`, 1 MiB and up), errors deep
+/// among the shapes still name their line and field: a negative radius, an unknown material and an
+/// unknown field in shape 15,000 of 20,000, one in a `shapes.transform` sub-table, and a TOML syntax
+/// error (which the whole-document parse reports).
+#[test]
+fn errors_in_large_files_name_their_line() {
+    let sphere = |i: usize| format!("[[shapes]]\ntype = \"sphere\"\ncenter = [{i}, 0, 0]\nradius = 0.5\nmaterial = \"m\"\n");
+    let cases = [
+        ("radius = -1.0", "shapes[15000].radius"),
+        ("material = \"nope\"", "shapes[15000].material"),
+        ("colour = 1", "colour"),
+        ("[shapes.transform]\nscale = [1, 1]", ""),
+        ("radius = = 2", ""),
+    ];
+    for (bad, field) in cases {
+        let mut extra = String::new();
+        for i in 0..20_000 {
+            if i == 15_000 {
+                extra += "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\n";
+                if !bad.starts_with("material") {
+                    extra += "material = \"m\"\n";
+                }
+                if !bad.starts_with("radius") {
+                    extra += "radius = 0.5\n";
+                }
+                extra += &format!("{bad}\n");
+            } else {
+                extra += &sphere(i);
+            }
+        }
+        assert!(extra.len() > 1 << 20);
+        let (line, got, msg) = fail(&extra);
+        let needle = bad.lines().last().unwrap();
+        assert_eq!(line, line_of(&extra, needle), "{bad}: {got}: {msg}");
+        if !field.is_empty() {
+            assert!(got.starts_with(field), "{bad}: field {got}, message {msg}");
+        }
+    }
+}
+
 #[test]
 fn unknown_material_is_named() {
     let extra = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1.0\nmaterial = \"nope\"\n";

@@ -58,7 +58,7 @@ pub fn parse_scene(path: &Path, text: &str) -> R<Scene> {
 /// [`parse_scene`] at `size` instead of the file's image size, when given.
 pub fn parse_scene_sized(path: &Path, text: &str, size: Option<(u32, u32)>) -> R<Scene> {
     let src = Source { path, text };
-    let file: SceneFile = toml::from_str(text).map_err(|e| src.from_toml(&e))?;
+    let file: SceneFile = super::sections::read_scene_file(text).map_err(|e| src.from_toml(&e))?;
     let mut c = Compiler {
         src: &src,
         file: &file,

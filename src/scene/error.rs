@@ -240,7 +240,7 @@ pub const MAX_INPUT_BYTES: usize = 16 << 20;
 /// A table header line, `[a.b]` or `[[a]]` (spaces around names and dots dropped; a trailing comment
 /// allowed): whether it is a list's, and its dotted name. Other lines (an array continued over lines,
 /// `[0.5, 0.5],`) are not headers.
-fn table_header(line: &str) -> Option<(bool, String)> {
+pub(crate) fn table_header(line: &str) -> Option<(bool, String)> {
     let t = line.split('#').next().unwrap_or("").trim();
     let (list, inner) = match t.strip_prefix("[[").and_then(|x| x.strip_suffix("]]")) {
         Some(inner) => (true, inner),

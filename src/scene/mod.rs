@@ -7,6 +7,7 @@ pub mod format;
 pub mod glass_neighbours;
 pub mod leaf_spheres;
 pub mod profile;
+pub mod sections;
 
 pub use compile::{load_scene, load_scene_sized, parse_scene, parse_scene_sized};
 pub use error::InputError;
