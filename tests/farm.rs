@@ -466,8 +466,19 @@ fn cli_films_of_other_builds_are_warned_of() {
         let (film, image) = (p("c.film"), p("c.exr"));
         let mut cmd = Command::new(&exe);
         let args = ["render", s(&sc), "-q", "--spp", "6", "-o", s(&image), "--film", s(&film)];
-        // (`spawn` returns once the copy is executing.)
-        let child = cmd.current_dir(env!("CARGO_MANIFEST_DIR")).args(args).stderr(std::process::Stdio::piped()).spawn().unwrap();
+        cmd.current_dir(env!("CARGO_MANIFEST_DIR")).args(args).stderr(std::process::Stdio::piped());
+        // (`spawn` returns once the copy is executing. It can fail with ETXTBSY, 26, while a process
+        // another test thread forks still holds the copy's write handle until its exec: retried.)
+        let mut tries = 0;
+        let child = loop {
+            match cmd.spawn() {
+                Err(e) if e.raw_os_error() == Some(26) && tries < 100 => {
+                    tries += 1;
+                    std::thread::sleep(std::time::Duration::from_millis(20));
+                }
+                r => break r.unwrap(),
+            }
+        };
         if delete {
             std::fs::remove_file(&exe).unwrap();
         } else {

@@ -233,11 +233,7 @@ impl Pixel {
     /// Mean radiance (zero for a pixel with no samples).
     #[inline]
     pub fn mean(&self) -> Vec3 {
-        if self.count == 0 {
-            return Vec3::ZERO;
-        }
-        let n = self.count as f64 * FIXED_ONE;
-        Vec3::new((self.sum[0] as f64 / n) as f32, (self.sum[1] as f64 / n) as f32, (self.sum[2] as f64 / n) as f32)
+        mean_of(self.sum.map(|s| s as f64), self.count)
     }
 
     /// Unbiased sample variance of the mean estimate per channel (variance / n).
@@ -306,12 +302,19 @@ impl Cell {
     /// as its 128-bit widening: without the 128-bit pixel and its software conversions).
     #[inline]
     fn mean(&self) -> Vec3 {
-        if self.count == 0 {
-            return Vec3::ZERO;
-        }
-        let n = self.count as f64 * FIXED_ONE;
-        Vec3::new((self.sum[0] as f64 / n) as f32, (self.sum[1] as f64 / n) as f32, (self.sum[2] as f64 / n) as f32)
+        mean_of(self.sum.map(|s| s as f64), self.count as u64)
     }
+}
+
+/// The mean radiance of sums `sum` (in units of 2^-32, converted to `f64`) over `count` samples (zero
+/// for none).
+#[inline]
+fn mean_of(sum: [f64; 3], count: u64) -> Vec3 {
+    if count == 0 {
+        return Vec3::ZERO;
+    }
+    let n = count as f64 * FIXED_ONE;
+    Vec3::new((sum[0] / n) as f32, (sum[1] / n) as f32, (sum[2] / n) as f32)
 }
 
 /// Per pixel sums of a render (row-major), exact integers whatever the order of additions (see the
@@ -419,7 +422,6 @@ impl Film {
         }
     }
 
-    /// Linear radiance, row-major RGB.
     /// Pixel `i`'s mean radiance ([`Pixel::mean`] of [`Film::pixel`]).
     #[inline]
     pub fn mean(&self, i: usize) -> Vec3 {
@@ -429,7 +431,7 @@ impl Film {
         }
     }
 
-    /// Every pixel's mean radiance, row-major.
+    /// Linear radiance, row-major RGB: every pixel's mean.
     pub fn to_rgb(&self) -> Vec<Vec3> {
         (0..self.len()).map(|i| self.mean(i)).collect()
     }

@@ -5,8 +5,8 @@
 //! the section lies in the file, and the rest of the file (every shape section blanked to spaces, so
 //! its spans are the file's) is parsed once: the same [`SceneFile`] as the whole-document parse, which
 //! `tests` checks on every shipped scene. Anything unusual (a multi-line string, a `shapes.*` table
-//! after another table, an inline `shapes = [...]`, any error) falls back to the whole-document parse,
-//! which then gives its own error messages.
+//! after another table, a `shapes` key outside the sections, even `shapes = []`, any error) falls back
+//! to the whole-document parse, which then gives its own error messages.
 
 use super::error::table_header;
 use super::format::{SceneFile, ShapeDef, TransformDef, S};
@@ -88,10 +88,12 @@ pub fn sectioned(text: &str) -> Option<SceneFile> {
             start = end;
         }
     }
-    let mut file = toml::from_str::<SceneFile>(&rest).ok()?;
-    if !file.shapes.is_empty() {
+    // (A `shapes` key of the rest, even `shapes = []`, conflicts with the sections: the whole-document
+    // parse says so.)
+    if toml::from_str::<toml::Table>(&rest).ok()?.contains_key("shapes") {
         return None;
     }
+    let mut file = toml::from_str::<SceneFile>(&rest).ok()?;
     for j in jobs {
         let part = toml::from_str::<Shapes>(&text[j.clone()]).ok()?;
         file.shapes.extend(part.shapes.into_iter().map(|d| d.shift(j.start)));
@@ -99,12 +101,13 @@ pub fn sectioned(text: &str) -> Option<SceneFile> {
     Some(file)
 }
 
-/// The start of the first `[[shapes]]` header line at or after byte `from` (a line start is found
-/// first), or `end`.
+/// The start of the first `[[shapes]]` header line after the line holding byte `from` (which may lie
+/// inside a character: the search is by bytes), or `end`.
 fn next_section(text: &str, from: usize, end: usize) -> usize {
-    let mut at = text[from..end].find('\n').map_or(end, |i| from + i + 1);
+    let line_after = |from: usize| text.as_bytes()[from..end].iter().position(|&b| b == b'\n').map_or(end, |i| from + i + 1);
+    let mut at = line_after(from);
     while at < end {
-        let line_end = text[at..end].find('\n').map_or(end, |i| at + i + 1);
+        let line_end = line_after(at);
         if table_header(&text[at..line_end]).is_some_and(|(list, name)| list && name == "shapes") {
             return at;
         }
@@ -246,7 +249,11 @@ mod tests {
             }
         }
         assert!(big.len() > 2 * JOB_BYTES);
-        scenes.push(("big".into(), big));
+        // The same with a multi-byte comment on every shape (a piece's end then falls inside a
+        // character: a review's panic), and with CRLF line breaks.
+        let wide = big.replace("[[shapes]]\n", "[[shapes]] # 球体 · café\n");
+        let crlf = big.replace('\n', "\r\n");
+        scenes.extend([("big".into(), big), ("multi-byte".into(), wide), ("crlf".into(), crlf)]);
         let mut compared = 0;
         for (name, text) in &scenes {
             let whole: SceneFile = toml::from_str(text).unwrap();
@@ -257,7 +264,12 @@ mod tests {
             assert_eq!(format!("{parts:?}"), format!("{whole:?}"), "{name}");
             compared += whole.shapes.len();
         }
-        assert!(compared > 6000, "{compared} shapes compared");
+        assert!(compared > 18_000, "{compared} shapes compared");
+        // A piece's end inside a character (a review's panic): the next section after that line.
+        let two = "[[shapes]] # é\ntype = \"sphere\"\n[[shapes]] # é\nradius = 1\n";
+        let inside = two.find('é').unwrap() + 1;
+        assert!(!two.is_char_boundary(inside));
+        assert_eq!(next_section(two, inside, two.len()), two.rfind("[[shapes]]").unwrap());
         // Declined: a `shapes.*` table after another table, a multi-line string, an inline array of
         // shapes beside the sections, a section that does not parse.
         let head = "[image]\nwidth = 4\nheight = 4\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov = 40\n";
@@ -266,6 +278,7 @@ mod tests {
             format!("{head}{sphere}[materials.a]\ntype = \"lambert\"\n[shapes.transform]\nscale = [1, 1, 1]\n"),
             format!("{head}{sphere}material = \"\"\"a\"\"\"\n"),
             format!("shapes = [{{ type = \"sphere\" }}]\n{head}{sphere}"),
+            format!("shapes = []\n{head}{sphere}"),
             format!("{head}{sphere}radius = 2\n"),
         ] {
             assert!(sectioned(&odd).is_none(), "{odd}");
