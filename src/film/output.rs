@@ -305,5 +305,8 @@ mod tests {
         let odd = [0.0, -0.0, -1.0, 1.0, 1.5, 3e38, f32::MIN_POSITIVE, 1e-45, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.0031308];
         check(&odd);
         assert_eq!(to_srgb8(&[Vec3::new(f32::NAN, f32::INFINITY, 2.0)]), [0, 0, 255]);
+        // Codes known independently of both: IEC 61966-2-1 gives 0.5 -> 0.7354 (x 255 = 187.5), 18%
+        // grey 0.18 -> 0.4614 (117.7), and 0.001 on the linear segment 12.92 x 0.001 (3.3).
+        assert_eq!(to_srgb8(&[Vec3::new(0.5, 0.18, 0.001)]), [188, 118, 3]);
     }
 }

@@ -1663,7 +1663,7 @@ mod tests {
 
     /// `hit_rows_x8` gives each lane what `surface_hit` gives that hit, bit for bit: point, facing normal,
     /// error magnitude, side and material, for chunks of hits of every material in scenes of spheres,
-    /// flat prims, boxes and CSG leaves of every shape (the 8-lane leaves and the rest), some moving, at
+    /// flat prims, boxes and CSG leaves of every shape (cones and tori counted), some moving, at
     /// camera and bounce depths.
     #[test]
     fn hit_rows_x8_equal_surface_hit() {
