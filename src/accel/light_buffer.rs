@@ -93,13 +93,19 @@ impl LightBuffer {
     /// point light), over `prims` (id, bound). `side`: cells per face side, or `None` to choose from the
     /// bounds (so that a typical primitive covers a few cells). `None` when there is nothing to list.
     pub fn build(center: Vec3, light_radius: f32, prims: &[(u32, Bound)], side: Option<u32>) -> Option<Self> {
-        Self::build_within(center, light_radius, prims, side, usize::MAX, f64::INFINITY)
+        Self::build_within(center, light_radius, prims, side, usize::MAX, f64::INFINITY, usize::MAX)
     }
 
-    /// [`LightBuffer::build`], given up (`None`) as soon as its entries would pass `max_entries` or
-    /// `max_mean` per cell of the cube (so `max_mean` per non-empty cell too): the cells' lists are
-    /// counted while they are made, and making stops there, so a buffer that would not pay costs
-    /// neither its memory nor its time (a lattice of long beams around a light: 10^5 cells per beam).
+    /// [`LightBuffer::build`], given up (`None`) where it would not pay, as early as that is known, so
+    /// that such a buffer costs neither its memory nor most of its time:
+    /// - an `always` list longer than `max_always`: known before any cell is listed;
+    /// - more entries than `max_entries`, or than `max_mean` per cell of the cube: the cells' lists are
+    ///   counted while they are made, and making stops there (a lattice of long beams around a light:
+    ///   10^5 cells per beam);
+    /// - more than `max_mean` entries per non-empty cell ([`LightBuffer::mean_list`]): known once the
+    ///   lists are counted, before they are sorted (160,000 overlapping spheres under one light: 104 per
+    ///   listed cell, and the sorts were two thirds of the build).
+    ///
     /// Whether it is given up does not depend on the thread count.
     pub fn build_within(
         center: Vec3,
@@ -108,6 +114,7 @@ impl LightBuffer {
         side: Option<u32>,
         max_entries: usize,
         max_mean: f64,
+        max_always: usize,
     ) -> Option<Self> {
         if prims.is_empty() || !center.is_finite() || !(light_radius >= 0.0) {
             return None;
@@ -145,6 +152,9 @@ impl LightBuffer {
             }
             cones.push((id, v / dist, alpha, (rho - r_eff).max(0.0)));
         }
+        if always.len() > max_always {
+            return None;
+        }
         let n = side.unwrap_or_else(|| choose_side(&cones)).clamp(MIN_SIDE, MAX_SIDE);
         let cells = 6 * (n as usize) * (n as usize);
         // (cell, near^2, id) for every cell a cone meets, cones in parallel chunks (concatenated in
@@ -170,7 +180,8 @@ impl LightBuffer {
             })
             .collect();
         // (The total is the same whatever the chunks' order: over the cap, some chunk saw it so.)
-        if made.into_inner() > cap {
+        let total = made.into_inner();
+        if total > cap {
             return None;
         }
         // Counting sort by cell, then each cell's entries by distance (and id: a total order).
@@ -178,10 +189,14 @@ impl LightBuffer {
         for e in chunks.iter().flatten() {
             start[e.0 as usize + 1] += 1;
         }
+        // (The mean as `mean_list` gives it, from the same two counts.)
+        let listed = start[1..].iter().filter(|&&k| k > 0).count();
+        if total as f64 / listed.max(1) as f64 > max_mean {
+            return None;
+        }
         for c in 0..cells {
             start[c + 1] += start[c];
         }
-        let total = start[cells] as usize;
         let mut entries = vec![(0.0f32, 0u32); total];
         let mut fill = start.clone();
         for &(cell, near2, id) in chunks.iter().flatten() {
@@ -451,28 +466,44 @@ mod tests {
 
     /// A build given a cap gives up (`None`) exactly when its entries would pass it, whatever the
     /// thread count, and otherwise equals the uncapped build: wide cones (spheres close around the
-    /// light) make many entries, and caps just below and at the count decide.
+    /// light) make many entries, and caps just below and at the count decide. So do caps on the mean
+    /// list per listed cell and on the `always` list.
     #[test]
     fn a_capped_build_gives_up_past_its_cap() {
         let mut f = crate::sample::hash::test_uniforms(0xcab);
-        let spheres: Vec<(u32, Bound)> = (0..5000)
+        let mut spheres: Vec<(u32, Bound)> = (0..5000)
             .map(|i| {
                 let c = DVec3::new(f() as f64 * 20.0 - 10.0, f() as f64 * 4.0, f() as f64 * 20.0 - 10.0);
                 (i, Bound { center: c, radius: 0.05 + f() as f64 * if i % 10 == 0 { 2.0 } else { 0.1 } })
             })
             .collect();
         let light = Vec3::new(0.5, 6.0, -0.5);
+        // Two spheres close beside the light, whose cones are wider than `WIDE_CONE`: always tested.
+        for (i, dx) in [(5000, 1.5), (5001, -1.6)] {
+            spheres.push((i, Bound { center: light.as_dvec3() + DVec3::new(dx, 0.0, 0.0), radius: 1.2 }));
+        }
         let full = LightBuffer::build(light, 0.0, &spheres, None).unwrap();
         let n = full.entry_count();
         assert!(n > 10_000, "{n} entries");
         for threads in [1, 2, 3] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| {
-                assert!(LightBuffer::build_within(light, 0.0, &spheres, None, n - 1, f64::INFINITY).is_none());
-                let at = LightBuffer::build_within(light, 0.0, &spheres, None, n, f64::INFINITY).unwrap();
+                let build = |entries, mean, always| LightBuffer::build_within(light, 0.0, &spheres, None, entries, mean, always);
+                assert!(build(n - 1, f64::INFINITY, usize::MAX).is_none());
+                let at = build(n, f64::INFINITY, usize::MAX).unwrap();
                 assert_eq!((at.entry_count(), &at.start, &at.always), (n, &full.start, &full.always));
                 let cells = 6.0 * (full.side() as f64).powi(2);
-                assert!(LightBuffer::build_within(light, 0.0, &spheres, None, usize::MAX, (n as f64 - 1.0) / cells).is_none());
+                assert!(build(usize::MAX, (n as f64 - 1.0) / cells, usize::MAX).is_none());
+                // Per listed cell: given up just below the finished buffer's own mean list, kept at it.
+                let mean = full.mean_list();
+                assert!(mean > 1.5 * n as f64 / cells, "most cells list something: {mean} per listed cell");
+                assert!(build(usize::MAX, mean * (1.0 - 1e-12), usize::MAX).is_none());
+                assert_eq!(build(usize::MAX, mean, usize::MAX).unwrap().entries, full.entries);
+                // The `always` list: given up just below its length, kept at it.
+                let always = full.always().len();
+                assert_eq!(always, 2, "the two spheres beside the light are on the always list");
+                assert!(build(usize::MAX, f64::INFINITY, always - 1).is_none());
+                assert_eq!(build(usize::MAX, f64::INFINITY, always).unwrap().entries, full.entries);
             });
         }
     }

@@ -1797,11 +1797,8 @@ fn light_buffers_within(lights: &[Light], prims: &[Prim], bounds: &[Aabb], bound
         .map(|l| match *l {
             Light::Point { position, .. } if budget > 0 && built < MAX_LIGHT_BUFFERS => {
                 built += 1;
-                // (Given up while it is made once past the budget or the mean: `None` either way.)
-                let lb = LightBuffer::build_within(position, 0.0, &spheres, None, budget, MAX_MEAN_LIST)?;
-                if lb.always().len() > MAX_ALWAYS || lb.mean_list() > MAX_MEAN_LIST {
-                    return None;
-                }
+                // (Given up as soon as it would pass the budget, the mean list or the `always` list: `None`.)
+                let lb = LightBuffer::build_within(position, 0.0, &spheres, None, budget, MAX_MEAN_LIST, MAX_ALWAYS)?;
                 budget -= lb.entry_count();
                 Some(lb)
             }
