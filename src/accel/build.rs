@@ -63,6 +63,17 @@ impl BinMap {
 /// An empty slice gives an empty tree (no nodes) that hits nothing. More than `MAX_LEAF_COUNT`
 /// (2^30 - 1) boxes is a documented limit and panics.
 pub fn build_bvh(bounds: &[Aabb], opts: &BuildOptions) -> Bvh {
+    build(bounds, opts, PAR_MIN)
+}
+
+/// Ranges of at least this many primitives build their two children's subtrees in parallel (rayon's
+/// global pool); smaller ones are built by one thread, depth first.
+const PAR_MIN: usize = 1 << 14;
+
+/// [`build_bvh`], parallel from ranges of `par_min` primitives up. The tree is the same whatever
+/// `par_min` and the thread count: each subtree is numbered as the depth-first build numbers it, and
+/// a parent lays out its children's subtrees as that build would (see [`Builder::subtree`]).
+fn build(bounds: &[Aabb], opts: &BuildOptions, par_min: usize) -> Bvh {
     let n = bounds.len();
     let max_leaf = opts.max_leaf.clamp(1, MAX_LEAF_COUNT) as usize;
     let bins = (opts.bins as usize).clamp(2, MAX_BINS);
@@ -73,31 +84,91 @@ pub fn build_bvh(bounds: &[Aabb], opts: &BuildOptions) -> Bvh {
 
     let centroids: Vec<Vec3> = bounds.iter().map(Aabb::centroid).collect();
     let mut indices: Vec<u32> = (0..n as u32).collect();
-    let mut nodes = Vec::with_capacity(2 * n - 1);
-    nodes.push(BvhNode::leaf(Aabb::EMPTY, 0, 1));
-    let mut bin_store = vec![EMPTY_BIN; 3 * bins];
-    let mut right_sweep = vec![(0.0f32, 0u32); bins];
+    let builder = Builder { bounds, centroids: &centroids, max_leaf, bins, par_min: par_min.max(2) };
+    let nodes = builder.subtree(&mut indices, 0, 1);
+    Bvh { nodes, indices, max_leaf: max_leaf as u32 }
+}
 
-    let mut work = vec![Task { node: 0, first: 0, count: n, level: 1 }];
-    while let Some(t) = work.pop() {
-        let idx = &mut indices[t.first..t.first + t.count];
-        let (node_box, centroid_box) = range_bounds(bounds, &centroids, idx);
-        let split = choose_split(bounds, &centroids, idx, (node_box, centroid_box), &t, max_leaf, (&mut bin_store, &mut right_sweep));
-        match split {
-            None => nodes[t.node] = BvhNode::leaf(node_box, t.first as u32, t.count as u32),
-            Some((axis, left_count)) => {
-                let left = nodes.len();
-                nodes.push(BvhNode::leaf(Aabb::EMPTY, 0, 1));
-                nodes.push(BvhNode::leaf(Aabb::EMPTY, 0, 1));
-                nodes[t.node] = BvhNode::inner(node_box, left as u32, axis as u32);
-                let level = t.level + 1;
-                // Right first so the left subtree is built (and laid out) next: depth-first order.
-                work.push(Task { node: left + 1, first: t.first + left_count, count: t.count - left_count, level });
-                work.push(Task { node: left, first: t.first, count: left_count, level });
+struct Builder<'a> {
+    bounds: &'a [Aabb],
+    centroids: &'a [Vec3],
+    max_leaf: usize,
+    bins: usize,
+    par_min: usize,
+}
+
+impl Builder<'_> {
+    /// The subtree over `idx` (`indices[first..]`), whose root is at `level`: its root at 0 and the
+    /// rest numbered as the depth-first build numbers them, leaves pointing into the whole `indices`.
+    ///
+    /// That build gives a node's two children consecutive slots when it splits the node, and builds
+    /// the left subtree (allocating all of its nodes) before it takes up the right: a tree is laid out
+    /// `[root, left, right, left's descendants, right's descendants]`, each descendants' run as their
+    /// subtree numbers it from its root, moved. So both children's subtrees may be built apart (here
+    /// in parallel) and joined by shifting their child links.
+    fn subtree(&self, idx: &mut [u32], first: usize, level: usize) -> Vec<BvhNode> {
+        if idx.len() < self.par_min {
+            return self.depth_first(idx, first, level);
+        }
+        let mut bin_store = vec![EMPTY_BIN; 3 * self.bins];
+        let mut right_sweep = vec![(0.0f32, 0u32); self.bins];
+        let t = Task { node: 0, first, count: idx.len(), level };
+        let (node_box, centroid_box) = range_bounds(self.bounds, self.centroids, idx);
+        let scratch = (&mut bin_store[..], &mut right_sweep[..]);
+        let Some((axis, left_count)) = choose_split(self.bounds, self.centroids, idx, (node_box, centroid_box), &t, self.max_leaf, scratch)
+        else {
+            return vec![BvhNode::leaf(node_box, first as u32, idx.len() as u32)];
+        };
+        let (l, r) = idx.split_at_mut(left_count);
+        let (left, right) = rayon::join(|| self.subtree(l, first, level + 1), || self.subtree(r, first + left_count, level + 1));
+        // Left's node j >= 1 goes to slot j + 2, right's to j + 1 + left.len(); the roots to 1 and 2.
+        let moved = |node: &BvhNode, by: usize| {
+            let mut node = *node;
+            if !node.is_leaf() {
+                node.left_first += by as u32;
+            }
+            node
+        };
+        let mut nodes = Vec::with_capacity(1 + left.len() + right.len());
+        nodes.push(BvhNode::inner(node_box, 1, axis as u32));
+        nodes.push(moved(&left[0], 2));
+        nodes.push(moved(&right[0], 1 + left.len()));
+        nodes.extend(left[1..].iter().map(|node| moved(node, 2)));
+        nodes.extend(right[1..].iter().map(|node| moved(node, 1 + left.len())));
+        nodes
+    }
+
+    /// The subtree over `idx` built by one thread, depth first (left child first), its root at 0.
+    fn depth_first(&self, idx: &mut [u32], first: usize, level: usize) -> Vec<BvhNode> {
+        let (bounds, centroids) = (self.bounds, self.centroids);
+        let mut nodes = Vec::with_capacity(2 * idx.len() - 1);
+        nodes.push(BvhNode::leaf(Aabb::EMPTY, 0, 1));
+        let mut bin_store = vec![EMPTY_BIN; 3 * self.bins];
+        let mut right_sweep = vec![(0.0f32, 0u32); self.bins];
+
+        // (`Task::first` is relative to `idx` here; leaves add `first`.)
+        let mut work = vec![Task { node: 0, first: 0, count: idx.len(), level }];
+        while let Some(t) = work.pop() {
+            let range = &mut idx[t.first..t.first + t.count];
+            let (node_box, centroid_box) = range_bounds(bounds, centroids, range);
+            let scratch = (&mut bin_store[..], &mut right_sweep[..]);
+            let split = choose_split(bounds, centroids, range, (node_box, centroid_box), &t, self.max_leaf, scratch);
+            match split {
+                None => nodes[t.node] = BvhNode::leaf(node_box, (first + t.first) as u32, t.count as u32),
+                Some((axis, left_count)) => {
+                    let left = nodes.len();
+                    nodes.push(BvhNode::leaf(Aabb::EMPTY, 0, 1));
+                    nodes.push(BvhNode::leaf(Aabb::EMPTY, 0, 1));
+                    nodes[t.node] = BvhNode::inner(node_box, left as u32, axis as u32);
+                    let level = t.level + 1;
+                    // Right first so the left subtree is built (and laid out) next: depth-first order.
+                    work.push(Task { node: left + 1, first: t.first + left_count, count: t.count - left_count, level });
+                    work.push(Task { node: left, first: t.first, count: left_count, level });
+                }
             }
         }
+        nodes
     }
-    Bvh { nodes, indices, max_leaf: max_leaf as u32 }
 }
 
 /// Union of the primitive boxes and of the centroids of a range.
@@ -242,4 +313,39 @@ fn partition(idx: &mut [u32], goes_left: impl Fn(u32) -> bool) -> usize {
         }
     }
     i
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The parallel build gives the depth-first build's tree, node for node and index for index,
+    /// whatever the size from which ranges split across threads and whatever the thread count: on
+    /// clustered boxes of mixed sizes, runs of identical centroids (leaves past `max_leaf`) and boxes
+    /// on one line (the half-perimeter metric).
+    #[test]
+    fn parallel_build_equals_the_depth_first_one() {
+        let mut f = crate::sample::hash::test_uniforms(0xb1d);
+        let mut bounds = Vec::new();
+        for i in 0..20_000 {
+            let cluster = Vec3::splat((i % 7) as f32 * 30.0);
+            let c = cluster + Vec3::new(f(), f(), f()) * 10.0;
+            let h = Vec3::new(f(), f(), f()) * if i % 13 == 0 { 8.0 } else { 0.3 };
+            bounds.push(Aabb::new(c - h, c + h));
+        }
+        bounds.extend(std::iter::repeat_n(Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)), 40));
+        bounds.extend((0..3000).map(|i| Aabb::new(Vec3::new(i as f32, 0.0, 0.0), Vec3::new(i as f32 + 0.5, 0.0, 0.0))));
+        for opts in [BuildOptions::default(), BuildOptions { max_leaf: 1, bins: 7 }] {
+            for part in [&bounds[..], &bounds[20_000..]] {
+                let serial = build(part, &opts, usize::MAX);
+                assert!(serial.nodes.len() > 1000);
+                serial.validate(part).unwrap();
+                for (threads, par_min) in [(1, 2), (2, 2), (2, 100), (3, 3000), (2, PAR_MIN)] {
+                    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                    let tree = pool.install(|| build(part, &opts, par_min));
+                    assert!(tree == serial, "{threads} threads, parallel from {par_min}: another tree");
+                }
+            }
+        }
+    }
 }
