@@ -149,24 +149,30 @@ impl JitterRows {
     }
 
     /// [`JitterRows::jitter`] for `s < n <= 2^24` in f64, bit for bit: every value is an integer held
-    /// exactly, and each quotient is taken as in [`jitter_in_cell_div`] (the row's by
-    /// [`quotient_below_2_24`]; the span's `(b (k 2^24 + 1 - n)) >> 24`, which can pass 2^53, as
-    /// `b k - ceil(b (n - 1) / 2^24)`, whose terms stay below 2^48).
+    /// exactly, and each quotient is [`Divisor::quotient`]'s, exact (`d`, from [`JitterRows::divisors`]:
+    /// the rows' two lengths and `n`); the span's `(b (k 2^24 + 1 - n)) >> 24`, which can pass 2^53, as
+    /// `b k - ceil(b (n - 1) / 2^24)`, whose terms stay below 2^48.
     #[inline(always)]
-    fn jitter_f64(&self, s: f64, h: u64) -> [f32; 2] {
+    fn jitter_f64(&self, s: f64, h: u64, d: &[Divisor; 3]) -> [f32; 2] {
         const ONE: f64 = (1u64 << 24) as f64;
-        let (n, q) = (self.n as f64, self.q as f64);
-        let big = self.rem as f64 * (q + 1.0);
+        let [short, long, n] = *d;
+        let big = self.rem as f64 * long.d;
         let low = s < big;
-        let (t, k) = if low { (s, q + 1.0) } else { (s - big, q) };
-        let row = quotient_below_2_24(t, k);
-        let col = t - row * k;
-        let c0 = if low { row * k } else { big + row * k };
+        let (t, k) = if low { (s, long) } else { (s - big, short) };
+        let row = k.quotient(t);
+        let col = t - row * k.d;
+        let c0 = if low { row * k.d } else { big + row * k.d };
         let x = jitter_in_cell_div(col, k, (h >> 32) as u32);
         let b = ((h as u32) >> 8) as f64;
-        let t = (n - 1.0) + b * k - ((b * (n - 1.0) + (ONE - 1.0)) * (1.0 / ONE)).trunc();
-        let y = ((c0 * ONE + t) / n).trunc();
+        let t = (n.d - 1.0) + b * k.d - ((b * (n.d - 1.0) + (ONE - 1.0)) * (1.0 / ONE)).trunc();
+        let y = n.quotient(c0 * ONE + t);
         [x, y.min(ONE - 1.0) as f32 * (1.0 / ONE as f32)]
+    }
+
+    /// The divisors of [`JitterRows::jitter_f64`]: rows of `q` and `q + 1` cells, and `n`.
+    #[inline(always)]
+    fn divisors(&self) -> [Divisor; 3] {
+        [Divisor::new(self.q), Divisor::new(self.q + 1), Divisor::new(self.n)]
     }
 
     /// The centre of stratum `s` (for tests).
@@ -231,26 +237,42 @@ fn jitter_in_cell(k: u32, n: u32, bits: u32) -> f32 {
     q.min(ONE - 1) as f32 * (1.0 / ONE as f32)
 }
 
-/// `s / d` (integer quotient) for integers `0 <= s < 2^24`, `d >= 1`, held in f64 (exactly): by an f64
-/// division and truncation, which vectorise where integer division does not. The rounded quotient is
-/// within 2^-29 of `s / d`, whose fraction is 0 (the division then exact) or at least `1/d > 2^-24`
-/// away from the next integer, so truncation gives the integer quotient.
-#[inline(always)]
-fn quotient_below_2_24(s: f64, d: f64) -> f64 {
-    (s / d).trunc()
+/// An integer divisor `d >= 1` held in f64 with its reciprocal, for exact integer quotients by a
+/// multiplication ([`Divisor::quotient`]), which vectorises where integer division does not and costs a
+/// fraction of an f64 division.
+#[derive(Clone, Copy, Debug)]
+struct Divisor {
+    d: f64,
+    inv: f64,
+}
+
+impl Divisor {
+    #[inline(always)]
+    fn new(d: u32) -> Divisor {
+        debug_assert!(d >= 1);
+        Divisor { d: d as f64, inv: 1.0 / d as f64 }
+    }
+
+    /// `floor(a / d)` for an integer `0 <= a < 2^51` held in f64, exactly: `(a + 0.5) / d` lies at least
+    /// `0.5 / d` from every integer (its fraction is `(r + 0.5) / d` for the remainder `r < d`), and
+    /// `(a + 0.5) * fl(1 / d)`, rounded, is within a relative `2^-52` of it (two roundings of `2^-53`),
+    /// so within `(a + 0.5) 2^-52 / d < 0.5 / d`: truncation gives the integer quotient. (`a + 0.5` is
+    /// exact below 2^52.)
+    #[inline(always)]
+    fn quotient(&self, a: f64) -> f64 {
+        ((a + 0.5) * self.inv).trunc()
+    }
 }
 
 /// [`jitter_in_cell`] for `k < n <= 2^24`, in f64 (`k`, `n` integers held exactly): every value below is
-/// an integer below 2^48, exact in f64, and the quotient `a / n` is taken by an f64 division:
-/// `a / n < 2^25`, so the rounded quotient is within 2^-28 of the true one, whose fraction is 0 (then
-/// the division is exact) or between 1/n >= 2^-24 and 1 - 1/n: truncating it gives the integer
-/// quotient. The result is `jitter_in_cell(k, n, bits)` bit for bit.
+/// an integer below 2^49, exact in f64, and the quotient `a / n` is [`Divisor::quotient`]'s, exact. The
+/// result is `jitter_in_cell(k, n, bits)` bit for bit.
 #[inline(always)]
-fn jitter_in_cell_div(k: f64, n: f64, bits: u32) -> f32 {
+fn jitter_in_cell_div(k: f64, n: Divisor, bits: u32) -> f32 {
     const ONE: f64 = (1u64 << 24) as f64;
     // (bits >> 8) (ONE + 1 - n) < 2^48: exact; >> 24 is a division by 2^24 and truncation.
-    let t = (n - 1.0) + (((bits >> 8) as f64 * (ONE + 1.0 - n)) * (1.0 / ONE)).trunc();
-    let q = ((k * ONE + t) / n).trunc();
+    let t = (n.d - 1.0) + (((bits >> 8) as f64 * (ONE + 1.0 - n.d)) * (1.0 / ONE)).trunc();
+    let q = n.quotient(k * ONE + t);
     q.min(ONE - 1.0) as f32 * (1.0 / ONE as f32)
 }
 
@@ -430,11 +452,11 @@ impl Sampler2d {
             // Grid samples (e.g. a 2x2 grid of pixel positions): the centres of the strata the jittered
             // path above finds, the row and column by the same f64 quotient, the centres per lane.
             let s = if permuted { permute_x8(index, &PermuteShape::new(self.n), &keys.map(perm_key)) } else { *index };
-            let nx = self.nx as f64;
+            let nx = Divisor::new(self.nx);
             for l in 0..LANES {
                 let sl = s[l] as f64;
-                let sy = quotient_below_2_24(sl, nx);
-                let sx = sl - sy * nx;
+                let sy = nx.quotient(sl);
+                let sx = sl - sy * nx.d;
                 u[0][l] = cell_centre(sx as u32, self.nx);
                 u[1][l] = cell_centre(sy as u32, self.ny);
             }
@@ -447,24 +469,26 @@ impl Sampler2d {
     }
 
     /// The jittered samples in strata `s` (`s[l] < n <= 2^24`) of samples `index` of the sets keyed by
-    /// `keys`: the same strata and jitter as `sample_impl`, the integer divisions as f64 ones (exact
-    /// here, see `jitter_in_cell_div`), which vectorise where the integer ones do not.
+    /// `keys`: the same strata and jitter as `sample_impl`, the integer divisions as f64 multiplications
+    /// by the reciprocal (exact here, see [`Divisor::quotient`]), which vectorise where the integer ones
+    /// do not.
     #[inline(always)]
     fn jitter_strata_x8(&self, keys: &[u64; LANES], index: &[u32; LANES], s: &[u32; LANES]) -> [f32x8; 2] {
         let mut u = [[0.0f32; LANES]; 2];
         if let Some(rows) = &self.rows {
-            // Counts in rows (5, 17, 31): `JitterRows::jitter`, its divisions likewise in f64.
+            // Counts in rows (5, 17, 31): `JitterRows::jitter`, its quotients likewise in f64.
+            let d = rows.divisors();
             for l in 0..LANES {
                 let h = random_bits(keys[l], index[l]);
-                [u[0][l], u[1][l]] = rows.jitter_f64(s[l] as f64, h);
+                [u[0][l], u[1][l]] = rows.jitter_f64(s[l] as f64, h, &d);
             }
             return [f32x8::from(u[0]), f32x8::from(u[1])];
         }
-        let (nx, ny) = (self.nx as f64, self.ny as f64);
+        let (nx, ny) = (Divisor::new(self.nx), Divisor::new(self.ny));
         for l in 0..LANES {
             let sl = s[l] as f64;
-            let sy = quotient_below_2_24(sl, nx);
-            let sx = sl - sy * nx;
+            let sy = nx.quotient(sl);
+            let sx = sl - sy * nx.d;
             let h = random_bits(keys[l], index[l]);
             u[0][l] = jitter_in_cell_div(sx, nx, (h >> 32) as u32);
             u[1][l] = jitter_in_cell_div(sy, ny, h as u32);
@@ -777,7 +801,7 @@ mod tests {
                 }
                 for b in bits {
                     assert_eq!(
-                        jitter_in_cell_div(k as f64, n as f64, b).to_bits(),
+                        jitter_in_cell_div(k as f64, Divisor::new(n), b).to_bits(),
                         jitter_in_cell(k, n, b).to_bits(),
                         "n={n} k={k} bits={b}"
                     );
@@ -786,27 +810,34 @@ mod tests {
         }
     }
 
-    /// `quotient_below_2_24` is the integer quotient: every divisor's multiples and their neighbours,
-    /// for divisors up to 2^24 - 1 (the column counts of the grids of up to 2^24 samples).
+    /// [`Divisor::quotient`] is the integer quotient: every divisor's multiples and their neighbours, for
+    /// divisors up to 2^24 - 1 (the column counts of the grids of up to 2^24 samples) and beyond, and
+    /// dividends up to the 2^51 its proof allows (the jitter's reach 2^49), against u64 division.
     #[test]
-    fn quotient_below_2_24_is_exact() {
+    fn divisor_quotient_is_exact() {
         let mut next = crate::sample::hash::test_uniforms(0x9d1);
-        for d in [1u32, 2, 3, 7, 48, 49, 103, 161, 1000, 4095, 4097, 65_535, 1_000_003, (1 << 23) + 1, (1 << 24) - 1] {
+        let mut wide = || ((next() as f64 * 16_777_216.0) as u64) << 27 | (next() as f64 * 134_217_728.0) as u64;
+        let divisors =
+            [1u64, 2, 3, 7, 48, 49, 98, 103, 161, 1000, 4095, 4097, 65_535, 1_000_003, (1 << 23) + 1, (1 << 24) - 1, (1 << 31) - 1];
+        for d in divisors {
+            let div = Divisor::new(d as u32);
             let mut checked = 0;
-            let step = ((1u32 << 24) / d / 200).max(1);
-            for q in (0..=(1u32 << 24) / d).step_by(step as usize) {
-                for s in [q * d, (q * d).wrapping_sub(1), q * d + 1, q * d + d / 2] {
-                    if s < 1 << 24 {
-                        assert_eq!(quotient_below_2_24(s as f64, d as f64), (s / d) as f64, "{s} / {d}");
-                        checked += 1;
+            for top in [1u64 << 24, 1 << 49, 1 << 51] {
+                let step = (top / d / 200).max(1);
+                for q in (0..=top / d).step_by(step as usize).chain([top / d - 1, top / d]) {
+                    for a in [q * d, (q * d).wrapping_sub(1), q * d + 1, q * d + d / 2, q * d + d - 1] {
+                        if a < top {
+                            assert_eq!(div.quotient(a as f64), (a / d) as f64, "{a} / {d}");
+                            checked += 1;
+                        }
                     }
                 }
             }
-            for _ in 0..200 {
-                let s = (next() * 16_777_216.0) as u32;
-                assert_eq!(quotient_below_2_24(s as f64, d as f64), (s / d) as f64, "{s} / {d}");
+            for _ in 0..500 {
+                let a = wide() & ((1 << 51) - 1);
+                assert_eq!(div.quotient(a as f64), (a / d) as f64, "{a} / {d}");
             }
-            assert!(checked >= 4, "{d}");
+            assert!(checked >= 12, "{d}");
         }
     }
 
@@ -892,7 +923,11 @@ mod tests {
             let strata: Vec<u32> = if n < 5000 { (0..n).collect() } else { vec![0, 1, n / 3, n / 2, n - 2, n - 1] };
             for s in strata {
                 for h in [0u64, 255, 256, u64::MAX, u64::MAX - 255, 0x8000_0000_8000_0000, 0x1234_5678_9abc_def0] {
-                    assert_eq!(r.jitter_f64(s as f64, h).map(f32::to_bits), r.jitter(s, h).map(f32::to_bits), "n={n} s={s} h={h:#x}");
+                    assert_eq!(
+                        r.jitter_f64(s as f64, h, &r.divisors()).map(f32::to_bits),
+                        r.jitter(s, h).map(f32::to_bits),
+                        "n={n} s={s} h={h:#x}"
+                    );
                 }
             }
         }

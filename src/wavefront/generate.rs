@@ -123,10 +123,12 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     // Across pixels: where each pixel's samples of the unit are whole packets, and at most `RUN_MAX` (a
     // unit of the default tile holds 16 samples of each of its pixels), the strata of 8 pixels' samples
     // are walked at once, a lane per pixel (`Sampler2d::strata_runs`): a pixel's own run of 2 packets is
-    // too short to keep the walk busy. `strata[set][m][lane]`, for the pixels `ahead[..n_ahead]`.
+    // too short to keep the walk busy: `walked[m][lane]`, then turned to `strata[set][lane][m]` (the pixels
+    // `ahead[..n_ahead]`), so that each packet's strata are one row.
     let len = samples.len();
     let across = runs && len.is_multiple_of(LANES) && len <= RUN_MAX;
-    let mut strata = [[[0u32; LANES]; RUN_MAX]; 2];
+    let mut strata = [[[0u32; RUN_MAX]; LANES]; 2];
+    let mut walked = [[0u32; LANES]; RUN_MAX];
     let mut zs = tile.pixels_z_order();
     let mut ahead = [(0u32, 0u32); LANES];
     let (mut n_ahead, mut at) = (0usize, 0usize);
@@ -150,7 +152,13 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 for (set, dim, used) in [(&area, dims::PIXEL, true), (&lens_set, dims::LENS, f.lens)] {
                     if used && set.runs() {
                         let keys = std::array::from_fn(|l| key(l, dim));
-                        set.strata_runs(&keys, &base, 1, &count, &mut strata[(dim == dims::LENS) as usize]);
+                        set.strata_runs(&keys, &base, 1, &count, &mut walked);
+                        let to = &mut strata[(dim == dims::LENS) as usize];
+                        for (m, row) in walked.iter().enumerate().take(len) {
+                            for l in 0..LANES {
+                                to[l][m] = row[l];
+                            }
+                        }
                     }
                 }
             }
@@ -190,8 +198,8 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 let p = ((first - samples.start) / LANES as u32) as usize;
                 let made = |set: &Sampler2d, which: usize, key: &[u64; LANES]| {
                     if set.runs() {
-                        let s = std::array::from_fn(|j| strata[which][p * LANES + j][lane]);
-                        set.sample_x8_in_strata(key, &whole.index, &s)
+                        let s = strata[which][lane][p * LANES..][..LANES].try_into().expect("8 strata");
+                        set.sample_x8_in_strata(key, &whole.index, s)
                     } else {
                         set.sample_x8_one_key(key[0], &whole.index, true)
                     }
