@@ -94,4 +94,29 @@ impl Bvh {
     pub fn is_empty(&self) -> bool {
         self.nodes.is_empty()
     }
+
+    /// Calls `f` with every primitive id (as given to the build) of the leaves whose boxes meet the
+    /// closed box `lo..hi`: a superset of the primitives whose own boxes meet it, which the caller
+    /// tests. `stack` is scratch space.
+    pub fn for_each_in_box(&self, lo: glam::Vec3, hi: glam::Vec3, stack: &mut Vec<u32>, mut f: impl FnMut(u32)) {
+        if self.is_empty() {
+            return;
+        }
+        stack.clear();
+        stack.push(0);
+        while let Some(n) = stack.pop() {
+            let node = &self.nodes[n as usize];
+            let (nmin, nmax) = (glam::Vec3::from_array(node.min), glam::Vec3::from_array(node.max));
+            if nmin.cmpgt(hi).any() || nmax.cmplt(lo).any() {
+                continue;
+            }
+            if node.is_leaf() {
+                for &k in &self.indices[node.left_first as usize..(node.left_first + node.count()) as usize] {
+                    f(k);
+                }
+            } else {
+                stack.extend([node.left_first, node.left_first + 1]);
+            }
+        }
+    }
 }

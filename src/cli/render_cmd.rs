@@ -180,21 +180,10 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         errln!("interrupted while setting up the render: no sample was rendered, nothing was written");
         std::process::exit(130);
     });
+    // The arguments first, all that can be checked without the scene: a mistake in them is told at
+    // once, not after the setup of a large scene.
     let size = a.size.as_deref().map(parse_size).transpose()?;
-    let setup = Instant::now();
-    let scene = load_scene_sized(&a.scene, size).map_err(Failure::input)?;
-    // Reading, parsing, the BVHs and the light buffers: not in the render's time, so said apart.
-    let setup_seconds = setup.elapsed().as_secs_f64();
     let profile = resolve_profile(&a)?;
-    for w in &scene.warnings {
-        errln!("warning: {w}");
-    }
-    if let Some(w) = identical_samples_warning(&scene, &profile) {
-        errln!("warning: {w}");
-    }
-    for w in sampling_warnings(&scene, &profile) {
-        errln!("warning: {w}");
-    }
     if a.threads > 1024 {
         return Err(Failure::input("--threads must be at most 1024"));
     }
@@ -208,7 +197,6 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         Some(t) => parse_samples(t, profile.spp)?,
         None => 0..profile.spp,
     };
-    check_render_size(scene.width, scene.height, &samples).map_err(Failure::input)?;
     let out = a.output.clone().unwrap_or_else(|| default_output(&a.scene, "png"));
     check_writable(&out).map_err(Failure::input)?;
     if let Some(j) = &a.stats_json {
@@ -247,6 +235,21 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     if checkpoint_every.is_some() && film_path.is_none() {
         return Err(Failure::input("--checkpoint-every needs --film PATH (where the checkpoints go) or --resume FILM"));
     }
+
+    let setup = Instant::now();
+    let scene = load_scene_sized(&a.scene, size).map_err(Failure::input)?;
+    // Reading, parsing, the BVHs and the light buffers: not in the render's time, so said apart.
+    let setup_seconds = setup.elapsed().as_secs_f64();
+    for w in &scene.warnings {
+        errln!("warning: {w}");
+    }
+    if let Some(w) = identical_samples_warning(&scene, &profile) {
+        errln!("warning: {w}");
+    }
+    for w in sampling_warnings(&scene, &profile) {
+        errln!("warning: {w}");
+    }
+    check_render_size(scene.width, scene.height, &samples).map_err(Failure::input)?;
 
     let mut header = FilmHeader::fresh(&scene, &profile, samples.clone(), a.tile, a.seed);
     // Whether the film resumed holds samples of another build (a film of several builds records none).

@@ -72,6 +72,7 @@ pub fn parse_scene_sized(path: &Path, text: &str, size: Option<(u32, u32)>) -> R
         size,
         unbounded_by: None,
         warnings: Vec::new(),
+        counted: Vec::new(),
         checkers: Default::default(),
         prim_at: Vec::new(),
         leaf_sites: Vec::new(),
@@ -104,6 +105,8 @@ struct Compiler<'a> {
     unbounded_by: Option<(Range<usize>, String, String)>,
     /// What the scene says that is valid but likely not meant (`Scene::warnings`).
     warnings: Vec<String>,
+    /// Warnings given per shape, by kind (`warn_each`): how many, and where the first not shown was.
+    counted: Vec<(WarnKind, usize, Option<Site>)>,
     /// Checker textures' scales and where they were given, checked against the scene's extent at the end.
     checkers: std::cell::RefCell<Vec<(Range<usize>, String, f32)>>,
     /// Where each prim was given (its definition's span and field), by prim id: for warnings that name a prim.
@@ -115,6 +118,9 @@ struct Compiler<'a> {
     /// While `csg_tree` descends: where the material in force was given (span and field).
     material_from: Option<(Range<usize>, String)>,
 }
+
+/// Where a shape was given: its definition's span and field.
+type Site = (Range<usize>, String);
 
 /// A leaf of the solid being built (see `Compiler::leaf_sites`).
 struct LeafSite {
@@ -133,6 +139,40 @@ impl Compiler<'_> {
     fn warn(&mut self, span: Range<usize>, field: impl Into<String>, msg: impl Into<String>) {
         let w = self.err(span, field, msg).to_string();
         self.warnings.push(w);
+    }
+
+    /// A warning that any number of shapes may earn: the first [`SHOWN_PER_KIND`] of its kind in full
+    /// (`msg` is only made for those), the others counted and told in one line at the end, at the first
+    /// not shown (20,000 generated solids that look empty printed 20,000 warnings).
+    fn warn_each(&mut self, kind: WarnKind, span: Range<usize>, field: &str, msg: impl FnOnce() -> String) {
+        let at = match self.counted.iter().position(|c| c.0 == kind) {
+            Some(at) => at,
+            None => {
+                self.counted.push((kind, 0, None));
+                self.counted.len() - 1
+            }
+        };
+        let c = &mut self.counted[at];
+        c.1 += 1;
+        if c.1 > SHOWN_PER_KIND {
+            c.2.get_or_insert((span, field.to_string()));
+            return;
+        }
+        self.warn(span, field, msg());
+    }
+
+    /// How many shapes earned each kind of [`Compiler::warn_each`] warning beyond those shown.
+    fn tell_counted(&mut self) {
+        for (kind, n, at) in std::mem::take(&mut self.counted) {
+            if let Some((span, field)) = at {
+                self.warn(span, field, format!("and {} more shapes from here on: {}", n - SHOWN_PER_KIND, kind.says(n)));
+            }
+        }
+    }
+
+    /// Whether `kind` has been earned `n` times or more.
+    fn counted_at_least(&self, kind: WarnKind, n: usize) -> bool {
+        self.counted.iter().any(|c| c.0 == kind && c.1 >= n)
     }
 
     /// Three finite numbers (colours, intensities).
@@ -372,6 +412,7 @@ impl Compiler<'_> {
             self.coincident_glass_surfaces(&spheres);
         }
         self.coincident_emitters();
+        self.tell_counted();
         Ok(Scene {
             camera_media,
             width,
@@ -524,7 +565,6 @@ impl Compiler<'_> {
                 leaves.truncate(start);
             }
         }
-        items.sort_by(|a, b| a.2.x.total_cmp(&b.2.x));
         // An item's leaves whose bounds meet the box `lo..hi`.
         let near = |range: &Range<usize>, lo: DVec3, hi: DVec3, out: &mut Vec<csg::Leaf>| {
             out.clear();
@@ -539,23 +579,51 @@ impl Compiler<'_> {
             out.extend(leaves.iter().flat_map(|l| leaf_f64(l, o, d)).filter(|t| t.is_finite()));
         };
         const N: usize = 6;
+        // Leaf crossings computed at most (about 0.2 s), where many glass shapes touch.
         const BUDGET: usize = 1 << 22;
         let (mut spent, mut pairs) = (0usize, Vec::new());
         let (mut a, mut b, mut la, mut lb) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         // Bounds closer than this may hold surfaces within the spawn offset: 1e-4 of the largest item
-        // or 256 ULPs of the farthest coordinate (the same for every pair, so that the sweep along x
-        // may stop at the first item past it).
+        // or 256 ULPs of the farthest coordinate (the same for every pair).
         let far = items.iter().map(|it| it.2.abs().max(it.3.abs()).max_element()).fold(0.0f64, f64::max);
         let ext = items.iter().map(|it| (it.3 - it.2).max_element()).fold(0.0f64, f64::max);
         let slack = (1e-4 * ext).max(512.0 * far * f32::EPSILON as f64);
-        'outer: for x in 0..items.len() {
-            for y in x + 1..items.len() {
-                let ((i, ref p, lo1, hi1, s1), (j, ref q, lo2, hi2, s2)) = (&items[x], &items[y]);
-                if lo2.x > hi1.x + slack {
-                    break;
+        // The pairs whose bounds come within `2 slack` of each other: from a tree of the items' bounds,
+        // each widened by `slack` (and rounded outwards to f32), so that the work follows the pairs that
+        // are near, not the items' count squared (3,000 panes in a column along z used up a budget that
+        // counted every pair overlapping along x, and a touching pair elsewhere went unseen).
+        let out32 = |v: DVec3, up: bool| {
+            Vec3::from_array(v.to_array().map(|x| {
+                let f = x as f32;
+                match (up, (f as f64).total_cmp(&x)) {
+                    (true, std::cmp::Ordering::Less) => f.next_up(),
+                    (false, std::cmp::Ordering::Greater) => f.next_down(),
+                    _ => f,
                 }
-                // (Every pair looked at counts, so that a column of glass along y or z stays bounded.)
+            }))
+        };
+        let boxes: Vec<Aabb> =
+            items.iter().map(|it| Aabb::new(out32(it.2 - DVec3::splat(slack), false), out32(it.3 + DVec3::splat(slack), true))).collect();
+        let tree = build_bvh(&boxes, &BuildOptions::default());
+        let (mut stack, mut near_items) = (Vec::new(), Vec::new());
+        // The item at which the budget ran out, if it did.
+        let mut cut = None;
+        'outer: for x in 0..items.len() {
+            near_items.clear();
+            tree.for_each_in_box(boxes[x].min, boxes[x].max, &mut stack, |y| {
+                if y as usize > x {
+                    near_items.push(y as usize);
+                }
+            });
+            near_items.sort_unstable();
+            for &y in &near_items {
+                let ((i, ref p, lo1, hi1, s1), (j, ref q, lo2, hi2, s2)) = (&items[x], &items[y]);
+                // (Every pair looked at counts too: a heap of glass in one place is near pairs only.)
                 spent += 1;
+                if spent > BUDGET {
+                    cut = Some(*i);
+                    break 'outer;
+                }
                 if *s1 && *s2 {
                     continue;
                 }
@@ -565,10 +633,6 @@ impl Compiler<'_> {
                 }
                 near(p, lo, hi, &mut la);
                 near(q, lo, hi, &mut lb);
-                spent += 3 * N * N * (la.len() + lb.len());
-                if spent > BUDGET {
-                    break 'outer;
-                }
                 let mid = (lo1.min(*lo2) + hi1.max(*hi2)) * 0.5;
                 let mut hit = false;
                 'rays: for axis in 0..3 {
@@ -576,6 +640,12 @@ impl Compiler<'_> {
                     let mut d = DVec3::ZERO;
                     d[axis] = 1.0;
                     for m in 0..N * N {
+                        // (The crossings computed count, ray by ray: a pair that touches stops early.)
+                        spent += la.len() + lb.len();
+                        if spent > BUDGET {
+                            cut = Some(*i);
+                            break 'outer;
+                        }
                         let mut o = mid;
                         o[u] = lo[u] + (hi[u] - lo[u]) * ((m % N) as f64 + 0.381_966) / N as f64;
                         o[v] = lo[v] + (hi[v] - lo[v]) * ((m / N) as f64 + 0.381_966) / N as f64;
@@ -611,6 +681,18 @@ impl Compiler<'_> {
             },
             |more| format!("and {more} more shapes from here on have glass surfaces that meet another's"),
         );
+        if let Some(at) = cut {
+            let (span, field) = self.prim_at[at].clone();
+            self.warn(
+                span,
+                field,
+                format!(
+                    "the check for glass surfaces that meet stopped here, at its budget of {BUDGET} leaf crossings: the \
+                     glass shapes from this one on were not all checked against their neighbours, so there may be more \
+                     than the warnings above say"
+                ),
+            );
+        }
     }
 
     /// Warnings of coinciding pairs of prims `(later, earlier)`: at the later one, naming the earlier
@@ -1175,17 +1257,15 @@ impl Compiler<'_> {
         let reach = bounds.min.abs().max(bounds.max.abs()).max_element();
         let offset = crate::geometry::offset_distance(reach);
         if thickness < 4.0 * offset {
-            self.warn(
-                def.span(),
-                field,
+            self.warn_each(WarnKind::ThinGlass, def.span(), field, || {
                 format!(
                     "this glass {what} is only {thickness:.2e} thick but reaches {reach:.2e} from the origin, where a ray that \
                      enters it starts {offset:.2e} inside (256 ULPs of its coordinates): rays can pass its far face unseen \
                      and then count as inside the glass for the rest of their path (dark or black pixels); make it thicker \
                      than {:.1e} or move the scene nearer the origin",
                     4.0 * offset
-                ),
-            );
+                )
+            });
         }
     }
 
@@ -1270,7 +1350,9 @@ impl Compiler<'_> {
         let (lo, hi) = self.csg.bounds(solid);
         if !lo.cmple(hi).all() {
             // An empty solid (e.g. a disjoint intersection) contributes nothing.
-            self.warn(def.span(), field, "this CSG solid is empty (an intersection of solids that do not overlap?): it is left out");
+            self.warn_each(WarnKind::EmptySolid, def.span(), field, || {
+                "this CSG solid is empty (an intersection of solids that do not overlap?): it is left out".to_string()
+            });
             return Ok(());
         }
         self.one_medium(field)?;
@@ -1278,21 +1360,23 @@ impl Compiler<'_> {
         // far from the rest (a part at 1e5 in a union with one at the origin) widens it for every leaf.
         let scale = self.csg.scale(solid);
         let tol = crate::csg::merge::COINCIDENT_EPS * scale;
-        if !crate::csg::reference::probe_finds_volume(&self.csg, solid, EMPTY_PROBE_GRID) {
+        // (A solid that looks empty costs the probe all its rays, ~0.4 ms: past `MAX_EMPTY_PROBED` of them
+        // the rest are not probed, and the count says so.)
+        if !self.counted_at_least(WarnKind::LooksEmpty, MAX_EMPTY_PROBED)
+            && !crate::csg::reference::probe_finds_volume(&self.csg, solid, EMPTY_PROBE_GRID)
+        {
             // Kept (the probe can miss a solid thinner than its spacing), but most likely a mistake; or its
             // walls are thinner than the tolerance (a thin shell far from the origin), which merges them
             // away for the probe's rays as for the render's.
             let rays = 3 * EMPTY_PROBE_GRID * EMPTY_PROBE_GRID;
-            self.warn(
-                def.span(),
-                field,
+            self.warn_each(WarnKind::LooksEmpty, def.span(), field, || {
                 format!(
                     "this CSG solid looks empty: none of {rays} rays across its bounds met it (is a hole as large as its \
                          part? or are its walls thinner than its coincidence tolerance, {tol:.2e}, 1e-5 of its farthest \
                          coordinate {scale:.2e}? such walls merge away, in part or whole: move the scene nearer the \
                          origin); it is kept"
-                ),
-            );
+                )
+            });
         }
         let thinnest = self
             .csg
@@ -1301,16 +1385,14 @@ impl Compiler<'_> {
             .map(|(lo, hi)| (hi - lo).min_element())
             .fold(f32::INFINITY, f32::min);
         if thinnest < 10.0 * tol {
-            self.warn(
-                def.span(),
-                field,
+            self.warn_each(WarnKind::LostDetail, def.span(), field, || {
                 format!(
                     "this CSG solid reaches {scale:e} from the origin, so surfaces closer than its coincidence tolerance \
                          ({tol:e}, 1e-5 of that) merge, and one of its leaves is only {thinnest:e} thick: its detail may be lost \
                          (far-apart parts in one solid: make them separate solids; a solid far from the origin: move the \
                          scene nearer it)"
-                ),
-            );
+                )
+            });
         }
         let shape = Shape::Csg { solid };
         self.within_range(&shape, def, field)?;
@@ -1815,6 +1897,37 @@ pub const MAX_ALWAYS: usize = 16;
 
 /// The most entries a light buffer's non-empty cells may hold on average (`bench_spheres`: 1.3).
 pub const MAX_MEAN_LIST: f64 = 32.0;
+
+/// Warnings of one kind shown in full before the rest are counted ([`Compiler::warn_each`]).
+const SHOWN_PER_KIND: usize = 8;
+
+/// Solids found to look empty after which the others are not probed (the probe of one costs ~0.4 ms).
+const MAX_EMPTY_PROBED: usize = 64;
+
+/// The kinds of warning that any number of shapes may earn ([`Compiler::warn_each`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum WarnKind {
+    ThinGlass,
+    EmptySolid,
+    LooksEmpty,
+    LostDetail,
+}
+
+impl WarnKind {
+    /// The kind in a few words, for the count of those not shown (`n` of them in all).
+    fn says(self, n: usize) -> String {
+        match self {
+            WarnKind::ThinGlass => "glass balls or boxes thinner than four spawn offsets where they lie, as above".into(),
+            WarnKind::EmptySolid => "empty CSG solids, left out, as above".into(),
+            WarnKind::LooksEmpty if n >= MAX_EMPTY_PROBED => format!(
+                "CSG solids that look empty, as above (the probe stops after {MAX_EMPTY_PROBED} such solids: the \
+                 solids after the last of them were not probed, and more may look empty)"
+            ),
+            WarnKind::LooksEmpty => "CSG solids that look empty, as above".into(),
+            WarnKind::LostDetail => "CSG solids whose detail may be lost to their coincidence tolerance, as above".into(),
+        }
+    }
+}
 
 /// Entries (8 bytes each) all of a scene's light buffers may hold together: 128 MiB (a buffer's build
 /// takes 12 bytes per entry more while it runs).

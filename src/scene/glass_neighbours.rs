@@ -95,26 +95,13 @@ impl GlassNeighbours {
                 let pad = Vec3::splat(margin) + (b.max - b.min) * 2f32.powi(-20);
                 let (lo, hi) = (b.min - pad, b.max + pad);
                 found.clear();
-                stack.clear();
-                stack.push(0u32);
-                while let Some(n) = stack.pop() {
-                    let node = &bvh.nodes[n as usize];
-                    let (nmin, nmax) = (Vec3::from_array(node.min), Vec3::from_array(node.max));
-                    if nmin.cmpgt(hi).any() || nmax.cmplt(lo).any() {
-                        continue;
+                bvh.for_each_in_box(lo, hi, &mut stack, |k| {
+                    let q = bounded[k as usize];
+                    let qb = bounds[q as usize];
+                    if q as usize != g && !(qb.min.cmpgt(hi).any() || qb.max.cmplt(lo).any()) && surfaces(q as usize).1 {
+                        found.push(q);
                     }
-                    if node.is_leaf() {
-                        for &k in &bvh.indices[node.left_first as usize..(node.left_first + node.count()) as usize] {
-                            let q = bounded[k as usize];
-                            let qb = bounds[q as usize];
-                            if q as usize != g && !(qb.min.cmpgt(hi).any() || qb.max.cmplt(lo).any()) && surfaces(q as usize).1 {
-                                found.push(q);
-                            }
-                        }
-                    } else {
-                        stack.extend([node.left_first, node.left_first + 1]);
-                    }
-                }
+                });
                 found.sort_unstable();
                 list.extend_from_slice(&found);
             }
