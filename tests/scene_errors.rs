@@ -954,3 +954,43 @@ fn warnings_of_many_shapes_are_counted() {
         }
     }
 }
+
+/// Error paths where the text is unusual (a user trial): a quoted list header (`[["shapes"]]`) counts
+/// as an entry of `shapes`; a key of an inline table opened on an earlier line (TOML 1.1 lets inline
+/// tables span lines) is named under the table's key, also under a list's entry; and a header whose
+/// name was given as a value in the same entry names that value's line, not an earlier entry's.
+#[test]
+fn unusual_text_still_gives_the_right_path_and_line() {
+    let sphere = "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\n";
+    // Three quoted headers, then a plain one whose radius is a string: the fourth shape.
+    let extra = format!(
+        "[[\"shapes\"]]\n{sphere}[[ 'shapes' ]]\n{sphere}[[\"shapes\"]] # c\n{sphere}[[shapes]]\ntype = \"sphere\"\nradius = \"x\"\n"
+    );
+    let (line, field, _) = fail(&extra);
+    assert_eq!((field.as_str(), line), ("shapes[3].radius", line_of(&extra, "radius = \"x\"")));
+    // Inline tables over several lines: in a material, in a shape's transform (its entry counted).
+    let checker =
+        "[materials.c]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\nchecker = {\n  a = [0.8, 0.2, 0.2],\n  b = [0.1, \"x\", 0.1],\n}\n";
+    let (line, field, _) = fail(checker);
+    assert_eq!((field.as_str(), line), ("materials.c.checker.b", line_of(checker, "b = [0.1")));
+    let turned = format!(
+        "[[shapes]]\n{sphere}[[shapes]]\n{sphere}transform = {{ # a comment {{ [\n  rotate = [0, 30, 0],\n  scale = [1, 1, true],\n}}\n"
+    );
+    let (line, field, _) = fail(&turned);
+    assert_eq!((field.as_str(), line), ("shapes[1].transform.scale", line_of(&turned, "scale = [1, 1, true]")));
+    // A one-line array of inline tables before the error line does not hide the path.
+    let after_array =
+        "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [ { type = \"sphere\", center = [0, 0, 0], radius = 1 } ]\nmaterial = 3\n";
+    let (_, field, _) = fail(after_array);
+    assert_eq!(field, "shapes[0].material");
+    // `transform = {...}` then `[shapes.transform]` in the second shape, the first with a transform of
+    // its own (as a value, then as a header): the second's value line is named.
+    for first in ["transform = { translate = [1, 0, 0] }\n", "[shapes.transform]\ntranslate = [1, 0, 0]\n"] {
+        let extra = format!("[[shapes]]\n{sphere}{first}\n[[shapes]]\n{sphere}transform = {{ rotate = [0, 30, 0] }}\n[shapes.transform]\nscale = [2, 2, 2]\n");
+        let text = format!("{BASE}{extra}");
+        let value = text.lines().position(|l| l.starts_with("transform = { rotate")).unwrap() + 1;
+        let (line, _, msg) = fail(&extra);
+        assert_eq!(line, value + 1, "{msg}");
+        assert!(msg.contains(&format!("`transform` is already given a value at line {value}")), "{first}: {msg}");
+    }
+}

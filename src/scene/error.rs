@@ -95,18 +95,29 @@ impl Source<'_> {
             let name = self.key_at(span.start);
             let at = span.start.min(self.text.len());
             let line_start = self.text[..at].rfind('\n').map_or(0, |i| i + 1);
-            // A header whose name was given earlier as a value (`shapes = 3`, then `[[shapes]]`).
-            let last = name.rsplit('.').next().unwrap_or(&name);
-            let before = &self.text[..line_start];
-            let as_value = before.lines().position(|l| {
-                l.trim_start()
+            // A header whose name was given earlier as a value (`shapes = 3`, then `[[shapes]]`; `transform =
+            // {...}`, then `[shapes.transform]`), or as a header: looked for in the table the header belongs
+            // to, since the last `[[parent]]` header where the parent is a list (the entry being written:
+            // a generated file's other entries are not it), the value directly under the parent's header.
+            let (parent, last) = name.rsplit_once('.').unwrap_or(("", &name));
+            let before: Vec<&str> = self.text[..line_start].lines().collect();
+            let scope = before.iter().rposition(|l| table_header(l).is_some_and(|(list, n)| list && n == parent)).unwrap_or(0);
+            let (mut as_value, mut as_header, mut table) = (None, false, None::<String>);
+            for (i, l) in before.iter().enumerate().skip(scope) {
+                if let Some((_, n)) = table_header(l) {
+                    as_header |= n == name;
+                    table = Some(n);
+                    continue;
+                }
+                let in_parent = table.as_deref().map_or(parent.is_empty(), |t| t == parent);
+                let is_value = l
+                    .trim_start()
                     .strip_prefix(last)
-                    .is_some_and(|r| r.trim_start().starts_with('=') && !r.starts_with(|c: char| c.is_alphanumeric() || c == '_'))
-            });
-            let as_header = before.lines().any(|l| {
-                let t = l.trim();
-                t.trim_start_matches('[').trim_end_matches(']').trim() == name && t.starts_with('[')
-            });
+                    .is_some_and(|r| r.trim_start().starts_with('=') && !r.starts_with(|c: char| c.is_alphanumeric() || c == '_'));
+                if in_parent && is_value {
+                    as_value = Some(i);
+                }
+            }
             let msg = if !self.text[line_start..].trim_start().starts_with('[') {
                 format!("`{name}` is given twice in one table")
             } else if let (Some(at), false) = (as_value, as_header) {
@@ -139,6 +150,18 @@ impl Source<'_> {
         }
         let headers: Vec<(bool, String)> = self.text[..line_start].lines().filter_map(table_header).collect();
         let Some((list, name)) = headers.last() else { return key };
+        // A key of an inline table opened on an earlier line (`checker = {`, then `b = ...`): under its key.
+        let header_end = self.text[..line_start]
+            .lines()
+            .scan(0, |at, l| {
+                *at += l.len() + 1;
+                Some((*at, l))
+            })
+            .filter(|(_, l)| table_header(l).is_some())
+            .last()
+            .map_or(0, |(end, _)| end.min(line_start));
+        let Some(open) = open_inline_tables(&self.text[header_end..line_start]) else { return key };
+        let key = open.into_iter().chain([key]).collect::<Vec<_>>().join(".");
         // The index of the entry of list `l` that the last header lies in.
         let index = |l: &str| headers.iter().filter(|(is_list, n)| *is_list && n == l).count().checked_sub(1);
         if *list {
@@ -237,16 +260,100 @@ pub fn read_text(path: &Path) -> Result<String, InputError> {
 /// Scene files larger than this are refused before parsing (protects the machine).
 pub const MAX_INPUT_BYTES: usize = 16 << 20;
 
-/// A table header line, `[a.b]` or `[[a]]` (spaces around names and dots dropped; a trailing comment
-/// allowed): whether it is a list's, and its dotted name. Other lines (an array continued over lines,
-/// `[0.5, 0.5],`) are not headers.
+/// A table header line, `[a.b]` or `[[a]]` (spaces around names and dots dropped, quoted names
+/// unquoted: `[["shapes"]]` is `shapes`; a trailing comment allowed): whether it is a list's, and its
+/// dotted name. Other lines (an array continued over lines, `[0.5, 0.5],`) are not headers, nor are
+/// headers this cannot name plainly (a quoted name with an escape or a dot in it).
 pub(crate) fn table_header(line: &str) -> Option<(bool, String)> {
-    let t = line.split('#').next().unwrap_or("").trim();
-    let (list, inner) = match t.strip_prefix("[[").and_then(|x| x.strip_suffix("]]")) {
-        Some(inner) => (true, inner),
-        None => (false, t.strip_prefix('[')?.strip_suffix(']')?),
+    let t = line.trim_start();
+    let (list, mut rest) = match t.strip_prefix("[[") {
+        Some(r) => (true, r),
+        None => (false, t.strip_prefix('[')?),
     };
-    let parts: Vec<&str> = inner.split('.').map(str::trim).collect();
-    let plain = |p: &&str| !p.is_empty() && p.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
-    parts.iter().all(plain).then(|| (list, parts.join(".")))
+    let mut parts: Vec<&str> = Vec::new();
+    loop {
+        rest = rest.trim_start();
+        let (part, after) = if let Some(r) = rest.strip_prefix('"') {
+            let end = r.find('"')?;
+            (&r[..end], &r[end + 1..])
+        } else if let Some(r) = rest.strip_prefix('\'') {
+            let end = r.find('\'')?;
+            (&r[..end], &r[end + 1..])
+        } else {
+            let end = rest.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '-')).unwrap_or(rest.len());
+            (&rest[..end], &rest[end..])
+        };
+        if part.is_empty() || part.contains(['.', '\\', '"', '\'']) {
+            return None;
+        }
+        parts.push(part);
+        let after = after.trim_start();
+        if let Some(r) = after.strip_prefix('.') {
+            rest = r;
+            continue;
+        }
+        let tail = after.strip_prefix(if list { "]]" } else { "]" })?.trim_start();
+        return (tail.is_empty() || tail.starts_with('#')).then(|| (list, parts.join(".")));
+    }
+}
+
+/// The keys of the inline tables still open at the end of `text` (`checker = {` on an earlier line:
+/// `["checker"]`, outermost first), or `None` where the text is inside an array (whose element has no
+/// name) or holds what this does not follow (a multi-line string). Strings and comments are skipped.
+fn open_inline_tables(text: &str) -> Option<Vec<String>> {
+    // (Each open bracket, with the key before it for a `{`.)
+    let mut open: Vec<(char, String)> = Vec::new();
+    // The text since the last `{`, `,` or line break: where the key before a `{` lies.
+    let mut since = String::new();
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '"' | '\'' => {
+                let mut body = String::new();
+                let mut escaped = false;
+                loop {
+                    let d = chars.next()?;
+                    if c == '"' && escaped {
+                        escaped = false;
+                    } else if c == '"' && d == '\\' {
+                        escaped = true;
+                    } else if d == c {
+                        break;
+                    } else if d == '\n' {
+                        return None;
+                    }
+                    body.push(d);
+                }
+                if body.is_empty() && chars.peek() == Some(&c) {
+                    return None;
+                }
+                since.push_str(&body);
+            }
+            '#' => {
+                for d in chars.by_ref() {
+                    if d == '\n' {
+                        break;
+                    }
+                }
+                since.clear();
+            }
+            '{' => {
+                // (An array's element has no key: it names nothing, should the text end inside it.)
+                let key = since.trim_end().strip_suffix('=').map_or(String::new(), |k| k.trim().to_string());
+                open.push(('{', key));
+                since.clear();
+            }
+            '[' => {
+                open.push(('[', String::new()));
+                since.clear();
+            }
+            '}' | ']' => {
+                open.pop()?;
+                since.clear();
+            }
+            ',' | '\n' => since.clear(),
+            _ => since.push(c),
+        }
+    }
+    open.iter().all(|(c, k)| *c == '{' && !k.is_empty()).then(|| open.into_iter().map(|(_, k)| k).collect())
 }

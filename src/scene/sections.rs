@@ -264,7 +264,11 @@ mod tests {
         // character: a review's panic), and with CRLF line breaks.
         let wide = big.replace("[[shapes]]\n", "[[shapes]] # 球体 · café\n");
         let crlf = big.replace('\n', "\r\n");
-        scenes.extend([("big".into(), big), ("multi-byte".into(), wide), ("crlf".into(), crlf)]);
+        // Quoted list headers (`[["shapes"]]`, `[[ 'shapes' ]]`), which `table_header` reads as `shapes`.
+        let quoted = big
+            .replace("[[shapes]] # sphere", "[[\"shapes\"]] # sphere")
+            .replace("[[shapes]]\ntype = \"box\"", "[[ 'shapes' ]]\ntype = \"box\"");
+        scenes.extend([("big".into(), big), ("multi-byte".into(), wide), ("crlf".into(), crlf), ("quoted".into(), quoted)]);
         let mut compared = 0;
         for (name, text) in &scenes {
             let whole: SceneFile = toml::from_str(text).unwrap();
@@ -275,7 +279,7 @@ mod tests {
             assert_eq!(format!("{parts:?}"), format!("{whole:?}"), "{name}");
             compared += whole.shapes.len();
         }
-        assert!(compared > 18_000, "{compared} shapes compared");
+        assert!(compared > 24_000, "{compared} shapes compared");
         // A piece's end inside a character (a review's panic): the next section after that line.
         let two = "[[shapes]] # é\ntype = \"sphere\"\n[[shapes]] # é\nradius = 1\n";
         let inside = two.find('é').unwrap() + 1;
