@@ -983,6 +983,18 @@ fn unusual_text_still_gives_the_right_path_and_line() {
         "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [ { type = \"sphere\", center = [0, 0, 0], radius = 1 } ]\nmaterial = 3\n";
     let (_, field, _) = fail(after_array);
     assert_eq!(field, "shapes[0].material");
+    // The same with CRLF line breaks (a review: the header's offset was counted one byte per line short,
+    // naming `albedo` alone, and panicking inside a multi-byte character of a header's comment).
+    let crlf = |extra: &str| {
+        let text = format!("{BASE}{extra}").replace('\n', "\r\n");
+        parse_scene(Path::new("w.toml"), &text).unwrap_err()
+    };
+    let e = crlf("[materials.k]\ntype = \"lambert\"\nalbedo = [0.5, \"x\", 0.5]\n");
+    assert_eq!(e.field, "materials.k.albedo");
+    let e = crlf(&format!("[[shapes]] # {}\ntype = \"sphere\"\nradius = \"x\"\n", "é".repeat(40)));
+    assert_eq!(e.field, "shapes[0].radius");
+    let e = crlf(checker);
+    assert_eq!((e.field.as_str(), e.line), ("materials.c.checker.b", line_of(checker, "b = [0.1")));
     // `transform = {...}` then `[shapes.transform]` in the second shape, the first with a transform of
     // its own (as a value, then as a header): the second's value line is named.
     for first in ["transform = { translate = [1, 0, 0] }\n", "[shapes.transform]\ntranslate = [1, 0, 0]\n"] {

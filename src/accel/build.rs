@@ -1,7 +1,8 @@
 //! Binned SAH build, after Wald 2007 ("On fast Construction of SAH-based Bounding Volume
 //! Hierarchies", IEEE RT'07): primitives are binned by centroid into `bins` equal intervals of the
 //! node's centroid box on each axis, the SAH is evaluated only at the bin borders (two sweeps over
-//! the bins), and the index array is partitioned in place. Single-threaded, O(n log n).
+//! the bins), and the index array is partitioned in place. O(n log n); the two subtrees of a range
+//! of 16,384 primitives or more are built in parallel, into the tree one thread builds.
 //!
 //! Depth bound: a node at level `L` (root = 1) with `n` primitives keeps the invariant
 //! `levels_needed(n) <= MAX_DEPTH - L`, where `levels_needed(n) = ceil(log2(ceil(n / max_leaf)))`

@@ -5,7 +5,7 @@
 //! - `aabb.rs`: the box type and the ray-box slab kernels (`intersect_aabb_x8` and its f64 twin).
 //! - `node.rs`: the 32-byte node layout, a `Pod` contract.
 //! - `build.rs`: binned SAH build (Wald 2007, "On fast Construction of SAH-based Bounding Volume
-//!   Hierarchies"), single-threaded, with a median-split fallback that bounds the depth.
+//!   Hierarchies"), large subtrees in parallel, with a median-split fallback that bounds the depth.
 //! - `traverse.rs`: closest-hit and any-hit traversal of 8-ray packets, and a scalar f64 reference.
 //! - `group.rs`: traversal of up to 16 packets together through the binary tree (shadow rays, and the
 //!   octant-sorted incoherent rays of trees under `WIDE_MIN_NODES`).

@@ -687,7 +687,8 @@ impl Compiler<'_> {
                 span,
                 field,
                 format!(
-                    "the check for glass surfaces that meet stopped here, at its budget of {BUDGET} leaf crossings: the \
+                    "the check for glass surfaces that meet stopped here, at its budget of {BUDGET} (leaf crossings and pairs \
+                     looked at): the \
                      glass shapes from this one on were not all checked against their neighbours, so there may be more \
                      than the warnings above say"
                 ),

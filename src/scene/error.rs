@@ -151,15 +151,16 @@ impl Source<'_> {
         let headers: Vec<(bool, String)> = self.text[..line_start].lines().filter_map(table_header).collect();
         let Some((list, name)) = headers.last() else { return key };
         // A key of an inline table opened on an earlier line (`checker = {`, then `b = ...`): under its key.
+        // (Byte offsets from the lines with their breaks: `\r\n` counts two.)
         let header_end = self.text[..line_start]
-            .lines()
+            .split_inclusive('\n')
             .scan(0, |at, l| {
-                *at += l.len() + 1;
+                *at += l.len();
                 Some((*at, l))
             })
             .filter(|(_, l)| table_header(l).is_some())
             .last()
-            .map_or(0, |(end, _)| end.min(line_start));
+            .map_or(0, |(end, _)| end);
         let Some(open) = open_inline_tables(&self.text[header_end..line_start]) else { return key };
         let key = open.into_iter().chain([key]).collect::<Vec<_>>().join(".");
         // The index of the entry of list `l` that the last header lies in.
