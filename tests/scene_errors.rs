@@ -966,18 +966,20 @@ fn unusual_text_still_gives_the_right_path_and_line() {
     let extra = format!(
         "[[\"shapes\"]]\n{sphere}[[ 'shapes' ]]\n{sphere}[[\"shapes\"]] # c\n{sphere}[[shapes]]\ntype = \"sphere\"\nradius = \"x\"\n"
     );
-    let (line, field, _) = fail(&extra);
-    assert_eq!((field.as_str(), line), ("shapes[3].radius", line_of(&extra, "radius = \"x\"")));
+    // (The field named, at the line holding `needle`.)
+    let named_at = |extra: &str, want: &str, needle: &str| {
+        let (line, field, _) = fail(extra);
+        assert_eq!((field.as_str(), line), (want, line_of(extra, needle)), "{extra}");
+    };
+    named_at(&extra, "shapes[3].radius", "radius = \"x\"");
     // Inline tables over several lines: in a material, in a shape's transform (its entry counted).
     let checker =
         "[materials.c]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\nchecker = {\n  a = [0.8, 0.2, 0.2],\n  b = [0.1, \"x\", 0.1],\n}\n";
-    let (line, field, _) = fail(checker);
-    assert_eq!((field.as_str(), line), ("materials.c.checker.b", line_of(checker, "b = [0.1")));
+    named_at(checker, "materials.c.checker.b", "b = [0.1");
     let turned = format!(
         "[[shapes]]\n{sphere}[[shapes]]\n{sphere}transform = {{ # a comment {{ [\n  rotate = [0, 30, 0],\n  scale = [1, 1, true],\n}}\n"
     );
-    let (line, field, _) = fail(&turned);
-    assert_eq!((field.as_str(), line), ("shapes[1].transform.scale", line_of(&turned, "scale = [1, 1, true]")));
+    named_at(&turned, "shapes[1].transform.scale", "scale = [1, 1, true]");
     // A one-line array of inline tables before the error line does not hide the path.
     let after_array =
         "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [ { type = \"sphere\", center = [0, 0, 0], radius = 1 } ]\nmaterial = 3\n";
