@@ -271,6 +271,13 @@ fn syntax_error_has_line() {
     let text = format!("{BASE}\n[[shapes]\n");
     let e = parse_scene(Path::new("s.toml"), &text).unwrap_err();
     assert_eq!(e.line, text.lines().count());
+    // A byte-order mark opening the file is no column: errors on line 1 (at its start, after a word)
+    // and later are placed as without it (a user trial saw column 2 for 1).
+    for text in ["[image\n", "nonsense\n", "[image]\nwidth = \"x\"\n"] {
+        let at = |t: String| parse_scene(Path::new("b.toml"), &t).map(|_| ()).unwrap_err();
+        let (plain, marked) = (at(text.to_string()), at(format!("\u{feff}{text}")));
+        assert_eq!((marked.line, marked.column), (plain.line, plain.column), "{text:?}: {marked}");
+    }
 }
 
 /// A background the film cannot hold (every escaping camera ray makes a sample at or beyond 2^31, which

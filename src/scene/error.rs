@@ -45,7 +45,9 @@ impl Source<'_> {
         let before = &self.text.as_bytes()[..offset];
         let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
         let line_start = before.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
-        let column = String::from_utf8_lossy(&before[line_start..]).chars().count() + 1;
+        // (A byte-order mark opening the file is no column of its line.)
+        let bom = usize::from(line_start == 0 && self.text.starts_with('\u{feff}') && offset >= 3);
+        let column = String::from_utf8_lossy(&before[line_start..]).chars().count() + 1 - bom;
         (line, column)
     }
 
