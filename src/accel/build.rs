@@ -111,13 +111,9 @@ impl Builder<'_> {
         if idx.len() < self.par_min {
             return self.depth_first(idx, first, level);
         }
-        let mut bin_store = vec![EMPTY_BIN; 3 * self.bins];
-        let mut right_sweep = vec![(0.0f32, 0u32); self.bins];
         let t = Task { node: 0, first, count: idx.len(), level };
-        let (node_box, centroid_box) = range_bounds(self.bounds, self.centroids, idx);
-        let scratch = (&mut bin_store[..], &mut right_sweep[..]);
-        let Some((axis, left_count)) = choose_split(self.bounds, self.centroids, idx, (node_box, centroid_box), &t, self.max_leaf, scratch)
-        else {
+        let (node_box, split) = self.decide(idx, &t, &mut self.scratch());
+        let Some((axis, left_count)) = split else {
             return vec![BvhNode::leaf(node_box, first as u32, idx.len() as u32)];
         };
         let (l, r) = idx.split_at_mut(left_count);
@@ -139,21 +135,26 @@ impl Builder<'_> {
         nodes
     }
 
+    /// The bins and right-sweep costs [`Builder::decide`] works in.
+    fn scratch(&self) -> (Vec<Bin>, Vec<(f32, u32)>) {
+        (vec![EMPTY_BIN; 3 * self.bins], vec![(0.0f32, 0u32); self.bins])
+    }
+
+    /// The node over `idx` (task `t`): its box, and its split (`choose_split`, which partitions `idx`).
+    fn decide(&self, idx: &mut [u32], t: &Task, scratch: &mut (Vec<Bin>, Vec<(f32, u32)>)) -> (Aabb, Option<(usize, usize)>) {
+        let boxes = range_bounds(self.bounds, self.centroids, idx);
+        (boxes.0, choose_split(self.bounds, self.centroids, idx, boxes, t, self.max_leaf, (&mut scratch.0, &mut scratch.1)))
+    }
+
     /// The subtree over `idx` built by one thread, depth first (left child first), its root at 0.
     fn depth_first(&self, idx: &mut [u32], first: usize, level: usize) -> Vec<BvhNode> {
-        let (bounds, centroids) = (self.bounds, self.centroids);
         let mut nodes = Vec::with_capacity(2 * idx.len() - 1);
         nodes.push(BvhNode::leaf(Aabb::EMPTY, 0, 1));
-        let mut bin_store = vec![EMPTY_BIN; 3 * self.bins];
-        let mut right_sweep = vec![(0.0f32, 0u32); self.bins];
-
+        let mut scratch = self.scratch();
         // (`Task::first` is relative to `idx` here; leaves add `first`.)
         let mut work = vec![Task { node: 0, first: 0, count: idx.len(), level }];
         while let Some(t) = work.pop() {
-            let range = &mut idx[t.first..t.first + t.count];
-            let (node_box, centroid_box) = range_bounds(bounds, centroids, range);
-            let scratch = (&mut bin_store[..], &mut right_sweep[..]);
-            let split = choose_split(bounds, centroids, range, (node_box, centroid_box), &t, self.max_leaf, scratch);
+            let (node_box, split) = self.decide(&mut idx[t.first..t.first + t.count], &t, &mut scratch);
             match split {
                 None => nodes[t.node] = BvhNode::leaf(node_box, (first + t.first) as u32, t.count as u32),
                 Some((axis, left_count)) => {

@@ -589,21 +589,12 @@ impl Compiler<'_> {
         let ext = items.iter().map(|it| (it.3 - it.2).max_element()).fold(0.0f64, f64::max);
         let slack = (1e-4 * ext).max(512.0 * far * f32::EPSILON as f64);
         // The pairs whose bounds come within `2 slack` of each other: from a tree of the items' bounds,
-        // each widened by `slack` (and rounded outwards to f32), so that the work follows the pairs that
+        // each widened by `slack` (and outwards past its f32 rounding), so that the work follows the pairs that
         // are near, not the items' count squared (3,000 panes in a column along z used up a budget that
         // counted every pair overlapping along x, and a touching pair elsewhere went unseen).
-        let out32 = |v: DVec3, up: bool| {
-            Vec3::from_array(v.to_array().map(|x| {
-                let f = x as f32;
-                match (up, (f as f64).total_cmp(&x)) {
-                    (true, std::cmp::Ordering::Less) => f.next_up(),
-                    (false, std::cmp::Ordering::Greater) => f.next_down(),
-                    _ => f,
-                }
-            }))
-        };
+        // (`widened_ulps`: 2^-21 of each coordinate, more than the f32 rounding of the f64 corners.)
         let boxes: Vec<Aabb> =
-            items.iter().map(|it| Aabb::new(out32(it.2 - DVec3::splat(slack), false), out32(it.3 + DVec3::splat(slack), true))).collect();
+            items.iter().map(|it| Aabb::new((it.2 - slack).as_vec3(), (it.3 + slack).as_vec3()).widened_ulps()).collect();
         let tree = build_bvh(&boxes, &BuildOptions::default());
         let (mut stack, mut near_items) = (Vec::new(), Vec::new());
         // The item at which the budget ran out, if it did.
@@ -700,7 +691,7 @@ impl Compiler<'_> {
     /// (`says`), at most 8, then a count (`more`) at the ninth: a scene of thousands of equal shapes is
     /// one mistake.
     fn warn_pairs(&mut self, pairs: &[(usize, usize)], says: impl Fn(&str) -> String, more: impl Fn(usize) -> String) {
-        const SHOWN: usize = 8;
+        const SHOWN: usize = SHOWN_PER_KIND;
         for &(i, j) in pairs.iter().take(SHOWN) {
             let ((span, field), other) = (self.prim_at[i].clone(), self.prim_at[j].1.clone());
             self.warn(span, field, says(&other));
@@ -1899,7 +1890,8 @@ pub const MAX_ALWAYS: usize = 16;
 /// The most entries a light buffer's non-empty cells may hold on average (`bench_spheres`: 1.3).
 pub const MAX_MEAN_LIST: f64 = 32.0;
 
-/// Warnings of one kind shown in full before the rest are counted ([`Compiler::warn_each`]).
+/// Warnings of one kind shown in full before the rest are counted ([`Compiler::warn_each`], and
+/// [`Compiler::warn_pairs`] for pairs).
 const SHOWN_PER_KIND: usize = 8;
 
 /// Solids found to look empty after which the others are not probed (the probe of one costs ~0.4 ms).
