@@ -3,7 +3,7 @@
 //! Every check names the field (`shapes[2].children[0].radius`) and its line and column.
 
 use super::error::{read_text, InputError, Source};
-use super::format::{CameraDef, LightDef, MaterialDef, SceneFile, ShapeDef, TransformDef, S, V3};
+use super::format::{CameraDef, Field, LightDef, MaterialDef, Nums, SceneFile, ShapeDef, TransformDef, S, V3};
 use super::{
     Dielectric, Features, Light, Material, MaterialKind, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS, NOT_A_LIGHT,
 };
@@ -15,6 +15,7 @@ use crate::geometry::{Disk, Ellipsoid, OBox, Plane, Quad};
 use crate::optics::{sigma_from_transmittance, Ior};
 use glam::{Affine3A, EulerRot, Mat3, Quat, Vec3};
 use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::{self, Display};
 use std::ops::Range;
 use std::path::Path;
 
@@ -110,7 +111,7 @@ struct Compiler<'a> {
     /// Checker textures' scales and where they were given, checked against the scene's extent at the end.
     checkers: std::cell::RefCell<Vec<(Range<usize>, String, f32)>>,
     /// Where each prim was given (its definition's span and field), by prim id: for warnings that name a prim.
-    prim_at: Vec<(Range<usize>, String)>,
+    prim_at: Vec<(Range<usize>, PrimField)>,
     /// The leaves `csg_tree` made since the last top-level solid began: each one's material, where that
     /// material was given (span and field: the leaf's own, an enclosing node's or a `use`'s) and the
     /// leaf's world bounds (`None`: a half-space): to name the leaves of a glass solid of several glasses.
@@ -122,6 +123,43 @@ struct Compiler<'a> {
 /// Where a shape was given: its definition's span and field.
 type Site = (Range<usize>, String);
 
+/// A field's path, made into text only when an error or a warning names it: 160,000 spheres' paths
+/// formatted eagerly (`shapes[i].center`, twice per field) were ~50 ms of their setup in a profile.
+#[derive(Clone, Copy)]
+struct Sub<P>(P, &'static str);
+
+impl<P: Display> Display for Sub<P> {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "{}.{}", self.0, self.1)
+    }
+}
+
+/// `shapes[i]`, as a [`Sub`] is made.
+#[derive(Clone, Copy)]
+struct Item(&'static str, usize);
+
+impl Display for Item {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "{}[{}]", self.0, self.1)
+    }
+}
+
+/// The field a prim was given under: a top-level shape's by its index (see [`Sub`]).
+#[derive(Clone)]
+enum PrimField {
+    Shape(usize),
+    Path(String),
+}
+
+impl Display for PrimField {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        match self {
+            PrimField::Shape(i) => Item("shapes", *i).fmt(f),
+            PrimField::Path(p) => f.write_str(p),
+        }
+    }
+}
+
 /// A leaf of the solid being built (see `Compiler::leaf_sites`).
 struct LeafSite {
     material: u32,
@@ -131,12 +169,12 @@ struct LeafSite {
 }
 
 impl Compiler<'_> {
-    fn err(&self, span: Range<usize>, field: impl Into<String>, msg: impl Into<String>) -> InputError {
-        self.src.error(span, field, msg)
+    fn err(&self, span: Range<usize>, field: impl Display, msg: impl Into<String>) -> InputError {
+        self.src.error(span, field.to_string(), msg)
     }
 
     /// A warning (`Scene::warnings`), located as an error would be.
-    fn warn(&mut self, span: Range<usize>, field: impl Into<String>, msg: impl Into<String>) {
+    fn warn(&mut self, span: Range<usize>, field: impl Display, msg: impl Into<String>) {
         let w = self.err(span, field, msg).to_string();
         self.warnings.push(w);
     }
@@ -144,7 +182,7 @@ impl Compiler<'_> {
     /// A warning that any number of shapes may earn: the first [`SHOWN_PER_KIND`] of its kind in full
     /// (`msg` is only made for those), the others counted and told in one line at the end, at the first
     /// not shown (20,000 generated solids that look empty printed 20,000 warnings).
-    fn warn_each(&mut self, kind: WarnKind, span: Range<usize>, field: &str, msg: impl FnOnce() -> String) {
+    fn warn_each(&mut self, kind: WarnKind, span: Range<usize>, field: impl Display + Copy, msg: impl FnOnce() -> String) {
         let at = match self.counted.iter().position(|c| c.0 == kind) {
             Some(at) => at,
             None => {
@@ -155,7 +193,7 @@ impl Compiler<'_> {
         let c = &mut self.counted[at];
         c.1 += 1;
         if c.1 > SHOWN_PER_KIND {
-            c.2.get_or_insert((span, field.to_string()));
+            c.2.get_or_insert_with(|| (span, field.to_string()));
             return;
         }
         self.warn(span, field, msg());
@@ -176,7 +214,7 @@ impl Compiler<'_> {
     }
 
     /// Three finite numbers (colours, intensities).
-    fn finite3(&self, v: &V3, field: &str) -> R<Vec3> {
+    fn finite3(&self, v: &V3, field: impl Display + Copy) -> R<Vec3> {
         let a = v.get_ref().0;
         if a.iter().any(|x| !x.is_finite()) {
             return Err(self.err(
@@ -189,7 +227,7 @@ impl Compiler<'_> {
     }
 
     /// A point or vector of the scene's space: finite and within [`MAX_MAGNITUDE`].
-    fn vec3(&self, v: &V3, field: &str) -> R<Vec3> {
+    fn vec3(&self, v: &V3, field: impl Display + Copy) -> R<Vec3> {
         let a = self.finite3(v, field)?.to_array();
         if a.iter().any(|x| x.abs() > MAX_MAGNITUDE) {
             return Err(self.err(v.span(), field, format!("components must be within +-{MAX_MAGNITUDE:e} ({BEYOND})")));
@@ -197,7 +235,7 @@ impl Compiler<'_> {
         Ok(Vec3::from_array(a))
     }
 
-    fn color(&self, v: &V3, field: &str, max: Option<f32>) -> R<Vec3> {
+    fn color(&self, v: &V3, field: impl Display + Copy, max: Option<f32>) -> R<Vec3> {
         let c = self.finite3(v, field)?;
         if c.min_element() < 0.0 {
             return Err(self.err(v.span(), field, "colour components must not be negative"));
@@ -215,7 +253,7 @@ impl Compiler<'_> {
     /// [`MAX_SAMPLE_VALUE`] (its fixed-point sums would overflow), so such a background could only ever
     /// be lost. (Emitters are not held to it: a tiny area light needs a huge radiance for its power, and
     /// a camera ray almost never sees it; a render that discards samples says so.)
-    fn background(&self, v: &V3, field: &str) -> R<Vec3> {
+    fn background(&self, v: &V3, field: impl Display + Copy) -> R<Vec3> {
         let c = self.color(v, field, None)?;
         if !(c.max_element() < MAX_SAMPLE_VALUE) {
             return Err(self.err(
@@ -231,7 +269,7 @@ impl Compiler<'_> {
         Ok(c)
     }
 
-    fn positive(&self, v: &S<f32>, field: &str) -> R<f32> {
+    fn positive(&self, v: &S<f32>, field: impl Display + Copy) -> R<f32> {
         let x = *v.get_ref();
         if !(x.is_finite() && x > 0.0) {
             return Err(self.err(v.span(), field, format!("must be a finite number > 0, got {x}")));
@@ -242,8 +280,8 @@ impl Compiler<'_> {
         Ok(x)
     }
 
-    fn req<'b, T>(&self, v: &'b Option<S<T>>, table: Range<usize>, field: &str) -> R<&'b S<T>> {
-        v.as_ref().ok_or_else(|| self.err(table, field, "missing required field"))
+    fn req<'b, T, F: Field<T>>(&self, v: &'b Option<F>, table: Range<usize>, field: impl Display + Copy) -> R<&'b S<T>> {
+        v.as_ref().map(|f| f.spanned()).ok_or_else(|| self.err(table, field, "missing required field"))
     }
 
     fn compile(&mut self, hash: u64) -> R<Scene> {
@@ -281,7 +319,7 @@ impl Compiler<'_> {
             self.materials.push(m);
         }
         for (i, def) in file.shapes.iter().enumerate() {
-            self.top_shape(def, &format!("shapes[{i}]"))?;
+            self.top_shape(def, i)?;
             if self.prims.len() > MAX_PRIMS {
                 return Err(self.err(def.span(), format!("shapes[{i}]"), format!("more than {MAX_PRIMS} primitives")));
             }
@@ -690,7 +728,7 @@ impl Compiler<'_> {
     /// Warnings of coinciding pairs of prims `(later, earlier)`: at the later one, naming the earlier
     /// (`says`), at most 8, then a count (`more`) at the ninth: a scene of thousands of equal shapes is
     /// one mistake.
-    fn warn_pairs(&mut self, pairs: &[(usize, usize)], says: impl Fn(&str) -> String, more: impl Fn(usize) -> String) {
+    fn warn_pairs(&mut self, pairs: &[(usize, usize)], says: impl Fn(&PrimField) -> String, more: impl Fn(usize) -> String) {
         const SHOWN: usize = SHOWN_PER_KIND;
         for &(i, j) in pairs.iter().take(SHOWN) {
             let ((span, field), other) = (self.prim_at[i].clone(), self.prim_at[j].1.clone());
@@ -1154,7 +1192,7 @@ impl Compiler<'_> {
         })
     }
 
-    fn material_ref(&self, m: &S<String>, field: &str) -> R<u32> {
+    fn material_ref(&self, m: &S<String>, field: impl Display + Copy) -> R<u32> {
         self.material_ids.get(m.get_ref()).copied().ok_or_else(|| {
             let known: Vec<&str> = self.material_ids.keys().map(|s| s.as_str()).collect();
             self.err(
@@ -1169,7 +1207,7 @@ impl Compiler<'_> {
         })
     }
 
-    fn transform(&self, t: &Option<S<TransformDef>>, field: &str) -> R<Affine3A> {
+    fn transform(&self, t: &Option<Box<S<TransformDef>>>, field: impl Display + Copy) -> R<Affine3A> {
         let Some(t) = t else { return Ok(Affine3A::IDENTITY) };
         let td = t.get_ref();
         let scale = match &td.scale {
@@ -1210,7 +1248,7 @@ impl Compiler<'_> {
 
     /// A placed shape (after its transforms) within [`MAX_MAGNITUDE`] of the origin: its box, or a
     /// plane's distance.
-    fn within_range(&self, shape: &Shape, def: &S<ShapeDef>, field: &str) -> R<()> {
+    fn within_range(&self, shape: &Shape, def: &S<ShapeDef>, field: impl Display + Copy) -> R<()> {
         let reach = match (shape, prim_bounds(shape, &self.csg)) {
             (Shape::Plane(p), _) => p.offset.abs(),
             (_, Some(b)) if !b.is_empty() => b.min.abs().max(b.max.abs()).max_element(),
@@ -1231,7 +1269,7 @@ impl Compiler<'_> {
     /// so through a thinner one it starts past the far face, never sees it, and counts as inside the glass
     /// for the rest of its path (a 2 mm pane at x = 200 rendered black, a user trial). CSG leaves have
     /// their own, stricter warning (`csg_solid`).
-    fn thin_glass(&mut self, shape: &Shape, material: u32, def: &S<ShapeDef>, field: &str) {
+    fn thin_glass(&mut self, shape: &Shape, material: u32, def: &S<ShapeDef>, field: impl Display + Copy) {
         if !self.is_medium(material) {
             return;
         }
@@ -1274,50 +1312,48 @@ impl Compiler<'_> {
         }
     }
 
-    fn check_fields(&self, def: &S<ShapeDef>, field: &str, kind: &str, allowed: &[&str]) -> R<()> {
-        for (name, span) in def.get_ref().present() {
-            if !allowed.contains(&name) {
-                return Err(self.err(
-                    span,
-                    format!("{field}.{name}"),
-                    format!("does not apply to a `{kind}` (allowed: {})", allowed.join(", ")),
-                ));
+    fn check_fields(&self, def: &S<ShapeDef>, field: impl Display + Copy, kind: &str, allowed: &[&str]) -> R<()> {
+        match def.get_ref().misfit(allowed) {
+            Some((name, span)) => {
+                Err(self.err(span, Sub(field, name), format!("does not apply to a `{kind}` (allowed: {})", allowed.join(", "))))
             }
+            None => Ok(()),
         }
-        Ok(())
     }
 
     /// A shape at the top level of `shapes`: a primitive, or a CSG solid.
-    fn top_shape(&mut self, def: &S<ShapeDef>, field: &str) -> R<()> {
+    fn top_shape(&mut self, def: &S<ShapeDef>, i: usize) -> R<()> {
         let s = def.get_ref();
-        let t = self.transform(&s.transform, field)?;
+        let at = Item("shapes", i);
+        let t = self.transform(&s.transform, at)?;
         let motion = match &s.motion {
-            Some(m) => self.vec3(m, &format!("{field}.motion"))?,
+            Some(m) => self.vec3(m, Sub(at, "motion"))?,
             None => Vec3::ZERO,
         };
         if let Some(h) = &s.hole {
-            return Err(self.err(h.span(), format!("{field}.hole"), "only children of a `group` can be holes"));
+            return Err(self.err(h.span(), Sub(at, "hole"), "only children of a `group` can be holes"));
         }
         let kind = match (&s.kind, &s.use_solid) {
-            (Some(k), None) => k.get_ref().clone(),
-            (None, Some(_)) => "use".to_string(),
-            (Some(k), Some(_)) => return Err(self.err(k.span(), format!("{field}.type"), "give either `type` or `use`, not both")),
-            (None, None) => return Err(self.err(def.span(), format!("{field}.type"), "missing required field (or `use`)")),
+            (Some(k), None) => k.get_ref().as_str(),
+            (None, Some(_)) => "use",
+            (Some(k), Some(_)) => return Err(self.err(k.span(), Sub(at, "type"), "give either `type` or `use`, not both")),
+            (None, None) => return Err(self.err(def.span(), Sub(at, "type"), "missing required field (or `use`)")),
         };
-        let simple = matches!(kind.as_str(), "sphere" | "plane" | "box" | "quad" | "disk");
+        let simple = matches!(kind, "sphere" | "plane" | "box" | "quad" | "disk");
         if simple {
-            let mat_field = format!("{field}.material");
-            let material = self.material_ref(self.req(&s.material, def.span(), &mat_field)?, &mat_field)?;
-            let shape = self.simple_shape(def, field, &kind, t)?;
+            let mat_field = Sub(at, "material");
+            let material = self.material_ref(self.req(&s.material, def.span(), mat_field)?, mat_field)?;
+            let shape = self.simple_shape(def, at, kind, t)?;
             if matches!(shape, Shape::Plane(_)) && motion != Vec3::ZERO {
-                return Err(self.err(s.motion.as_ref().unwrap().span(), format!("{field}.motion"), "an infinite plane cannot move"));
+                return Err(self.err(s.motion.as_ref().unwrap().span(), Sub(at, "motion"), "an infinite plane cannot move"));
             }
-            self.within_range(&shape, def, field)?;
-            self.thin_glass(&shape, material, def, field);
+            self.within_range(&shape, def, at)?;
+            self.thin_glass(&shape, material, def, at);
             self.prims.push(Prim { shape, material, motion, is_light: false });
-            self.prim_at.push((def.span(), field.to_string()));
+            self.prim_at.push((def.span(), PrimField::Shape(i)));
             return Ok(());
         }
+        let field = &at.to_string();
         let material = match &s.material {
             Some(m) => Some(self.material_ref(m, &format!("{field}.material"))?),
             None => None,
@@ -1389,7 +1425,7 @@ impl Compiler<'_> {
         let shape = Shape::Csg { solid };
         self.within_range(&shape, def, field)?;
         self.prims.push(Prim { shape, material: material.unwrap_or(0), motion, is_light: false });
-        self.prim_at.push((def.span(), field.to_string()));
+        self.prim_at.push((def.span(), PrimField::Path(field.to_string())));
         Ok(())
     }
 
@@ -1438,15 +1474,15 @@ impl Compiler<'_> {
         Ok(())
     }
 
-    fn simple_shape(&self, def: &S<ShapeDef>, field: &str, kind: &str, t: Affine3A) -> R<Shape> {
+    fn simple_shape(&self, def: &S<ShapeDef>, field: impl Display + Copy, kind: &str, t: Affine3A) -> R<Shape> {
         let s = def.get_ref();
         let sp = def.span();
-        let f = |n: &str| format!("{field}.{n}");
+        let f = |n: &'static str| Sub(field, n);
         Ok(match kind {
             "sphere" => {
                 self.check_fields(def, field, kind, &["center", "radius", "motion"])?;
-                let c = self.vec3(self.req(&s.center, sp.clone(), &f("center"))?, &f("center"))?;
-                let r = self.positive(self.req(&s.radius, sp.clone(), &f("radius"))?, &f("radius"))?;
+                let c = self.vec3(self.req(&s.center, sp.clone(), f("center"))?, f("center"))?;
+                let r = self.positive(self.req(&s.radius, sp.clone(), f("radius"))?, f("radius"))?;
                 match similarity_scale(&t) {
                     Some(k) => Shape::Sphere { center: t.transform_point3(c), radius: r * k },
                     None => {
@@ -1456,9 +1492,9 @@ impl Compiler<'_> {
             }
             "plane" => {
                 self.check_fields(def, field, kind, &["point", "normal"])?;
-                let p = self.vec3(self.req(&s.point, sp.clone(), &f("point"))?, &f("point"))?;
-                let nd = self.req(&s.normal, sp.clone(), &f("normal"))?;
-                let n = self.unit(nd, &f("normal"))?;
+                let p = self.vec3(self.req(&s.point, sp.clone(), f("point"))?, f("point"))?;
+                let nd = self.req(&s.normal, sp.clone(), f("normal"))?;
+                let n = self.unit(nd, f("normal"))?;
                 let n = normal_matrix(&t).mul_vec3(n).normalize();
                 let p = t.transform_point3(p);
                 Shape::Plane(Plane { normal: n, offset: n.dot(p) })
@@ -1477,9 +1513,9 @@ impl Compiler<'_> {
             }
             "disk" => {
                 self.check_fields(def, field, kind, &["center", "normal", "radius", "motion"])?;
-                let c = self.vec3(self.req(&s.center, sp.clone(), &f("center"))?, &f("center"))?;
-                let n = self.unit(self.req(&s.normal, sp.clone(), &f("normal"))?, &f("normal"))?;
-                let r = self.positive(self.req(&s.radius, sp.clone(), &f("radius"))?, &f("radius"))?;
+                let c = self.vec3(self.req(&s.center, sp.clone(), f("center"))?, f("center"))?;
+                let n = self.unit(self.req(&s.normal, sp.clone(), f("normal"))?, f("normal"))?;
+                let r = self.positive(self.req(&s.radius, sp.clone(), f("radius"))?, f("radius"))?;
                 let k = similarity_scale(&t).ok_or_else(|| {
                     self.err(s.transform.as_ref().map_or(sp.clone(), |x| x.span()), f("transform"), "a disk needs a uniform scale")
                 })?;
@@ -1489,7 +1525,7 @@ impl Compiler<'_> {
         })
     }
 
-    fn unit(&self, v: &V3, field: &str) -> R<Vec3> {
+    fn unit(&self, v: &V3, field: impl Display + Copy) -> R<Vec3> {
         let n = self.vec3(v, field)?;
         if n.length_squared() < 1e-20 {
             return Err(self.err(v.span(), field, "must not be the zero vector"));
@@ -1497,25 +1533,32 @@ impl Compiler<'_> {
         Ok(n.normalize())
     }
 
-    fn min_max(&self, def: &S<ShapeDef>, field: &str) -> R<(Vec3, Vec3)> {
+    fn min_max(&self, def: &S<ShapeDef>, field: impl Display + Copy) -> R<(Vec3, Vec3)> {
         let s = def.get_ref();
-        let lo_d = self.req(&s.min, def.span(), &format!("{field}.min"))?;
-        let hi_d = self.req(&s.max, def.span(), &format!("{field}.max"))?;
-        let lo = self.vec3(lo_d, &format!("{field}.min"))?;
-        let hi = self.vec3(hi_d, &format!("{field}.max"))?;
+        let lo_d = self.req(&s.min, def.span(), Sub(field, "min"))?;
+        let hi_d = self.req(&s.max, def.span(), Sub(field, "max"))?;
+        let lo = self.vec3(lo_d, Sub(field, "min"))?;
+        let hi = self.vec3(hi_d, Sub(field, "max"))?;
         if !(hi.cmpgt(lo).all()) {
             return Err(self.err(hi_d.span(), format!("{field}.max"), "every component of max must exceed min"));
         }
         Ok((lo, hi))
     }
 
-    fn parallelogram(&self, span: Range<usize>, o: &Option<V3>, u: &Option<V3>, v: &Option<V3>, field: &str) -> R<(Vec3, Vec3, Vec3)> {
-        let f = |n: &str| format!("{field}.{n}");
-        let o = self.vec3(self.req(o, span.clone(), &f("origin"))?, &f("origin"))?;
-        let ud = self.req(u, span.clone(), &f("u"))?;
-        let u = self.vec3(ud, &f("u"))?;
-        let vd = self.req(v, span.clone(), &f("v"))?;
-        let v = self.vec3(vd, &f("v"))?;
+    fn parallelogram<F: Field<Nums<3>>>(
+        &self,
+        span: Range<usize>,
+        o: &Option<F>,
+        u: &Option<F>,
+        v: &Option<F>,
+        field: impl Display + Copy,
+    ) -> R<(Vec3, Vec3, Vec3)> {
+        let f = |n: &'static str| Sub(field, n);
+        let o = self.vec3(self.req(o, span.clone(), f("origin"))?, f("origin"))?;
+        let ud = self.req(u, span.clone(), f("u"))?;
+        let u = self.vec3(ud, f("u"))?;
+        let vd = self.req(v, span.clone(), f("v"))?;
+        let v = self.vec3(vd, f("v"))?;
         for (x, d, n) in [(u, ud, "u"), (v, vd, "v")] {
             if x == Vec3::ZERO {
                 return Err(self.err(d.span(), f(n), "must be non-zero (an edge of the parallelogram)"));
@@ -1828,7 +1871,7 @@ impl Compiler<'_> {
         };
         self.lights.push(light);
         self.prims.push(Prim { shape, material, motion: Vec3::ZERO, is_light: true });
-        self.prim_at.push((def.span(), field.to_string()));
+        self.prim_at.push((def.span(), PrimField::Path(field.to_string())));
         Ok(())
     }
 }
