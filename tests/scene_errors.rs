@@ -171,6 +171,16 @@ fn camera_errors() {
         let e = parse_scene(Path::new("c.toml"), &bad).unwrap_err();
         assert!(e.field == "camera.shutter" && e.message.contains(says), "{shutter}: {}", e.message);
     }
+    // An aperture is a length like any other (a trial's 1e30 rendered black); past where its lens points
+    // round to a quarter of a pixel at the focus distance (here 1e6: 0.79 of a pixel), a warning.
+    let with = |a: &str| BASE.replace("fov = 40", &format!("fov = 40\naperture = {a}"));
+    let e = parse_scene(Path::new("c.toml"), &with("1e30")).unwrap_err();
+    assert!(e.field == "camera.aperture" && e.message.contains("1e15"), "{}", e.message);
+    for (a, warned) in [("1e6", true), ("1e4", false), ("0.1", false)] {
+        let s = parse_scene(Path::new("c.toml"), &with(a)).unwrap();
+        let said = s.warnings.iter().any(|w| w.contains("camera.aperture") && w.contains("of a pixel at the focus distance"));
+        assert_eq!(said, warned, "aperture {a}: {:?}", s.warnings);
+    }
 }
 
 #[test]

@@ -496,8 +496,8 @@ pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
 
 /// Samples that do not sample what their integral asks: one light sample on a `grid` (the light's centre
 /// for every camera sample: a hard shadow at any spp), 2D grids whose count has no near-square
-/// factorisation (`grid_shape` gives strips more than 4 times longer than wide, e.g. 1 x 7 for a prime:
-/// the integral is sampled along one axis; jittered sets of such counts take equal-area strata in rows,
+/// factorisation (`grid_shape` gives one row, 1 x 2 or 1 x 7 for a prime, or strips more than 4 times
+/// longer than wide: the integral is sampled along one axis; jittered sets of such counts take equal-area strata in rows,
 /// `jitter_rows`), and a shutter of zero length in a scene with motion.
 pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     let mut out = Vec::new();
@@ -558,17 +558,17 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
             ));
         }
         let n = if name == "light" { p.light_samples } else { p.spp };
-        if s != Strategy::Grid || name == "time" || name == "wavelength" || n < 5 {
+        if s != Strategy::Grid || name == "time" || name == "wavelength" || n < 2 {
             continue;
         }
         let [a, b] = crate::sample::strategy::grid_shape(n);
-        if b > 4 * a {
+        if a == 1 || b > 4 * a {
             let count = if name == "light" { "light_samples" } else { "spp" };
+            let (below, above) = (n.isqrt().pow(2), (n.isqrt() + 1).pow(2));
+            let such = if below >= 4 { format!("{below} or {above}") } else { above.to_string() };
             out.push(format!(
                 "{name} grid of {n} samples is {a} x {b} strips ({count} {n} has no near-square factors): the {name} integral is \
-                 sampled along one axis only; a count such as {} or {} gives a square grid",
-                n.isqrt().pow(2),
-                (n.isqrt() + 1).pow(2)
+                 sampled along one axis only; a count such as {such} gives a square grid"
             ));
         }
     }

@@ -5,7 +5,8 @@
 use super::error::{read_text, InputError, Source};
 use super::format::{CameraDef, Field, LightDef, MaterialDef, Nums, SceneFile, ShapeDef, TransformDef, S, V3};
 use super::{
-    Dielectric, Features, Light, Material, MaterialKind, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS, NOT_A_LIGHT,
+    CameraMedium, Dielectric, Features, Light, Material, MaterialKind, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS,
+    NOT_A_LIGHT,
 };
 use crate::accel::{build_bvh, Aabb, Bound, BuildOptions, Collapse, LightBuffer, WideBvh, WIDE_MIN_NODES};
 use crate::camera::Camera;
@@ -312,6 +313,25 @@ impl Compiler<'_> {
             None => Vec3::ZERO,
         };
         let mut camera = self.camera(&file.camera, width, height)?;
+        if let Some(a) = &file.camera.get_ref().aperture {
+            // Lens points are rounded to ULPs of the aperture: past a fraction of a pixel at the focus
+            // distance, the plane in focus is no longer sharp (a user trial: an edge pixel 0.39 off at an
+            // aperture of 1e6, focused at 10).
+            let pixel = 2.0 * camera.half_h * camera.focus_distance / height as f32;
+            let blur = camera.lens_radius * f32::EPSILON / pixel;
+            if blur > 0.25 {
+                self.warn(
+                    a.span(),
+                    "camera.aperture",
+                    format!(
+                        "an aperture of {:e} rounds its lens points to ~{:.1e}, {blur:.2} of a pixel at the focus distance: the \
+                         plane in focus is blurred by that much (a smaller aperture, or a scene in larger units)",
+                        camera.lens_radius,
+                        camera.lens_radius * f32::EPSILON
+                    ),
+                );
+            }
+        }
 
         for (name, def) in &file.materials {
             let m = self.material(def, &format!("materials.{name}"))?;
@@ -806,66 +826,127 @@ impl Compiler<'_> {
     }
 
     /// The media the camera starts in ([`Scene::camera_media`]): every solid prim (sphere, ellipsoid, box,
-    /// CSG solid with a glass: its one medium) of a non-thin dielectric that contains the camera's position
-    /// at shutter open, outermost (largest bounds) first. Warns where that cannot hold for every camera
-    /// ray: a medium the camera leaves or enters during the shutter, or whose surface the lens aperture
-    /// crosses, more media than a ray's stack keeps.
+    /// CSG solid with a glass: its one medium) of a non-thin dielectric that contains the camera's
+    /// position, outermost (largest bounds) first, each with the shutter times at which it holds the
+    /// camera (a moving ball of glass that passes over the camera holds it for part of the shutter, and
+    /// each camera ray starts in it or not by its own time; a user trial's absorbing ball that did so
+    /// was invisible while the media were taken at shutter open and close alone). Warns where that
+    /// cannot hold for every camera ray: a lens aperture that crosses a medium's surface, more media
+    /// than a ray's stack keeps.
     ///
     /// A camera exactly on a medium's surface (a camera at the water line of a box of water whose top is
     /// at its height) is moved off it first, by a spawn offset of the solid's scale along the view
     /// direction (or, where the view runs along the surface, along up or right), with a note: on the
     /// surface, the strict inside test put it outside while the camera rays heading into the solid missed
     /// the surface they start on, so they never entered it (a user trial: no absorption, no refraction).
-    fn camera_media(&mut self, camera: &mut Camera, def: &S<CameraDef>) -> Vec<u32> {
+    fn camera_media(&mut self, camera: &mut Camera, def: &S<CameraDef>) -> Vec<CameraMedium> {
         self.camera_off_surfaces(camera, def);
         let pos = camera.position;
+        let shutter = camera.shutter;
         // The aperture's rim, where it crosses the surface the lens centre is inside of.
         let rim: Vec<Vec3> = if camera.lens_radius > 0.0 {
             [camera.right, -camera.right, camera.up, -camera.up].iter().map(|&a| pos + a * camera.lens_radius).collect()
         } else {
             Vec::new()
         };
-        let mut found: Vec<(f32, u32)> = Vec::new();
+        let mut found: Vec<(f32, CameraMedium)> = Vec::new();
         let mut notes: Vec<String> = Vec::new();
         for p in &self.prims {
-            let Some(material) = self.medium_of(p, pos) else { continue };
-            let inside = |x: Vec3, t: f32| self.solid_contains(p, x, t);
-            let at_open = inside(pos, camera.shutter[0]);
-            if at_open != inside(pos, camera.shutter[1]) {
-                notes.push(format!(
-                    "the moving `{}` solid {} the camera during the shutter: camera rays take the media at shutter open, \
-                     so those of the other times are wrong (a ball of absorbing glass that leaves the camera darkens \
-                     every ray after it has gone); keep a medium around the camera still during the shutter",
-                    self.material_name(material),
-                    if at_open { "leaves" } else { "reaches" }
-                ));
+            if self.medium_of(p, pos).is_none() {
+                continue;
             }
-            if rim.iter().any(|&x| inside(x, camera.shutter[0]) != at_open) {
+            let during = self.times_inside(p, pos, shutter);
+            let at_open = self.solid_contains(p, pos, shutter[0]);
+            if rim.iter().any(|&x| self.solid_contains(p, x, shutter[0]) != at_open) {
+                let m = self.medium_of(p, pos).unwrap_or(0);
                 notes.push(format!(
                     "the lens aperture crosses the surface of a `{}` solid: camera rays take the media at the lens centre",
-                    self.material_name(material)
+                    self.material_name(m)
                 ));
             }
-            if at_open {
-                // (The bounds of the solid itself, not swept over the shutter as the BVH's are.)
-                let area = prim_bounds(&p.shape, &self.csg).map_or(f32::INFINITY, |b| b.surface_area());
-                found.push((area, material));
+            // (The bounds of the solid itself, not swept over the shutter as the BVH's are.)
+            let area = prim_bounds(&p.shape, &self.csg).map_or(f32::INFINITY, |b| b.surface_area());
+            for (from, to) in during {
+                // The medium of a CSG solid is the glass around the camera at that time, if several.
+                let Some(material) = self.medium_of(p, pos - p.motion * (0.5 * (from + to)).clamp(shutter[0], shutter[1])) else {
+                    continue;
+                };
+                // (Open-ended at the shutter's ends, so that a time at either end is held.)
+                let during = [if from <= shutter[0] { f32::NEG_INFINITY } else { from }, if to >= shutter[1] { f32::INFINITY } else { to }];
+                found.push((area, CameraMedium { material, during }));
             }
         }
         // Outermost first: a solid inside another has the smaller bounds.
         found.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let found: Vec<CameraMedium> = found.into_iter().map(|(_, m)| m).collect();
+        // The most media around the camera at once: at shutter open, or where one of them begins to hold it.
         let depth = crate::wavefront::queues::MediumStack::DEPTH;
-        if found.len() > depth {
-            notes.push(format!(
-                "the camera is inside {} nested media; a ray keeps {depth}: camera rays start in the {depth} innermost",
-                found.len()
-            ));
+        let most = std::iter::once(shutter[0])
+            .chain(found.iter().map(|m| m.during[0]))
+            .map(|t| found.iter().filter(|m| m.holds_at(t)).count())
+            .max()
+            .unwrap_or(0);
+        if most > depth {
+            notes
+                .push(format!("the camera is inside {most} nested media; a ray keeps {depth}: camera rays start in the {depth} innermost"));
         }
         for n in notes {
             self.warn(def.span(), "camera.position", n);
         }
-        let skip = found.len().saturating_sub(depth);
-        found.into_iter().skip(skip).map(|(_, m)| m).collect()
+        found
+    }
+
+    /// The shutter times within `shutter` at which the solid prim `p` holds `x` strictly inside, as
+    /// intervals (several for a CSG ring that passes over `x`): relative to the solid, `x` moves along the
+    /// segment `x - motion t`, which is met as a ray is, in f64 (a CSG solid's by the reference interval
+    /// merge, `csg::reference::intervals_f64`).
+    fn times_inside(&self, p: &Prim, x: Vec3, shutter: [f32; 2]) -> Vec<(f32, f32)> {
+        use glam::DVec3;
+        let (t0, t1) = (shutter[0] as f64, shutter[1] as f64);
+        let o = x.as_dvec3() - p.motion.as_dvec3() * t0;
+        let d = -p.motion.as_dvec3() * (t1 - t0);
+        if d == DVec3::ZERO {
+            return if self.solid_contains(p, x, shutter[0]) { vec![(shutter[0], shutter[1])] } else { Vec::new() };
+        }
+        // `o + s d` in the frame of an affine map.
+        let object = |m: &Affine3A| {
+            let l = Mat3::from(m.matrix3).as_dmat3();
+            (l * o + m.translation.as_dvec3(), l * d)
+        };
+        // Where `|o + s d| < r` (strictly between the roots of the quadratic).
+        let ball = |o: DVec3, d: DVec3, r: f64| {
+            let (a, b, c) = (d.length_squared(), o.dot(d), o.length_squared() - r * r);
+            let disc = b * b - a * c;
+            (disc > 0.0).then(|| ((-b - disc.sqrt()) / a, (-b + disc.sqrt()) / a))
+        };
+        let mut iv: Vec<(f64, f64)> = Vec::new();
+        match &p.shape {
+            Shape::Sphere { center, radius } => iv.extend(ball(o - center.as_dvec3(), d, *radius as f64)),
+            Shape::Ellipsoid(e) => {
+                let (o, d) = object(&e.world_to_object);
+                iv.extend(ball(o, d, 1.0));
+            }
+            Shape::Box(b) => {
+                let (o, d) = object(&b.world_to_object);
+                let h = b.half.as_dvec3();
+                let (lo, hi) = ((-h - o) / d, (h - o) / d);
+                let (near, far) = (lo.min(hi).max_element(), lo.max(hi).min_element());
+                // (Along an axis the segment does not move along, the quotients are infinities of one sign
+                // (outside that slab) or of both (inside); on the slab's face one is 0/0, a NaN that min and
+                // max drop, and the face is not inside.)
+                if near < far {
+                    iv.push((near, far));
+                }
+            }
+            Shape::Csg { solid } => crate::csg::reference::intervals_f64(&self.csg, *solid, o, d, &mut iv),
+            _ => {}
+        }
+        iv.into_iter()
+            .filter_map(|(a, b)| {
+                let (a, b) = (a.max(0.0), b.min(1.0));
+                (a < b).then(|| ((t0 + a * (t1 - t0)) as f32, (t0 + b * (t1 - t0)) as f32))
+            })
+            .collect()
     }
 
     /// Whether material `m` is a medium rays enter (a dielectric, not a thin sheet).
@@ -978,6 +1059,9 @@ impl Compiler<'_> {
                 let x = *a.get_ref();
                 if !(x.is_finite() && x >= 0.0) {
                     return Err(self.err(a.span(), "camera.aperture", format!("must be a finite number >= 0, got {x}")));
+                }
+                if x > MAX_MAGNITUDE {
+                    return Err(self.err(a.span(), "camera.aperture", format!("must be at most {MAX_MAGNITUDE:e} ({BEYOND}), got {x:e}")));
                 }
                 x
             }

@@ -261,6 +261,25 @@ pub struct Features {
 /// [`Scene::light_of_prim`] of a prim that is no light's surface.
 pub const NOT_A_LIGHT: u32 = u32::MAX;
 
+/// A medium the camera is inside ([`Scene::camera_media`]): its material and the shutter times at which
+/// it holds the camera, `[from, to)`, or [`CameraMedium::ALWAYS`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraMedium {
+    pub material: u32,
+    pub during: [f32; 2],
+}
+
+impl CameraMedium {
+    /// A medium that holds the camera through the whole shutter (it does not move past the camera).
+    pub const ALWAYS: [f32; 2] = [f32::NEG_INFINITY, f32::INFINITY];
+
+    /// Whether it holds the camera at shutter time `t`.
+    #[inline]
+    pub fn holds_at(&self, t: f32) -> bool {
+        self.during[0] <= t && t < self.during[1]
+    }
+}
+
 /// A compiled scene: flat arrays, a BVH over the bounded primitives, and the features it uses.
 pub struct Scene {
     pub width: u32,
@@ -300,10 +319,10 @@ pub struct Scene {
     /// faces may lie on and give way to (`wavefront::intersect::glass_gives_way`); empty in a scene
     /// where no glass can touch an opaque surface.
     pub glass_neighbours: glass_neighbours::GlassNeighbours,
-    /// The media the camera is inside (materials of the non-thin dielectric solids that contain its
-    /// position at shutter open), outermost first: camera rays start with them on their medium stack.
-    /// Empty for a camera in air (nearly always).
-    pub camera_media: Vec<u32>,
+    /// The media the camera is inside (the non-thin dielectric solids that contain its position at some
+    /// time of the shutter), outermost first: camera rays start with those that hold it at their time on
+    /// their medium stack ([`Scene::camera_media_at`]). Empty for a camera in air (nearly always).
+    pub camera_media: Vec<CameraMedium>,
     /// Valid input that is likely not what was meant (an empty CSG solid), each naming its file, line
     /// and field; the CLI prints them as warnings.
     pub warnings: Vec<String>,
@@ -314,6 +333,21 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The medium stack a camera ray of shutter time `t` starts with: the innermost
+    /// [`MediumStack::DEPTH`] of the media that hold the camera at `t`, outermost first.
+    pub fn camera_media_at(&self, t: f32) -> crate::wavefront::queues::MediumStack {
+        let holds = |m: &&CameraMedium| m.holds_at(t);
+        let n = self.camera_media.iter().filter(holds).count();
+        let skip = n.saturating_sub(crate::wavefront::queues::MediumStack::DEPTH);
+        self.camera_media.iter().filter(holds).skip(skip).fold(Default::default(), |s, m| s.push(m.material))
+    }
+
+    /// Whether some medium holds the camera for part of the shutter only, so that camera rays' media
+    /// depend on their time.
+    pub fn camera_media_move(&self) -> bool {
+        self.camera_media.iter().any(|m| m.during != CameraMedium::ALWAYS)
+    }
+
     /// Whether anything in the scene gives light: a light, an emissive material or a background that
     /// is not black (what [`crate::film::warn_dim`] needs to tell a dim image from an unlit one).
     pub fn has_light(&self) -> bool {

@@ -5,7 +5,7 @@
 //! strategy. Lens, time and wavelength are drawn only when the scene needs them.
 
 use super::dims;
-use super::queues::{MediumStack, PathTable, RayQueue, RayRows};
+use super::queues::{PathTable, RayQueue, RayRows};
 use crate::optics::{sample_wavelength, sample_wavelength_pdf, wavelength_to_rgb};
 use crate::sample::hash::RUN_MAX;
 use crate::sample::{sample_1d_keyed, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
@@ -77,8 +77,9 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     let mut pending = false;
     let mut k = 0;
     let mut next_path = paths.len() as u32;
-    // The media the camera is inside (none, nearly always).
-    let media = scene.camera_media.iter().fold(MediumStack::default(), |s, &m| s.push(m));
+    // The media the camera is inside (none, nearly always); by each ray's time where one moves past it.
+    let media = scene.camera_media_at(cam.shutter[0]);
+    let media_move = f.motion && scene.camera_media_move();
     // Rays (and their path ids, from `next_path` on) for the first `k` lanes of `b`; `one`: its lanes are
     // one pixel's samples (one key per dimension, in lane 0).
     // `made`: the packet's pixel and lens samples, where they were made beforehand (`Sampler2d::sample_x8_run`).
@@ -109,6 +110,9 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
             for l in 0..k {
                 if f.motion {
                     rows.time[l] = cam.time(sample_1d_keyed(profile.time_strategy, keys[2][l], index[l], spp));
+                    if media_move {
+                        rows.media[l] = scene.camera_media_at(rows.time[l]);
+                    }
                 }
                 if f.dispersion {
                     // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.

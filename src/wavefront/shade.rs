@@ -73,7 +73,11 @@ pub fn surface_hit(scene: &Scene, r: &RayItem, t: f32, prim_id: u32, leaf: u32, 
         Shape::Sphere { center, radius } => {
             let c = *center + shift;
             p = refine_sphere_point(c, *radius, p);
-            error_scale = 0.0;
+            // Exact for a still sphere; a moving one's frame at the ray's time is rounded to ULPs of the
+            // shift, as the other shapes' (with 0, a ray entering a moving glass ball near the world
+            // origin was spawned inside the kernel's error, met the same surface again and again, and
+            // filled its medium stack: a user trial).
+            error_scale = shift.abs().max_element();
             normal_sphere(c, p)
         }
         Shape::Ellipsoid(e) => {
@@ -189,11 +193,13 @@ fn hit_rows_x8(
         let (all, material) = (u32::MAX >> (32 - LANES), [g.material; LANES]);
         if g.r > 0.0 {
             // The centre at each ray's time, as the lane loop below computes it.
-            let sc = (Vec3x8::splat(g.v) + Vec3x8::splat(g.motion).scale(f32x8::from(*times))).rows();
+            let shift = Vec3x8::splat(g.motion).scale(f32x8::from(*times));
+            let sc = (Vec3x8::splat(g.v) + shift).rows();
             let (p, n, ahead) = sphere_hits_x8(naive, d, &sc, &[g.r; LANES]);
             let still = if g.motion == Vec3::ZERO { all } else { 0 };
             let front = ahead.to_bitmask();
-            return HitRows { p, n_facing: flip(ahead, n), error_scale: f32x8::ZERO, front, material, sph: all, still, uniform };
+            let error_scale = shift.max_abs_element();
+            return HitRows { p, n_facing: flip(ahead, n), error_scale, front, material, sph: all, still, uniform };
         }
         let n = Vec3x8::splat(g.v);
         let ahead = d.dot_unfused(n).simd_lt(f32x8::ZERO);
@@ -208,6 +214,8 @@ fn hit_rows_x8(
     let (mut sph, mut still, mut pla, mut front) = (0u32, 0u32, 0u32, 0u32);
     let mut sc = [[0.0f32; LANES]; 3];
     let mut sr = [1.0f32; LANES];
+    // Sphere lanes' error magnitudes: their shifts' (see `surface_hit`).
+    let mut ss = [0.0f32; LANES];
     // Flat lanes' planes and motion shifts.
     let (mut fw, mut fs, mut fshift) = ([0.0f32; LANES], [0.0f32; LANES], [[0.0f32; LANES]; 3]);
     // CSG lanes taken in 8 lanes: their leaves, and those whose leaf is subtracted (normal flipped).
@@ -218,10 +226,12 @@ fn hit_rows_x8(
         if g.r > 0.0 {
             sph |= 1 << l;
             still |= ((g.motion == Vec3::ZERO) as u32) << l;
-            let c = g.v + g.motion * times[l];
+            let shift = g.motion * times[l];
+            let c = g.v + shift;
             for k in 0..3 {
                 sc[k][l] = c[k];
             }
+            ss[l] = shift.abs().max_element();
             sr[l] = g.r;
             material[l] = g.material;
         } else if g.r == -1.0 {
@@ -305,7 +315,7 @@ fn hit_rows_x8(
         let mask = mask_from_bits(sph);
         pv = Vec3x8::select(mask, ps, pv);
         nv = Vec3x8::select(mask, flip(ahead, n), nv);
-        sv = mask.select(f32x8::ZERO, sv);
+        sv = mask.select(f32x8::from(ss), sv);
         front |= ahead.to_bitmask() & sph;
     }
     HitRows { p: pv, n_facing: nv, error_scale: sv, front, material, sph, still, uniform }

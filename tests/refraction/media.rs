@@ -194,6 +194,82 @@ fn a_camera_inside_media_starts_in_them() {
     assert!((got.x - (-3.0f64).exp()).abs() < 1e-5, "{} against {}", got.x, (-3.0f64).exp());
 }
 
+/// A medium that moves past the camera holds it for part of the shutter, and each camera ray starts in it
+/// or not by its own time (a user trial's absorbing ball that swept over the camera was invisible: the
+/// media were taken at shutter open). An index-1 medium of absorption 1 that moves along x across a
+/// camera looking down -z, over a white background: the centre pixel is the shutter's mean of `e^-L(t)`,
+/// `L` the camera's distance to the medium's far side along -z while inside, against a quadrature of
+/// it. A time grid of 900 instants puts none of them on the step of a box's entry or exit (at ninths of
+/// the shutter), so the boxes' means are exact.
+#[test]
+fn a_medium_that_moves_past_the_camera_holds_it_while_it_is_there() {
+    let head = "[image]\nwidth = 5\nheight = 5\nbackground = [1, 1, 1]\n[camera]\nposition = [0, 0, 0]\nlook_at = [0, 0, -1]\nfov = 1\n\
+                shutter = [0, 1]\n[materials.a]\ntype = \"dielectric\"\nior = 1.0\nabsorption = [1, 1, 1]\n";
+    let mut profile = split_profile();
+    (profile.spp, profile.max_depth, profile.throughput_cutoff) = (900, 64, 1e-9);
+    profile.pixel_strategy = strata::sample::Strategy::Center;
+    profile.time_strategy = strata::sample::Strategy::Grid;
+    let centre = |shapes: &str| {
+        let s = scene(&format!("{head}{shapes}"));
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        assert!(!s.camera_media.is_empty() && s.camera_media.iter().all(|m| m.during != strata::scene::CameraMedium::ALWAYS));
+        images::render(&s, profile.clone(), 1).to_rgb()[2 * 5 + 2].x as f64
+    };
+    // A ball of radius 1 from x = -3 to 3: inside for |x| < 1, where L = sqrt(1 - x^2) (x = -3 + 6t).
+    let n = 200_000;
+    let inside: f64 = (0..n).map(|i| (-(1.0 - (-1.0 + 2.0 * (i as f64 + 0.5) / n as f64).powi(2)).sqrt()).exp()).sum::<f64>() / n as f64;
+    let want = 2.0 / 3.0 + inside / 3.0;
+    let got = centre("[[shapes]]\ntype = \"sphere\"\ncenter = [-3, 0, 0]\nradius = 1\nmotion = [6, 0, 0]\nmaterial = \"a\"\n");
+    assert!((got - want).abs() < 2e-4, "ball: {got} against {want}");
+    // A cube of side 2 (rotated by a quarter turn about z, so its box is an oriented one) the same way:
+    // L = 1 while inside, a third of the shutter.
+    let want = 2.0 / 3.0 + (-1.0f64).exp() / 3.0;
+    let cube = "[[shapes]]\ntype = \"box\"\nmin = [-4, -1, -1]\nmax = [-2, 1, 1]\nmotion = [6, 0, 0]\nmaterial = \"a\"\n";
+    let got = centre(cube);
+    assert!((got - want).abs() < 1e-5, "cube: {got} against {want}");
+    let got = centre(&cube.replace(
+        "min = [-4, -1, -1]\nmax = [-2, 1, 1]",
+        "min = [-1, -1, -1]\nmax = [1, 1, 1]\ntransform = { rotate = [0, 0, 90], translate = [-3, 0, 0] }",
+    ));
+    assert!((got - want).abs() < 1e-5, "rotated cube: {got} against {want}");
+    // A CSG union of two such cubes apart, moving by 9: the camera is inside one for t in (2/9, 4/9) and
+    // the other for (5/9, 7/9), a shutter's two stretches.
+    let got = centre(
+        "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nmaterial = \"a\"\nmotion = [9, 0, 0]\nchildren = [\
+         { type = \"box\", min = [-4, -1, -1], max = [-2, 1, 1] }, { type = \"box\", min = [-7, -1, -1], max = [-5, 1, 1] }]\n",
+    );
+    let want = 5.0 / 9.0 + 4.0 * (-1.0f64).exp() / 9.0;
+    assert!((got - want).abs() < 1e-5, "two cubes: {got} against {want}");
+}
+
+/// A ray that enters a moving glass ball is spawned clear of its surface. The ball's frame at the ray's
+/// time is rounded to ULPs of its shift, and a hit on it was taken as exact: near the world origin
+/// (where spawn offsets are small) a ray entering the ball started within the kernel's error of the
+/// surface, met it again from outside, and again, until its medium stack was full (a user trial: 4,602
+/// crossings lost in a 256-spp image of a ball passing 1e-3 from the camera). Here the camera watches a
+/// ball of absorbing index-1 glass reach it, rays entering it up to ~0.08 from the origin.
+#[test]
+fn a_moving_ball_entered_near_the_origin_is_entered_once() {
+    use strata::film::Film;
+    use strata::render::{render_into, RenderJob};
+    use strata::wavefront::Settings;
+    let s = scene(
+        "[image]\nwidth = 8\nheight = 6\nbackground = [1, 1, 1]\n[camera]\nposition = [0, 0, 0]\nlook_at = [0, 0, -1]\nfov = 40\n\
+         shutter = [0.32, 0.34]\n[materials.a]\ntype = \"dielectric\"\nior = 1.0\nabsorption = [1, 1, 1]\n\
+         [[shapes]]\ntype = \"sphere\"\ncenter = [-3, 0, 0]\nradius = 1\nmotion = [6, 0, 0]\nmaterial = \"a\"\n",
+    );
+    let mut profile = split_profile();
+    (profile.spp, profile.max_depth) = (64, 8);
+    profile.pixel_strategy = strata::sample::Strategy::Center;
+    profile.time_strategy = strata::sample::Strategy::Grid;
+    let (film, stats) = render_into(&RenderJob::new(&s, Settings { profile, seed: 1 }), Film::new(8, 6));
+    assert_eq!(stats.lost_media, 0, "crossings into a fifth medium");
+    // Every ray crosses at most one diameter of the ball (absorption 1): no pixel darker than e^-2.
+    for (i, c) in film.to_rgb().iter().enumerate() {
+        assert!(c.x >= (-2.0f32).exp() && c.x <= 1.0, "pixel {i}: {}", c.x);
+    }
+}
+
 /// Where the camera's medium cannot hold for every camera ray, the scene says so, naming the camera.
 #[test]
 fn a_camera_medium_that_does_not_hold_is_warned_of() {
@@ -204,7 +280,6 @@ fn a_camera_medium_that_does_not_hold_is_warned_of() {
     let ball = |r: f64, extra: &str| format!("[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = {r}\nmaterial = \"g\"\n{extra}");
     let cases = [
         (cam("aperture = 0.2\nfocus_distance = 3\n") + &ball(0.1, ""), "lens aperture crosses"),
-        (cam("shutter = [0, 1]\n") + &ball(0.5, "motion = [1, 0, 0]\n"), "leaves the camera during the shutter"),
         (cam("") + &(1..=5).map(|i| ball(i as f64, "")).collect::<String>(), "inside 5 nested media"),
     ];
     for (text, needle) in cases {
@@ -221,7 +296,8 @@ fn a_camera_medium_that_does_not_hold_is_warned_of() {
     let s = scene(&painted("[0, 0, 0]"));
     assert!(s.warnings.is_empty(), "{:?}", s.warnings);
     assert_eq!(s.camera_media.len(), 1);
-    assert!(matches!(&s.materials[s.camera_media[0] as usize], strata::scene::Material::Dielectric(d) if d.ior.nominal() == 1.5));
+    assert_eq!(s.camera_media[0].during, strata::scene::CameraMedium::ALWAYS);
+    assert!(matches!(&s.materials[s.camera_media[0].material as usize], strata::scene::Material::Dielectric(d) if d.ior.nominal() == 1.5));
     let s = scene(&painted("[1, 1, 1]"));
     assert!(s.warnings.is_empty() && s.camera_media.is_empty(), "{:?} {:?}", s.warnings, s.camera_media);
     // Nothing to say for a camera well inside one medium, or outside all.
