@@ -1,6 +1,6 @@
 //! Ellipsoids: the unit sphere in object space under a general affine map.
 
-use super::obox::object_map_f64;
+use super::obox::{mat3_x8, object_map_f64};
 use super::sphere::{intersect_sphere_f64, nearest_x8, roots_x8, GRAZE};
 use super::{finish_x8, valid_f64};
 use crate::simd::{f32x8, Ray8, Vec3x8};
@@ -86,6 +86,25 @@ pub fn intersect_ellipsoid_f64(world_to_object: DAffine3, o: DVec3, d: DVec3, tm
     let oo = world_to_object.transform_point3(o);
     let dd = world_to_object.transform_vector3(d);
     intersect_sphere_f64(DVec3::ZERO, 1.0, oo, dd, tmax)
+}
+
+/// [`refine_ellipsoid_point`](super::refine_ellipsoid_point) and [`normal_ellipsoid`] of 8 points `p`
+/// in the ellipsoid's frame (at the rays' time), the same operations lane by lane: the refined points,
+/// their error magnitudes, which lanes were refined (the others' points are undefined), and the normals
+/// at `at(point, refined)` (the final point taken back into the frame, as the caller moves it).
+#[inline(always)]
+pub fn ellipsoid_hits_x8(e: &Ellipsoid, p: Vec3x8, at: impl Fn(Vec3x8, f32x8) -> Vec3x8) -> (Vec3x8, f32x8, f32x8, Vec3x8) {
+    let (m, c, zero) = (Mat3::from(e.world_to_object.matrix3), Vec3x8::splat(e.center), Vec3x8::splat(Vec3::ZERO));
+    let v = mat3_x8(&m, p - c);
+    // glam's `normalize_or_zero`, and the lanes where it gave zero (`refine_ellipsoid_point`'s `None`).
+    let rcp = f32x8::ONE / v.dot_unfused(v).sqrt();
+    let unit = rcp.is_finite() & rcp.simd_gt(f32x8::ZERO);
+    let w = mat3_x8(&e.to_world, Vec3x8::select(unit, v.scale(rcp), zero));
+    let out = c + w;
+    let ok = unit & out.x.is_finite() & out.y.is_finite() & out.z.is_finite();
+    let scale = f32x8::splat(e.center.abs().max_element()).max(w.max_abs_element());
+    let q = mat3_x8(&m, at(out, ok) - c);
+    (out, scale, ok, mat3_x8(&e.normal_matrix, q).normalize_or(zero))
 }
 
 /// Outward unit normal at a world point `p` on the ellipsoid: the gradient of `|M (p - c)|^2`,

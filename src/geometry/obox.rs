@@ -148,7 +148,7 @@ pub fn intersect_obox_f64(world_to_object: DAffine3, half: DVec3, o: DVec3, d: D
 
 /// `Mat3 * Vec3` in 8 lanes, as glam rounds it: `(x v.x + y v.y) + z v.z`, no FMA.
 #[inline(always)]
-fn mat3_x8(m: &Mat3, v: Vec3x8) -> Vec3x8 {
+pub(crate) fn mat3_x8(m: &Mat3, v: Vec3x8) -> Vec3x8 {
     Vec3x8::splat(m.x_axis).scale(v.x) + Vec3x8::splat(m.y_axis).scale(v.y) + Vec3x8::splat(m.z_axis).scale(v.z)
 }
 

@@ -10,7 +10,7 @@ use super::queues::{
     HitQueue, MediumStack, NeeQueue, NeeRows, PathTable, RayItem, RayQueue, RayRows, FLAG_DIFFUSE, FLAG_GLOSSY, FLAG_SPECULAR, NONE,
 };
 use crate::geometry::{
-    normal_ellipsoid, normal_obox, normal_sphere, obox_hits_x8, offset_ray_origin_scaled, offset_ray_origin_scaled_x8,
+    ellipsoid_hits_x8, normal_ellipsoid, normal_obox, normal_sphere, obox_hits_x8, offset_ray_origin_scaled, offset_ray_origin_scaled_x8,
     refine_ellipsoid_point, refine_flat_point, refine_flat_point_x8, refine_obox_point, refine_sphere_point, refine_sphere_point_x8,
 };
 use crate::light::{power_heuristic, sample_pdf, samples_for};
@@ -168,8 +168,8 @@ fn rows_into(
 
 /// [`surface_hit`] of hits `idx` of a queue (`m` lanes), for rays `o + t d` (lane rows) at `times`
 /// hitting `prims`, bit for bit: spheres and flat prims (planes, quads, disks: the common cases) in 8
-/// lanes with the same operations, boxes and CSG hits in 8 lanes per distinct box or leaf
-/// (`obox_hits_x8`, `Leaf::refine_x8`, `Leaf::normal_x8`), other shapes (ellipsoids) one at a time.
+/// lanes with the same operations, boxes, ellipsoids and CSG hits in 8 lanes per distinct prim or leaf
+/// (`obox_hits_x8`, `ellipsoid_hits_x8`, `Leaf::refine_x8`, `Leaf::normal_x8`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn hit_rows_x8(
@@ -220,7 +220,7 @@ fn hit_rows_x8(
     let (mut fw, mut fs, mut fshift) = ([0.0f32; LANES], [0.0f32; LANES], [[0.0f32; LANES]; 3]);
     // CSG lanes taken in 8 lanes: their leaves, and those whose leaf is subtracted (normal flipped).
     let (mut csg, mut flipped, mut leaf_of) = (0u32, 0u32, [0u32; LANES]);
-    let mut boxes = 0u32;
+    let (mut boxes, mut ellipsoids) = (0u32, 0u32);
     for (l, &i) in idx.iter().enumerate() {
         let g = &scene.prim_geo[prims[l] as usize];
         if g.r > 0.0 {
@@ -249,6 +249,9 @@ fn hit_rows_x8(
         } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Box(_)) {
             // Boxes: after the loop, per distinct box.
             boxes |= 1 << l;
+        } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Ellipsoid(_)) {
+            // Ellipsoids (spheres under a non-uniform scale): after the loop, per distinct ellipsoid.
+            ellipsoids |= 1 << l;
         } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Csg { .. }) {
             // CSG leaves: after the loop, per distinct leaf.
             csg |= 1 << l;
@@ -283,6 +286,24 @@ fn hit_rows_x8(
             let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
             let point = |q: Vec3x8, ok: f32x8| Vec3x8::select(ok, q + shift, naive);
             let (q, s, ok, n) = obox_hits_x8(b, naive - shift, |q, ok| point(q, ok) - shift);
+            let scale = ok.select(s.max(shift.max_abs_element()), o.max_abs_element());
+            (pv, nv, sv) = rows_into(same, (point(q, ok), n, scale), (pv, nv, sv), &mut front, d);
+            for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
+                material[l] = prim.material;
+            }
+        },
+    );
+    for_each_group(
+        ellipsoids,
+        |l| prims[l],
+        |first, same| {
+            // `surface_hit` of the hits on one ellipsoid: the point moved onto it in its frame at the ray's
+            // time (or left where that is undefined), the normal there.
+            let prim = &scene.prims[prims[first] as usize];
+            let Shape::Ellipsoid(e) = &prim.shape else { unreachable!("an ellipsoid lane") };
+            let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
+            let point = |q: Vec3x8, ok: f32x8| Vec3x8::select(ok, q + shift, naive);
+            let (q, s, ok, n) = ellipsoid_hits_x8(e, naive - shift, |q, ok| point(q, ok) - shift);
             let scale = ok.select(s.max(shift.max_abs_element()), o.max_abs_element());
             (pv, nv, sv) = rows_into(same, (point(q, ok), n, scale), (pv, nv, sv), &mut front, d);
             for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
@@ -1673,11 +1694,11 @@ mod tests {
 
     /// `hit_rows_x8` gives each lane what `surface_hit` gives that hit, bit for bit: point, facing normal,
     /// error magnitude, side and material, for chunks of hits of every material in scenes of spheres,
-    /// flat prims, boxes and CSG leaves of every shape (cones and tori counted), some moving, at
+    /// flat prims, boxes, ellipsoids and CSG leaves of every shape (cones and tori counted), some moving, at
     /// camera and bounce depths.
     #[test]
     fn hit_rows_x8_equal_surface_hit() {
-        let (mut csg_lanes, mut box_lanes, mut lanes, mut curved) = (0usize, 0usize, 0usize, [0usize; 2]);
+        let (mut csg_lanes, mut box_lanes, mut ellipsoid_lanes, mut lanes, mut curved) = (0usize, 0usize, 0usize, 0usize, [0usize; 2]);
         // Moving CSG solids of every leaf shape, some subtracted, one cut by a half-space.
         let moving = "[image]\nwidth = 64\nheight = 48\n[camera]\nposition = [0, 1.5, 6]\nlook_at = [0, 0.5, 0]\nfov = 45\n\
                       shutter = [0, 1]\n[materials.a]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
@@ -1698,6 +1719,10 @@ mod tests {
                       { type = \"cone\", center = [0.6, 0, 0], radius = 0.2, radius_top = 0.05, height = 0.8, material = \"b\" },\n]\n\
                       [[shapes]]\ntype = \"box\"\nmin = [-0.4, 0, -0.3]\nmax = [0.4, 0.5, 0.3]\nmaterial = \"b\"\nmotion = [2.5, 0, 0.3]\n\
                       transform = { rotate = [0, 40, 15], scale = [1, 1.5, 0.7], translate = [-1, 0, 1.2] }\n\
+                      [[shapes]]\ntype = \"sphere\"\ncenter = [1.8, 0.6, 0.5]\nradius = 0.5\nmaterial = \"b\"\nmotion = [-1.5, 0, 0.4]\n\
+                      transform = { rotate = [20, 0, 35], scale = [1.6, 0.7, 1.1] }\n\
+                      [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.6\nmaterial = \"a\"\n\
+                      transform = { scale = [0.6, 1.4, 0.9], translate = [0.3, 0.8, 1.5] }\n\
                       [[lights]]\ntype = \"point\"\nposition = [2, 5, 4]\nintensity = [20, 20, 20]\n";
         let scenes = ["csg", "showcase", "bench_csg", "glass", "motion", "csg_glass", "nested", "cornell", "absorption"]
             .map(|name| (name, crate::scene::load_scene(std::path::Path::new(&format!("scenes/{name}.toml"))).unwrap()))
@@ -1748,13 +1773,14 @@ mod tests {
                             }
                         }
                         box_lanes += matches!(scene.prims[hits.prim[i] as usize].shape, Shape::Box(_)) as usize;
+                        ellipsoid_lanes += matches!(scene.prims[hits.prim[i] as usize].shape, Shape::Ellipsoid(_)) as usize;
                     }
                 }
             });
         }
         assert!(
-            lanes > 20_000 && csg_lanes > 5_000 && box_lanes > 1_000 && curved[0] > 100 && curved[1] > 100,
-            "{lanes} hits compared, {csg_lanes} on CSG leaves ({} cones, {} tori), {box_lanes} on boxes",
+            lanes > 20_000 && csg_lanes > 5_000 && box_lanes > 1_000 && ellipsoid_lanes > 300 && curved[0] > 100 && curved[1] > 100,
+            "{lanes} hits compared, {csg_lanes} on CSG leaves ({} cones, {} tori), {box_lanes} on boxes, {ellipsoid_lanes} on ellipsoids",
             curved[0],
             curved[1]
         );
