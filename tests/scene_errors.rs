@@ -1025,3 +1025,67 @@ fn unusual_text_still_gives_the_right_path_and_line() {
         assert!(msg.contains(&format!("`transform` is already given a value at line {value}")), "{first}: {msg}");
     }
 }
+
+/// A child that is not a shape table is named by its index, on one line or several, nested or not (a
+/// trial saw the previous child's last key named, no field, or a fragment of text): a string with the
+/// way a named solid is used, a list where a child belongs said as such.
+#[test]
+fn a_child_that_is_not_a_table_is_named_by_its_index() {
+    let boxed = "{ type = \"box\", min = [-1, -1, -1], max = [1, 1, 1], material = \"m\" }";
+    let cases = [
+        (format!("[[shapes]]\ntype = \"group\"\nchildren = [ {boxed}, \"bolt\" ]\n"), "shapes[0].children[1]", "children", "use = "),
+        (
+            format!("[[shapes]]\ntype = \"group\"\nchildren = [\n  {boxed},\n  \"bolt\",\n]\n"),
+            "shapes[0].children[1]",
+            "\"bolt\",",
+            "use = ",
+        ),
+        (format!("[[shapes]]\ntype = \"group\"\nchildren = [ \"bolt\" ]\n"), "shapes[0].children[0]", "children", "use = "),
+        (
+            format!("[[shapes]]\ntype = \"group\"\nchildren = [\n  {boxed},\n  [ {boxed} ],\n]\n"),
+            "shapes[0].children[1]",
+            "  [ {",
+            "a list where a child belongs",
+        ),
+        (
+            format!("[[shapes]]\ntype = \"group\"\nchildren = [ {boxed}, {{ type = \"group\", children = [ {boxed}, 5 ] }} ]\n"),
+            "shapes[0].children[1].children[1]",
+            "children",
+            "expected a shape table",
+        ),
+        // Not a child: an element of a number array over several lines, by its index.
+        (
+            "[[shapes]]\ntype = \"sphere\"\nmaterial = \"m\"\nradius = 1\ncenter = [\n  0,\n  \"x\",\n  0]\n".to_string(),
+            "shapes[0].center[1]",
+            "\"x\"",
+            "expected f32",
+        ),
+    ];
+    for (extra, field, needle, says) in cases {
+        let msg = fails_at(&[(&extra, field, needle)]).remove(0);
+        assert!(msg.contains(says), "{extra}: {msg}");
+    }
+}
+
+/// A difference of one operand subtracts nothing: valid (the solid is that operand) but most likely a
+/// hole left out, so warned of at its `op` (a trial's was silent); two operands, or a union of one, are
+/// not. A leaf thinner than an f32 step where it lies (its bounds of no extent) is said so, not `0e0`
+/// thick.
+#[test]
+fn a_difference_of_one_operand_is_warned_about() {
+    let block = "{ type = \"box\", min = [-1, -0.5, -1], max = [1, 0.5, 1] }";
+    let solid =
+        |op: &str, more: &str| format!("[[shapes]]\ntype = \"csg\"\nop = \"{op}\"\nmaterial = \"m\"\nchildren = [ {block}{more} ]\n");
+    let hole = ", { type = \"sphere\", center = [0, 0.5, 0], radius = 0.25 }";
+    for (extra, warned) in [(solid("difference", ""), true), (solid("difference", hole), false), (solid("union", ""), false)] {
+        let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
+        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("a difference of one operand subtracts nothing")).collect();
+        assert_eq!(w.len(), warned as usize, "{extra}: {:?}", s.warnings);
+        if warned {
+            assert!(w[0].starts_with(&format!("e.toml:{}:", line_of(&extra, "op = "))) && w[0].contains("`shapes[0].op`"), "{}", w[0]);
+        }
+    }
+    let extra = solid("difference", &hole.replace("0.25", "1e-9"));
+    let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
+    assert!(s.warnings.iter().any(|w| w.contains("one of its leaves is thinner than f32 resolves where it lies")), "{:?}", s.warnings);
+}

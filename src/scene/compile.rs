@@ -1497,10 +1497,13 @@ impl Compiler<'_> {
             .map(|(lo, hi)| (hi - lo).min_element())
             .fold(f32::INFINITY, f32::min);
         if thinnest < 10.0 * tol {
+            // (A leaf thinner than an f32 step where it lies has bounds of no extent: a trial's leaf of 2e-9
+            // at y = 0.5 was said to be `0e0` thick.)
+            let thick = if thinnest > 0.0 { format!("only {thinnest:e} thick") } else { "thinner than f32 resolves where it lies".into() };
             self.warn_each(WarnKind::LostDetail, def.span(), field, || {
                 format!(
                     "this CSG solid reaches {scale:e} from the origin, so surfaces closer than its coincidence tolerance \
-                         ({tol:e}, 1e-5 of that) merge, and one of its leaves is only {thinnest:e} thick: its detail may be lost \
+                         ({tol:e}, 1e-5 of that) merge, and one of its leaves is {thick}: its detail may be lost \
                          (far-apart parts in one solid: make them separate solids; a solid far from the origin: move the \
                          scene nearer it)"
                 )
@@ -1867,6 +1870,14 @@ impl Compiler<'_> {
                         culprits.push(self.unbounded_by.take());
                     }
                     self.node_culprit(op, culprits, sp.clone(), field);
+                    if op == Op::Difference && kids.len() == 1 {
+                        // (Valid, A - nothing = A, but most likely a hole left out: a user trial.)
+                        self.warn_each(WarnKind::LoneDifference, op_d.span(), Sub(field, "op"), || {
+                            "a difference of one operand subtracts nothing: the solid is that operand (is a hole \
+                             missing from `children`?)"
+                                .to_string()
+                        });
+                    }
                     CsgTree::Node { op, children: kids }
                 }
             }
@@ -2031,6 +2042,7 @@ enum WarnKind {
     EmptySolid,
     LooksEmpty,
     LostDetail,
+    LoneDifference,
 }
 
 impl WarnKind {
@@ -2045,6 +2057,7 @@ impl WarnKind {
             ),
             WarnKind::LooksEmpty => "CSG solids that look empty, as above".into(),
             WarnKind::LostDetail => "CSG solids whose detail may be lost to their coincidence tolerance, as above".into(),
+            WarnKind::LoneDifference => "differences of one operand, as above".into(),
         }
     }
 }

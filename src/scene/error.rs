@@ -134,7 +134,24 @@ impl Source<'_> {
             return self.error(span, name, msg);
         }
         let named = message.strip_prefix("unknown field ").or_else(|| message.strip_prefix("missing field "));
-        let field = named.and_then(extract_backticked).unwrap_or_else(|| self.qualified(span.start, self.key_at(span.start)));
+        let key = self.key_at(span.start);
+        if let (None, Some((path, array, inner))) = (named, self.element_path(span.start)) {
+            // A value that is an element of an array where the key on its line (if any) is another's
+            // (`children = [ {..., material = "m" }, "bolt" ]` named `material`), or a child: the element's
+            // path.
+            if key != array || array == "children" {
+                let at = &self.text[span.start.min(self.text.len())..];
+                let msg = if array == "children" && (inner || at.starts_with('[')) {
+                    "a list where a child belongs: write each child as a shape table, `{ type = ..., ... }`".to_string()
+                } else if array == "children" && at.starts_with(['"', '\'']) {
+                    format!("{}; a named solid is used as `{{ use = \"NAME\" }}`", plain_struct_names(&message))
+                } else {
+                    plain_struct_names(&message)
+                };
+                return self.error(span, path, msg);
+            }
+        }
+        let field = named.and_then(extract_backticked).unwrap_or_else(|| self.qualified(span.start, key));
         self.error(span, field, plain_struct_names(&message))
     }
 
@@ -150,11 +167,16 @@ impl Source<'_> {
         if key.is_empty() || first_key != key {
             return key;
         }
-        let headers: Vec<(bool, String)> = self.text[..line_start].lines().filter_map(table_header).collect();
-        let Some((list, name)) = headers.last() else { return key };
         // A key of an inline table opened on an earlier line (`checker = {`, then `b = ...`): under its key.
-        // (Byte offsets from the lines with their breaks: `\r\n` counts two.)
-        let header_end = self.text[..line_start]
+        let Some(open) = open_inline_tables(&self.text[self.header_end(line_start)..line_start]) else { return key };
+        let key = open.into_iter().chain([key]).collect::<Vec<_>>().join(".");
+        self.under_header(line_start, key)
+    }
+
+    /// The end of the last table header line before byte `line_start` (0 if none). (Byte offsets from
+    /// the lines with their breaks: `\r\n` counts two.)
+    fn header_end(&self, line_start: usize) -> usize {
+        self.text[..line_start]
             .split_inclusive('\n')
             .scan(0, |at, l| {
                 *at += l.len();
@@ -162,9 +184,15 @@ impl Source<'_> {
             })
             .filter(|(_, l)| table_header(l).is_some())
             .last()
-            .map_or(0, |(end, _)| end);
-        let Some(open) = open_inline_tables(&self.text[header_end..line_start]) else { return key };
-        let key = open.into_iter().chain([key]).collect::<Vec<_>>().join(".");
+            .map_or(0, |(end, _)| end)
+    }
+
+    /// `key`, a key of the table whose header is the last before byte `line_start`, as the path the
+    /// compiler's errors give (`shapes[1].radius`, `materials.glass.ior`, `shapes[0].transform.rotate`);
+    /// `key` itself where there is no header or the path is not plain (under a nested list header).
+    fn under_header(&self, line_start: usize, key: String) -> String {
+        let headers: Vec<(bool, String)> = self.text[..line_start].lines().filter_map(table_header).collect();
+        let Some((list, name)) = headers.last() else { return key };
         // The index of the entry of list `l` that the last header lies in.
         let index = |l: &str| headers.iter().filter(|(is_list, n)| *is_list && n == l).count().checked_sub(1);
         if *list {
@@ -179,6 +207,38 @@ impl Source<'_> {
             Some(i) => format!("{first}[{i}]{}.{key}", &name[first.len()..]),
             None => format!("{name}.{key}"),
         }
+    }
+
+    /// Where byte `offset` is an element of an array value (`children = [ {...}, "bolt" ]`: the string),
+    /// its path (`shapes[0].children[1]`; arrays and inline tables opened on earlier lines counted), the
+    /// array's key, and whether the element is in a list within that array (`[ [ {...} ] ]`: the path is
+    /// then the list's); `None` elsewhere, or where the text before it is not plain enough to follow.
+    fn element_path(&self, offset: usize) -> Option<(String, String, bool)> {
+        let offset = offset.min(self.text.len());
+        let line_start = self.text[..offset].rfind('\n').map_or(0, |i| i + 1);
+        let mut open = open_values(&self.text[self.header_end(line_start)..offset])?;
+        let inner = open.len() >= 2 && open[open.len() - 1].1.is_empty() && open[open.len() - 2].0 == '[';
+        if inner && open[open.len() - 1].0 == '[' {
+            open.pop();
+        }
+        let (c, key, _) = open.last()?;
+        if *c != '[' || open[0].1.is_empty() {
+            return None;
+        }
+        let key = key.clone();
+        let mut path = String::new();
+        for (c, k, i) in open {
+            if !k.is_empty() {
+                if !path.is_empty() {
+                    path.push('.');
+                }
+                path.push_str(&k);
+            }
+            if c == '[' {
+                path.push_str(&format!("[{i}]"));
+            }
+        }
+        Some((self.under_header(line_start, path), key, inner))
     }
 
     /// The key of the `key = value` entry that byte `offset` lies in, looking back along its own line
@@ -302,10 +362,18 @@ pub(crate) fn table_header(line: &str) -> Option<(bool, String)> {
 
 /// The keys of the inline tables still open at the end of `text` (`checker = {` on an earlier line:
 /// `["checker"]`, outermost first), or `None` where the text is inside an array (whose element has no
-/// name) or holds what this does not follow (a multi-line string). Strings and comments are skipped.
+/// name) or holds what this does not follow (a multi-line string).
 fn open_inline_tables(text: &str) -> Option<Vec<String>> {
-    // (Each open bracket, with the key before it for a `{`.)
-    let mut open: Vec<(char, String)> = Vec::new();
+    let open = open_values(text)?;
+    open.iter().all(|(c, k, _)| *c == '{' && !k.is_empty()).then(|| open.into_iter().map(|(_, k, _)| k).collect())
+}
+
+/// The inline tables and arrays still open at the end of `text`, outermost first: each bracket, the key
+/// before it (empty for an element of an array) and, for an array, the index of the element the text
+/// ends in; `None` where the text holds what this does not follow (a multi-line string, more closing
+/// than opening brackets). Strings and comments are skipped.
+fn open_values(text: &str) -> Option<Vec<(char, String, usize)>> {
+    let mut open: Vec<(char, String, usize)> = Vec::new();
     // The text since the last `{`, `,` or line break: where the key before a `{` lies.
     let mut since = String::new();
     let mut chars = text.chars().peekable();
@@ -343,20 +411,27 @@ fn open_inline_tables(text: &str) -> Option<Vec<String>> {
             '{' => {
                 // (An array's element has no key: it names nothing, should the text end inside it.)
                 let key = since.trim_end().strip_suffix('=').map_or(String::new(), |k| k.trim().to_string());
-                open.push(('{', key));
+                open.push(('{', key, 0));
                 since.clear();
             }
             '[' => {
-                open.push(('[', String::new()));
+                let key = since.trim_end().strip_suffix('=').map_or(String::new(), |k| k.trim().to_string());
+                open.push(('[', key, 0));
                 since.clear();
             }
             '}' | ']' => {
                 open.pop()?;
                 since.clear();
             }
-            ',' | '\n' => since.clear(),
+            ',' => {
+                if let Some(('[', _, i)) = open.last_mut() {
+                    *i += 1;
+                }
+                since.clear();
+            }
+            '\n' => since.clear(),
             _ => since.push(c),
         }
     }
-    open.iter().all(|(c, k)| *c == '{' && !k.is_empty()).then(|| open.into_iter().map(|(_, k)| k).collect())
+    Some(open)
 }
