@@ -1040,7 +1040,7 @@ fn a_child_that_is_not_a_table_is_named_by_its_index() {
             "\"bolt\",",
             "use = ",
         ),
-        (format!("[[shapes]]\ntype = \"group\"\nchildren = [ \"bolt\" ]\n"), "shapes[0].children[0]", "children", "use = "),
+        ("[[shapes]]\ntype = \"group\"\nchildren = [ \"bolt\" ]\n".to_string(), "shapes[0].children[0]", "children", "use = "),
         (
             format!("[[shapes]]\ntype = \"group\"\nchildren = [\n  {boxed},\n  [ {boxed} ],\n]\n"),
             "shapes[0].children[1]",
@@ -1085,6 +1085,11 @@ fn a_difference_of_one_operand_is_warned_about() {
             assert!(w[0].starts_with(&format!("e.toml:{}:", line_of(&extra, "op = "))) && w[0].contains("`shapes[0].op`"), "{}", w[0]);
         }
     }
+    // A named solid's lone difference, used twice: one warning, at its definition.
+    let named = format!("[solids.s]\ntype = \"csg\"\nop = \"difference\"\nchildren = [ {block} ]\n[[shapes]]\nuse = \"s\"\nmaterial = \"m\"\n[[shapes]]\nuse = \"s\"\nmaterial = \"m\"\n");
+    let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{named}")).unwrap();
+    let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("a difference of one operand")).collect();
+    assert!(w.len() == 1 && w[0].contains("`solids.s.op`"), "{:?}", s.warnings);
     let extra = solid("difference", &hole.replace("0.25", "1e-9"));
     let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
     assert!(s.warnings.iter().any(|w| w.contains("one of its leaves is thinner than f32 resolves where it lies")), "{:?}", s.warnings);

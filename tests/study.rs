@@ -709,11 +709,14 @@ fn cli_input_errors_exit_2_with_a_message() {
     let still = dir.join("still.toml");
     let text = std::fs::read_to_string("scenes/motion.toml").unwrap();
     assert!(text.contains("shutter = [0.0, 1.0]"));
-    std::fs::write(&still, text.replace("shutter = [0.0, 1.0]", "shutter = [0.5, 0.5]")).unwrap();
-    let out = strata().args(["study", still.to_str().unwrap(), "--out", d, "--integrals", "time"]).output().unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("the scene does not exercise time (no shutter of non-zero length)"), "{err}");
+    // (And under the default shutter, `[0, 0]`.)
+    for shutter in ["shutter = [0.5, 0.5]", ""] {
+        std::fs::write(&still, text.replace("shutter = [0.0, 1.0]", shutter)).unwrap();
+        let out = strata().args(["study", still.to_str().unwrap(), "--out", d, "--integrals", "time"]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{shutter}: {err}");
+        assert!(err.contains("the scene does not exercise time (no shutter of non-zero length)"), "{shutter}: {err}");
+    }
     // The light alone under a pick (a scene of two lights): one pick per pixel, which n cannot refine.
     let out = strata()
         .args(["study", "scenes/showcase.toml", "--out", d, "--integrals", "light", "--set", "light_selection=power"])

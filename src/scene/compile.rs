@@ -77,6 +77,7 @@ pub fn parse_scene_sized(path: &Path, text: &str, size: Option<(u32, u32)>) -> R
         counted: Vec::new(),
         checkers: Default::default(),
         prim_at: Vec::new(),
+        lone_differences: BTreeSet::new(),
         leaf_sites: Vec::new(),
         material_from: None,
     };
@@ -113,6 +114,8 @@ struct Compiler<'a> {
     checkers: std::cell::RefCell<Vec<(Range<usize>, String, f32)>>,
     /// Where each prim was given (its definition's span and field), by prim id: for warnings that name a prim.
     prim_at: Vec<(Range<usize>, PrimField)>,
+    /// Where differences of one operand were warned of (a named solid's, once for all its uses).
+    lone_differences: BTreeSet<usize>,
     /// The leaves `csg_tree` made since the last top-level solid began: each one's material, where that
     /// material was given (span and field: the leaf's own, an enclosing node's or a `use`'s) and the
     /// leaf's world bounds (`None`: a half-space): to name the leaves of a glass solid of several glasses.
@@ -857,7 +860,9 @@ impl Compiler<'_> {
             }
             let during = self.times_inside(p, pos, shutter);
             let at_open = self.solid_contains(p, pos, shutter[0]);
-            if rim.iter().any(|&x| self.solid_contains(p, x, shutter[0]) != at_open) {
+            // (A medium that moves past the camera crosses the lens on its way, whatever it does at open.)
+            let passes = !rim.is_empty() && during.iter().any(|&(from, to)| from > shutter[0] || to < shutter[1]);
+            if passes || rim.iter().any(|&x| self.solid_contains(p, x, shutter[0]) != at_open) {
                 let m = self.medium_of(p, pos).unwrap_or(0);
                 notes.push(format!(
                     "the lens aperture crosses the surface of a `{}` solid: camera rays take the media at the lens centre",
@@ -929,11 +934,20 @@ impl Compiler<'_> {
             Shape::Box(b) => {
                 let (o, d) = object(&b.world_to_object);
                 let h = b.half.as_dvec3();
-                let (lo, hi) = ((-h - o) / d, (h - o) / d);
-                let (near, far) = (lo.min(hi).max_element(), lo.max(hi).min_element());
-                // (Along an axis the segment does not move along, the quotients are infinities of one sign
-                // (outside that slab) or of both (inside); on the slab's face one is 0/0, a NaN that min and
-                // max drop, and the face is not inside.)
+                // The slabs the segment moves across; along an axis it does not move along, inside that
+                // slab (strictly, as `solid_contains`: a point on a face is outside) or never. (Not by
+                // 0/0 = NaN through min and max: glam's keep or drop a NaN by the axis.)
+                let (mut near, mut far) = (f64::NEG_INFINITY, f64::INFINITY);
+                for i in 0..3 {
+                    if d[i] == 0.0 {
+                        if !(o[i].abs() < h[i]) {
+                            far = f64::NEG_INFINITY;
+                        }
+                    } else {
+                        let (a, b) = ((-h[i] - o[i]) / d[i], (h[i] - o[i]) / d[i]);
+                        (near, far) = (near.max(a.min(b)), far.min(a.max(b)));
+                    }
+                }
                 if near < far {
                     iv.push((near, far));
                 }
@@ -944,7 +958,7 @@ impl Compiler<'_> {
         iv.into_iter()
             .filter_map(|(a, b)| {
                 let (a, b) = (a.max(0.0), b.min(1.0));
-                (a < b).then(|| ((t0 + a * (t1 - t0)) as f32, (t0 + b * (t1 - t0)) as f32))
+                (a < b).then_some(((t0 + a * (t1 - t0)) as f32, (t0 + b * (t1 - t0)) as f32))
             })
             .collect()
     }
@@ -1870,7 +1884,7 @@ impl Compiler<'_> {
                         culprits.push(self.unbounded_by.take());
                     }
                     self.node_culprit(op, culprits, sp.clone(), field);
-                    if op == Op::Difference && kids.len() == 1 {
+                    if op == Op::Difference && kids.len() == 1 && self.lone_differences.insert(op_d.span().start) {
                         // (Valid, A - nothing = A, but most likely a hole left out: a user trial.)
                         self.warn_each(WarnKind::LoneDifference, op_d.span(), Sub(field, "op"), || {
                             "a difference of one operand subtracts nothing: the solid is that operand (is a hole \

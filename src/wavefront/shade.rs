@@ -40,7 +40,8 @@ pub struct SurfaceHit {
     pub front: bool,
     pub material: u32,
     /// The magnitude whose ULPs bound the error of `p` (beyond `p`'s own): the ray origin's for a point
-    /// computed as `o + t d`, 0 for a point re-projected onto its surface.
+    /// computed as `o + t d`; for a point re-projected onto its surface, the surface's placement's (0 for
+    /// a still sphere, which is re-projected exactly) and a moving prim's shift at the ray's time.
     pub error_scale: f32,
 }
 
