@@ -221,7 +221,8 @@ fn hit_rows_x8(
     let (mut fw, mut fs, mut fshift) = ([0.0f32; LANES], [0.0f32; LANES], [[0.0f32; LANES]; 3]);
     // CSG lanes taken in 8 lanes: their leaves, and those whose leaf is subtracted (normal flipped).
     let (mut csg, mut flipped, mut leaf_of) = (0u32, 0u32, [0u32; LANES]);
-    let (mut boxes, mut ellipsoids) = (0u32, 0u32);
+    // Box and ellipsoid lanes (after the loop, per distinct prim).
+    let mut solids = 0u32;
     for (l, &i) in idx.iter().enumerate() {
         let g = &scene.prim_geo[prims[l] as usize];
         if g.r > 0.0 {
@@ -247,12 +248,9 @@ fn hit_rows_x8(
             }
             (fw[l], fs[l]) = (g.w, g.w_scale);
             material[l] = g.material;
-        } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Box(_)) {
-            // Boxes: after the loop, per distinct box.
-            boxes |= 1 << l;
-        } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Ellipsoid(_)) {
-            // Ellipsoids (spheres under a non-uniform scale): after the loop, per distinct ellipsoid.
-            ellipsoids |= 1 << l;
+        } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Box(_) | Shape::Ellipsoid(_)) {
+            // (Ellipsoids: spheres under a non-uniform scale.)
+            solids |= 1 << l;
         } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Csg { .. }) {
             // CSG leaves: after the loop, per distinct leaf.
             csg |= 1 << l;
@@ -277,34 +275,20 @@ fn hit_rows_x8(
         (pv, nv, sv) = rows_into(pla, (fp, nv, fscale), (pv, nv, sv), &mut front, d);
     }
     for_each_group(
-        boxes,
+        solids,
         |l| prims[l],
         |first, same| {
-            // `surface_hit` of the hits on one box: the point moved onto its face in its frame at the ray's
-            // time (or left where that is not finite), the face's normal there.
+            // `surface_hit` of the hits on one box or ellipsoid: the point moved onto it in its frame at the
+            // ray's time (or left where that is undefined), the normal there.
             let prim = &scene.prims[prims[first] as usize];
-            let Shape::Box(b) = &prim.shape else { unreachable!("a box lane") };
             let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
             let point = |q: Vec3x8, ok: f32x8| Vec3x8::select(ok, q + shift, naive);
-            let (q, s, ok, n) = obox_hits_x8(b, naive - shift, |q, ok| point(q, ok) - shift);
-            let scale = ok.select(s.max(shift.max_abs_element()), o.max_abs_element());
-            (pv, nv, sv) = rows_into(same, (point(q, ok), n, scale), (pv, nv, sv), &mut front, d);
-            for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
-                material[l] = prim.material;
-            }
-        },
-    );
-    for_each_group(
-        ellipsoids,
-        |l| prims[l],
-        |first, same| {
-            // `surface_hit` of the hits on one ellipsoid: the point moved onto it in its frame at the ray's
-            // time (or left where that is undefined), the normal there.
-            let prim = &scene.prims[prims[first] as usize];
-            let Shape::Ellipsoid(e) = &prim.shape else { unreachable!("an ellipsoid lane") };
-            let shift = Vec3x8::splat(prim.motion).scale(f32x8::from(*times));
-            let point = |q: Vec3x8, ok: f32x8| Vec3x8::select(ok, q + shift, naive);
-            let (q, s, ok, n) = ellipsoid_hits_x8(e, naive - shift, |q, ok| point(q, ok) - shift);
+            let at = |q, ok| point(q, ok) - shift;
+            let (q, s, ok, n) = match &prim.shape {
+                Shape::Box(b) => obox_hits_x8(b, naive - shift, at),
+                Shape::Ellipsoid(e) => ellipsoid_hits_x8(e, naive - shift, at),
+                _ => unreachable!("a box or ellipsoid lane"),
+            };
             let scale = ok.select(s.max(shift.max_abs_element()), o.max_abs_element());
             (pv, nv, sv) = rows_into(same, (point(q, ok), n, scale), (pv, nv, sv), &mut front, d);
             for l in (0..LANES).filter(|&l| same & (1 << l) != 0) {
