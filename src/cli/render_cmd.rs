@@ -502,8 +502,7 @@ pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
 pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     let mut out = Vec::new();
     let [t0, t1] = scene.camera.shutter;
-    // (`features.motion` is off for a shutter [0, 0], the default: ask the prims.)
-    if t0 == t1 && scene.prims.iter().any(|p| p.motion != glam::Vec3::ZERO) {
+    if scene.motion_at_one_instant() {
         let default = if t0 == 0.0 { " (the default: give camera.shutter, e.g. [0, 1])" } else { "" };
         out.push(format!(
             "shutter [{t0}, {t1}] has zero length{default}: every time sample is the instant {t0}, so shapes with `motion` show no \

@@ -279,11 +279,8 @@ fn exercised(scene: &Scene, i: crate::study::Integral) -> (bool, &'static str) {
     let f = &scene.features;
     match i {
         I::Lens => (f.lens, "camera aperture"),
-        // (A zero-length shutter with moving shapes renders them at one instant: nothing to integrate;
-        // `features.motion` is off under the default `[0, 0]`, so the prims are asked.)
-        I::Time if scene.prims.iter().any(|p| p.motion != glam::Vec3::ZERO) && !(scene.camera.shutter[1] > scene.camera.shutter[0]) => {
-            (false, "shutter of non-zero length")
-        }
+        // (A zero-length shutter with moving shapes renders them at one instant: nothing to integrate.)
+        I::Time if scene.motion_at_one_instant() => (false, "shutter of non-zero length"),
         I::Time => (f.motion, "moving shapes"),
         I::Glossy => (f.glossy, "glossy surface"),
         I::Light => (f.area_lights, "area light"),

@@ -342,6 +342,13 @@ impl Scene {
         self.camera_media.iter().filter(holds).skip(skip).fold(Default::default(), |s, m| s.push(m.material))
     }
 
+    /// Whether the scene has moving shapes but a shutter of zero length (the default `[0, 0]` too, for
+    /// which `features.motion` is off): every time sample is one instant.
+    pub fn motion_at_one_instant(&self) -> bool {
+        let [t0, t1] = self.camera.shutter;
+        !(t1 > t0) && self.prims.iter().any(|p| p.motion != Vec3::ZERO)
+    }
+
     /// Whether some medium holds the camera for part of the shutter only, so that camera rays' media
     /// depend on their time.
     pub fn camera_media_move(&self) -> bool {

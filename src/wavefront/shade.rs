@@ -208,9 +208,7 @@ fn hit_rows_x8(
         let (p, error_scale) = flat_hits_x8(naive, n, shift, f32x8::splat(g.w), f32x8::splat(g.w_scale));
         return HitRows { p, n_facing: flip(ahead, n), error_scale, front: ahead.to_bitmask(), material, sph: 0, still: 0, uniform };
     }
-    let mut p = [[0.0f32; LANES]; 3];
     let mut nf = [[0.0f32; LANES]; 3];
-    let mut scale = [0.0f32; LANES];
     let mut material = [0u32; LANES];
     let (mut sph, mut still, mut pla, mut front) = (0u32, 0u32, 0u32, 0u32);
     let mut sc = [[0.0f32; LANES]; 3];
@@ -251,24 +249,16 @@ fn hit_rows_x8(
         } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Box(_) | Shape::Ellipsoid(_)) {
             // (Ellipsoids: spheres under a non-uniform scale.)
             solids |= 1 << l;
-        } else if matches!(scene.prims[prims[l] as usize].shape, Shape::Csg { .. }) {
-            // CSG leaves: after the loop, per distinct leaf.
+        } else {
+            // CSG leaves (every other shape is taken above): after the loop, per distinct leaf.
+            debug_assert!(matches!(scene.prims[prims[l] as usize].shape, Shape::Csg { .. }));
             csg |= 1 << l;
             leaf_of[l] = hits.leaf[i as usize];
             flipped |= (hits.flip[i as usize] as u32) << l;
-        } else {
-            // (`surface_hit` reads the ray's origin, direction and time only.)
-            let r = RayItem { o: o.lane(l), d: d.lane(l), time: times[l], ..RayItem::default() };
-            let i = i as usize;
-            let hit = surface_hit(scene, &r, t[l], prims[l], hits.leaf[i], hits.flip[i]);
-            for k in 0..3 {
-                (p[k][l], nf[k][l]) = (hit.p[k], hit.n_facing[k]);
-            }
-            (scale[l], material[l]) = (hit.error_scale, hit.material);
-            front |= (hit.front as u32) << l;
         }
     }
-    let (mut pv, mut nv, mut sv) = (Vec3x8::from_rows(&p), Vec3x8::from_rows(&nf), f32x8::from(scale));
+    // (Every lane's point and error magnitude are set by its kind's pass below.)
+    let (mut pv, mut nv, mut sv) = (Vec3x8::splat(Vec3::ZERO), Vec3x8::from_rows(&nf), f32x8::ZERO);
     if pla != 0 {
         // The point o + t d projected onto the plane, and the normal turned to face the ray.
         let (fp, fscale) = flat_hits_x8(naive, nv, Vec3x8::from_rows(&fshift), f32x8::from(fw), f32x8::from(fs));
