@@ -451,6 +451,10 @@ pub struct NeeQueue {
     /// A static sphere the point lies on, seen from outside (its shadow rays leave it outward and
     /// cannot meet it again: it is convex), else [`NONE`].
     pub own: Vec<u32>,
+    /// The media around each shading point (its incoming ray's stack: its shadow rays start inside
+    /// them), in scenes with dielectrics; empty elsewhere (every point is in air) and where requests
+    /// were pushed one by one ([`NeeQueue::push`]).
+    pub media: Vec<MediumStack>,
     /// In the queue of glossy points ([`NeeQueue::glossy`], filled by [`NeeQueue::push_lobes`]; empty
     /// elsewhere): the direction back along the incoming ray (unit) and the GGX `alpha` (its `w` is
     /// throughput x tint: the shadow stage evaluates the lobe per light sample), never 0; `alpha < 0`
@@ -468,7 +472,7 @@ pub struct NeeQueue {
 impl NeeQueue {
     pub fn clear(&mut self) {
         macro_rules! clr { ($($f:ident),*) => { $( self.$f.clear(); )* }; }
-        clr!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time, own, wox, woy, woz, alpha);
+        clr!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time, own, media, wox, woy, woz, alpha);
         if let Some(g) = &mut self.glossy {
             g.clear();
         }
@@ -488,7 +492,7 @@ impl NeeQueue {
                 self.$f.extend(order.iter().map(|&i| src.$f[i as usize]));
             }
         )* }; }
-        copy!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time, own, wox, woy, woz, alpha);
+        copy!(px, py, pz, ox, oy, oz, nx, ny, nz, wr, wg, wb, path, key, sample, time, own, media, wox, woy, woz, alpha);
     }
     #[inline]
     #[allow(clippy::too_many_arguments)]
@@ -524,6 +528,8 @@ pub struct NeeRows<'a> {
     pub sample: &'a [u32; LANES],
     pub time: &'a [f32; LANES],
     pub own: &'a [u32; LANES],
+    /// The media around the points, where the scene has dielectrics (see [`NeeQueue::media`]).
+    pub media: Option<&'a [MediumStack; LANES]>,
 }
 
 impl NeeQueue {
@@ -541,6 +547,9 @@ impl NeeQueue {
         put(&mut self.sample, r.sample, m);
         put(&mut self.time, r.time, m);
         put(&mut self.own, r.own, m);
+        if let Some(media) = r.media {
+            put(&mut self.media, media, m);
+        }
     }
 
     /// The lobe columns of the `m` requests just pushed (see [`NeeQueue::wox`]).

@@ -750,6 +750,7 @@ impl<'a> Ctx<'a> {
                     sample: &samples,
                     time: &times,
                     own: &own,
+                    media: scene.features.dielectric.then_some(&media),
                 },
             );
         }
@@ -1170,6 +1171,7 @@ impl<'a> Ctx<'a> {
                     sample: &sample,
                     time: &times,
                     own: &own,
+                    media: scene.features.dielectric.then_some(&media),
                 },
             );
             // (Negative: no lobe ray to share the light with, at the depth limit, or a lobe ray in the

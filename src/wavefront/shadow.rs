@@ -14,8 +14,8 @@ use super::cone::LightCone;
 use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::pick::LightPick;
-use super::queues::{NeeQueue, PathTable};
-use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, SingleSpheres, Walk};
+use super::queues::{MediumStack, NeeQueue, PathTable};
+use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_from_x8, SingleSpheres, Walk};
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{LightBuffer, WideStack, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
@@ -417,6 +417,9 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
             *r = (base + l.min(m - 1)) as u32;
         }
         let req = u32x8::from(req);
+        // Requests whose points lie inside media (their shadow rays are absorbed on the way, and
+        // cross the media's surfaces from inside): traced and walked, never answered untraced.
+        let inside = if nee.media.is_empty() { 0 } else { lane_bits(|l| l < m && nee.media[base + l] != MediumStack::default()) };
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
@@ -484,13 +487,13 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
             // can meet only one glass sphere they walk through (`glass`), or one opaque prim (`opaque`):
             // tested against that prim (`prim_of`) alone.
             let verdict = cones[li].as_ref().map(|c| c.verdict(scene, o, live));
-            let clear = verdict.map_or(0, |v| v.clear);
+            let clear = verdict.map_or(0, |v| v.clear) & !inside;
             let (glass, opaque, prim_of) = match verdict {
                 Some(v) if v.single != 0 => {
                     let single = |l: usize| v.single & (1 << l) != 0;
                     (
-                        lane_bits(|l| single(l) && walk && pair_sphere(scene, profile, v.prim[l])),
-                        lane_bits(|l| single(l) && opaque_prim(scene, profile, v.prim[l])),
+                        lane_bits(|l| single(l) && walk && pair_sphere(scene, profile, v.prim[l])) & !inside,
+                        lane_bits(|l| single(l) && opaque_prim(scene, profile, v.prim[l])) & !inside,
                         v.prim,
                     )
                 }
@@ -590,8 +593,8 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
                     // Answered from the light's buffer; where AVX-512 makes 16 lanes cost what 8 do,
                     // two chunks' packets at once: an even chunk's packet waits for the next chunk's
                     // (`BufferJob`).
-                    let job = (lanes != 0).then_some(BufferJob { base, lanes, c });
-                    lanes = 0;
+                    let job = (lanes & !inside != 0).then_some(BufferJob { base, lanes: lanes & !inside, c });
+                    lanes &= inside;
                     // (Requests that picked their light are sorted by it: no pairs across lights.)
                     if PAIR_PACKETS && picked.is_none() && chunk.is_multiple_of(2) {
                         held[li] = job;
@@ -623,11 +626,13 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
                 let bi = li.min(nb - 1);
                 let lo = if picked.is_some() { bi } else { 0 };
                 if batches[bi].len + LANES > BATCH {
-                    traced += flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, arena, walk, single.as_deref_mut());
+                    traced +=
+                        flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, &nee.media, arena, walk, single.as_deref_mut());
                 }
                 batches[bi].append(&Rays8 { o, d: target - o, tmax: end, time, contrib: c, req }, lanes);
                 if batches[bi].len == BATCH {
-                    traced += flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, arena, walk, single.as_deref_mut());
+                    traced +=
+                        flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, &nee.media, arena, walk, single.as_deref_mut());
                 }
             }
             if clear | glass | opaque != 0 {
@@ -642,7 +647,7 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
             traced += resolve_buffered(scene, profile, lb, li, nee, job.take().as_ref(), None, &mut credit, arena);
         }
     }
-    traced += flush_upto(scene, profile, &mut batches[..nb], &mut credit, arena, walk, single);
+    traced += flush_upto(scene, profile, &mut batches[..nb], &mut credit, &nee.media, arena, walk, single);
     BATCHES.set(batches);
     credit.to_paths(nee, paths);
     (traced, cleared)
@@ -992,30 +997,35 @@ thread_local! {
 const MAX_LIGHT_BATCHES: usize = 4;
 
 /// [`flush`] every non-empty batch of `batches`, in order (a light's batch after every lower light's).
+#[allow(clippy::too_many_arguments)]
 fn flush_upto(
     scene: &Scene,
     profile: &Profile,
     batches: &mut [Box<Batch>],
     credit: &mut Credit,
+    media: &[MediumStack],
     arena: &mut CsgArena,
     walk: bool,
     mut single: Option<&mut WideStack>,
 ) -> u64 {
     let mut traced = 0;
     for pk in batches.iter_mut().filter(|b| b.len > 0) {
-        traced += flush(scene, profile, pk, credit, arena, walk, single.as_deref_mut());
+        traced += flush(scene, profile, pk, credit, media, arena, walk, single.as_deref_mut());
     }
     traced
 }
 
 /// Trace the batch's shadow rays (any hit, as one traversal group, or one ray at a time when `single`
 /// holds a stack: [`occlusion_single`]) and credit the unoccluded ones, times their transmittance where
-/// they met dielectrics they walk through. Returns rays traced (walk segments included).
+/// they met dielectrics they walk through or start inside media (`media`, by request: [`NeeQueue::media`]).
+/// Returns rays traced (walk segments included).
+#[allow(clippy::too_many_arguments)]
 fn flush(
     scene: &Scene,
     profile: &Profile,
     pk: &mut Batch,
     credit: &mut Credit,
+    media: &[MediumStack],
     arena: &mut CsgArena,
     walk: bool,
     single: Option<&mut WideStack>,
@@ -1042,17 +1052,26 @@ fn flush(
         let lanes = (n - j * LANES).min(LANES);
         let r = j * LANES..j * LANES + LANES;
         let bits = occluded[j].to_bitmask();
-        let through = touched[j] & !bits & ((1u32 << lanes) - 1);
+        // The media each lane starts in (none, unless the scene has dielectrics).
+        let mut start = [MediumStack::default(); LANES];
+        if !media.is_empty() {
+            for (l, s) in start.iter_mut().enumerate().take(lanes) {
+                *s = media[pk.req[j * LANES + l] as usize];
+            }
+        }
+        let inside = lane_bits(|l| start[l] != MediumStack::default());
+        let through = (touched[j] | inside) & !bits & ((1u32 << lanes) - 1);
         let tr = if through != 0 {
             let arr = |a: &[f32; BATCH]| <[f32; LANES]>::try_from(&a[r.clone()]).unwrap();
             let (o, d) = ([0, 1, 2].map(|a| arr(&pk.o[a])), [0, 1, 2].map(|a| arr(&pk.d[a])));
-            let (tr, w) = transmittance_x8(
+            let (tr, w) = transmittance_from_x8(
                 scene,
                 profile,
                 &o,
                 &d,
                 &arr(&pk.tmax),
                 &arr(&pk.time),
+                &start,
                 through,
                 arena,
                 pk.walk.get_or_insert_with(Walk::new),

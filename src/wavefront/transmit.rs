@@ -18,10 +18,13 @@
 //!   `1 - F` of the outer angle; at its own inner angle the straight ray would be totally reflected
 //!   past the critical angle (a slab's shadow went black beyond 42 degrees, a user trial).
 //!
-//! The medium around the shading point is inferred from the crossings: a medium whose first crossing on the
-//! segment is an exit contains the start. (A shading point inside a medium whose light is in the same medium,
-//! with no surface between, is not attenuated: no crossing tells.) Indices are the nominal ones (shadow rays
-//! carry no wavelength). A segment with more than [`MAX_CROSSINGS`] surfaces counts as blocked.
+//! The media around the shading point are those of the ray that reached it (its stack, which the request
+//! carries in scenes with dielectrics): the segment starts inside them, absorbed along its length even
+//! where it crosses no surface, and a surface it crosses is weighed between the media on its two sides
+//! (an air bubble in glass is a real interface). Where that stack is empty the media around the start
+//! are also inferred from the crossings: a medium whose first crossing on the segment is an exit
+//! contains the start. Indices are the nominal ones (shadow rays carry no wavelength). A segment with
+//! more than [`MAX_CROSSINGS`] surfaces counts as blocked.
 
 use super::intersect::{in_prim_frame, prim_t_at_x8};
 use super::medium;
@@ -143,6 +146,26 @@ pub fn transmittance_x8(
     arena: &mut CsgArena,
     walk: &mut Walk,
 ) -> ([Vec3; LANES], u64) {
+    transmittance_from_x8(scene, profile, o, d, tmax, time, &[MediumStack::default(); LANES], lanes, arena, walk)
+}
+
+/// [`transmittance_x8`] of segments that start inside the media `start` (per lane: the stack of the
+/// ray that reached the shading point). A lane whose stack is empty takes the media around its start
+/// from the crossings (see the module doc); one whose stack is not starts in it, absorbed along the
+/// segment even where it crosses no surface, and its crossings replayed from that stack.
+#[allow(clippy::too_many_arguments)]
+pub fn transmittance_from_x8(
+    scene: &Scene,
+    profile: &Profile,
+    o: &[[f32; LANES]; 3],
+    d: &[[f32; LANES]; 3],
+    tmax: &[f32; LANES],
+    time: &[f32; LANES],
+    start: &[MediumStack; LANES],
+    lanes: u32,
+    arena: &mut CsgArena,
+    walk: &mut Walk,
+) -> ([Vec3; LANES], u64) {
     let dir: [Vec3; LANES] = std::array::from_fn(|l| Vec3::new(d[0][l], d[1][l], d[2][l]));
     let tm = f32x8::from(std::array::from_fn::<f32, LANES, _>(|l| if lanes & (1 << l) != 0 { tmax[l] } else { -1.0 }));
     let ray = Ray8::new(Vec3x8::from_rows(o), Vec3x8::from_rows(d), tm);
@@ -154,7 +177,8 @@ pub fn transmittance_x8(
 
     let mut tr = [Vec3::ZERO; LANES];
     // Lanes that enter and leave one sphere of a one-medium dielectric (the usual walk) in 8 lanes.
-    let pairs = if cr.sphere_pairs { sphere_pair_lanes(scene, profile, cr, lanes & !cr.full) } else { 0 };
+    let inside = lane_bits(|l| start[l] != MediumStack::default());
+    let pairs = if cr.sphere_pairs { sphere_pair_lanes(scene, profile, cr, lanes & !cr.full & !inside) } else { 0 };
     if pairs != 0 {
         sphere_pairs_x8(scene, profile, cr, &ray, time, pairs, &mut tr);
     }
@@ -165,7 +189,7 @@ pub fn transmittance_x8(
     while bits != 0 {
         let l = bits.trailing_zeros() as usize;
         bits &= bits - 1;
-        tr[l] = lane_transmittance(scene, profile, cr, l, (dir[l] * tmax[l]).length());
+        tr[l] = lane_transmittance(scene, profile, cr, l, (dir[l] * tmax[l]).length(), start[l]);
     }
     (tr, lanes.count_ones() as u64)
 }
@@ -497,7 +521,7 @@ fn pair_fresnel_x8(c: Vec3x8, n: f32x8, t: [f32x8; 2], ray: &Ray8) -> (f32x8, f3
 /// Transmittance of lane `l`'s segment (of length `len`) from its collected crossings: 0 at a surface that
 /// stops shadow rays or past [`MAX_CROSSINGS`], else the replay of the crossings sorted along the segment.
 #[inline]
-fn lane_transmittance(scene: &Scene, profile: &Profile, cr: &Walk, l: usize, len: f32) -> Vec3 {
+fn lane_transmittance(scene: &Scene, profile: &Profile, cr: &Walk, l: usize, len: f32, start: MediumStack) -> Vec3 {
     let (raw, geo) = (&cr.raw[l], &cr.geo[l]);
     let mut events = [Event::default(); MAX_CROSSINGS];
     let mut order = [(0.0f32, 0u32, 0u32, 0u32); MAX_CROSSINGS];
@@ -522,7 +546,7 @@ fn lane_transmittance(scene: &Scene, profile: &Profile, cr: &Walk, l: usize, len
         events[i] = e;
         n += 1;
     }
-    replay(scene, profile, &events[..n], len)
+    replay(scene, profile, &events[..n], len, start)
 }
 
 /// Whether boundary key `a` sorts after `b` (by distance, then exits after entries, prim, leaf).
@@ -642,8 +666,12 @@ fn replay_one_medium(scene: &Scene, profile: &Profile, events: &[Event], len: f3
     Some(tr)
 }
 
-/// Transmittance of one segment of length `len` from its recorded crossings (see the module doc).
-fn replay(scene: &Scene, profile: &Profile, events: &[Event], len: f32) -> Vec3 {
+/// Transmittance of one segment of length `len` from its recorded crossings (see the module doc), from
+/// the media `start` where the segment's start is known to be inside some.
+fn replay(scene: &Scene, profile: &Profile, events: &[Event], len: f32, start: MediumStack) -> Vec3 {
+    if start != MediumStack::default() {
+        return replay_stack(scene, profile, events, len, start);
+    }
     match replay_one_medium(scene, profile, events, len) {
         Some(tr) => tr,
         None => replay_media(scene, profile, events, len),
@@ -667,7 +695,12 @@ fn replay_media(scene: &Scene, profile: &Profile, events: &[Event], len: f32) ->
     for &(_, m) in &starts[..n_starts] {
         stack = stack.push(m);
     }
+    replay_stack(scene, profile, events, len, stack)
+}
 
+/// The replay of [`replay_media`] from the media `stack` around the segment's start.
+fn replay_stack(scene: &Scene, profile: &Profile, events: &[Event], len: f32, stack: MediumStack) -> Vec3 {
+    let mut stack = stack;
     let ior = |m: Option<u32>| m.and_then(|m| medium::dielectric(scene, m)).map_or(1.0, |d| d.ior.nominal());
     let absorb = |stack: MediumStack, dist: f32| match medium::current(scene, stack).and_then(|m| medium::dielectric(scene, m)) {
         Some(d) if d.sigma_a != Vec3::ZERO => beer_lambert(d.sigma_a, dist),
