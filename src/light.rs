@@ -70,10 +70,16 @@ pub fn sample_light(light: &Light, p: Vec3, u: [f32; 2]) -> Option<LightSample> 
             let disc = (r2 - (v - wi * b).length_squared()).max(0.0);
             let th = (d2 - r2) / (b + disc.sqrt());
             let y = p + wi * th;
-            let n = (y - center).normalize();
             let pdf = 1.0 / (2.0 * std::f32::consts::PI * one_minus_cos);
-            // y was computed from the receiver's position: its error is ULPs of |p| as well.
-            Some(LightSample { target: offset_ray_origin_scaled(y, n, p.abs().max_element()), wi, weight: radiance / pdf })
+            // The target is moved back along the ray towards the receiver, so that the shadow segment
+            // stops short of the sphere (where the ray first meets it) without leaving the sampled
+            // direction. (Moved along the sphere's normal at y, as it was, a sample near the silhouette
+            // went sideways by the offset, which at 5e3 from the origin is 0.125: a light of radius
+            // 5e-4 there cast the soft shadow of one 250 times larger; and below the f32 spacing of its
+            // centre's coordinates `y - center` is zero, the normal NaN, and every such shadow ray
+            // passed: speckled shadows. Both user trials.) y was computed from the receiver's position:
+            // its error is ULPs of |p| as well.
+            Some(LightSample { target: offset_ray_origin_scaled(y, -wi, p.abs().max_element()), wi, weight: radiance / pdf })
         }
     }
 }
@@ -313,6 +319,43 @@ mod tests {
             Light::Disk { disk: Disk::new(Vec3::new(0.5, 2.0, 0.0), Vec3::new(0.0, -1.0, 0.2), 0.7), radiance: Vec3::splat(3.0) },
             Light::Sphere { center: Vec3::new(0.0, 5.0, 1.0), radius: 0.5, radiance: Vec3::splat(7.0) },
         ]
+    }
+
+    /// A sphere light's shadow-ray target lies on the sampled direction, short of the sphere: for radii
+    /// from 1 down to far below the f32 spacing of the centre's coordinates (where `y - center` is
+    /// zero: its normal was NaN, and the shadow rays passed), near the origin and 5e3 from it (where
+    /// the offset, 256 ULPs of the coordinates, is 0.125: along the normal it moved silhouette samples
+    /// sideways by that, a light 250x its size). Checked in f64: the target's distance from the ray
+    /// `p + t wi` within 4 ULPs of the coordinates and 1e-6 of the distance travelled (the f32 rounding
+    /// of the points), and the target outside the sphere, nearer than its centre.
+    #[test]
+    fn sphere_light_targets_stay_on_their_rays() {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(46);
+        let mut u01 = || (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+        let mut checked = 0;
+        for shift in [Vec3::ZERO, Vec3::new(5e3, 0.0, 0.0)] {
+            for radius in [1.0, 1e-3, 5e-4, 1e-6, 1e-9] {
+                let center = Vec3::new(-1.0, 3.0, -1.0) + shift;
+                let light = Light::Sphere { center, radius, radiance: Vec3::ONE };
+                for _ in 0..200 {
+                    let p = Vec3::new(u01() * 6.0 - 3.0, 0.0, u01() * 6.0 - 3.0) + shift;
+                    let Some(s) = sample_light(&light, p, [u01(), u01()]) else { continue };
+                    assert!(s.target.is_finite() && s.wi.is_finite(), "radius {radius} at {shift}: {s:?}");
+                    let (p64, t64, wi64, c64) = (p.as_dvec3(), s.target.as_dvec3(), s.wi.as_dvec3(), center.as_dvec3());
+                    let along = (t64 - p64).dot(wi64);
+                    let off = ((t64 - p64) - wi64 * along).length();
+                    let ulp = p.abs().max_element().max(1.0) as f64 * f32::EPSILON as f64;
+                    assert!(along > 0.0 && off <= 4.0 * ulp + 1e-6 * along, "radius {radius} at {shift}: {off} off the ray of {along}");
+                    let to_centre = (c64 - p64).length();
+                    assert!(
+                        along < to_centre && (t64 - c64).length() >= radius as f64 * (1.0 - 1e-6),
+                        "radius {radius} at {shift}: inside"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 1500, "{checked} samples");
     }
 
     /// [`sample_pdf_x8`] and [`power_heuristic_x8`] against their scalar twins, bit for bit: points
