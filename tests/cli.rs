@@ -810,6 +810,24 @@ fn a_zero_length_shutter_with_motion_is_warned_about() {
         assert_eq!(o.status.code(), Some(0), "{err}");
         assert_eq!(err.contains("has zero length") && err.contains("no motion blur"), warned, "{shutter}: {err}");
     }
+    // A shutter 1 long at 1e6, where f32 times are 0.0625 apart: 16 instants, motion blur in 16 steps (a
+    // user trial); at 1e3 (6e-5 apart: 16,384 instants) nothing to say.
+    for (shutter, warned) in [("shutter = [1e6, 1000001.0]", true), ("shutter = [1e3, 1001.0]", false)] {
+        std::fs::write(
+            &scene,
+            format!(
+                "[image]\nwidth = 8\nheight = 6\n[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\nfov = 40\n{shutter}\n\
+                 [materials.m]\ntype = \"lambert\"\nalbedo = [0.6, 0.5, 0.4]\n\
+                 [[shapes]]\ntype = \"sphere\"\ncenter = [-1e6, 0, 0]\nradius = 1\nmaterial = \"m\"\nmotion = [1, 0, 0]\n"
+            ),
+        )
+        .unwrap();
+        let out = tmp("shutter.png");
+        let o = strata().args(["render", scene.to_str().unwrap(), "-q", "--spp", "4", "-o", out.to_str().unwrap()]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(0), "{err}");
+        assert_eq!(err.contains("f32 times there are 0.0625 apart, so it holds only 16 distinct instants"), warned, "{shutter}: {err}");
+    }
 }
 
 /// `--size WxH` renders the scene at another size (the image and the summary say so), a film records it

@@ -82,6 +82,10 @@ fn mean_check_finds_offsets_that_noise_does_not_explain() {
     let same: Vec<Vec3> = reference.iter().map(|r| r.as_vec3()).collect();
     assert_eq!(mean_check(&same, &reference), (1.0, 0.0));
     assert!(mean_check(&same, &vec![DVec3::ZERO; n]).0.is_nan());
+    // One pixel: no spread, so no z (0 read as "no bias": a user trial), but for identical images.
+    let (ratio, z) = mean_check(&[Vec3::splat(1.27)], &[DVec3::ONE]);
+    assert!((ratio - 1.27).abs() < 1e-6 && z.is_nan(), "{ratio} {z}");
+    assert_eq!(mean_check(&[Vec3::ONE], &[DVec3::ONE]), (1.0, 0.0));
     // A uniform offset without noise: infinitely many standard errors.
     let shifted: Vec<Vec3> = same.iter().map(|v| *v + 0.001).collect();
     let (ratio, z) = mean_check(&shifted, &reference);
@@ -670,11 +674,15 @@ fn reference_cache_is_reused_only_when_fresh() {
 fn cli_input_errors_exit_2_with_a_message() {
     let dir = tmp_dir("errors");
     let d = dir.to_str().unwrap();
-    let cases: [(&[&str], &str); 21] = [
+    let cases: [(&[&str], &str); 24] = [
         (&["--strategies", "random,magic"], "unknown strategy `magic`"),
         (&["--integrals", "light,light"], "`light` is listed twice"),
         (&["--integrals", "all,light"], "`all` (every integral) stands alone"),
-        (&["--spp", "99999999999"], "sample count `99999999999` is too large"),
+        (&["--spp", "99999999999"], "sample count `99999999999` is too large (at most 1048576 camera samples per pixel)"),
+        // The limit named is the one that applies (it said 4294967295, a user trial).
+        (&["--spp", "2000000"], "sample count `2000000` is too large (at most 1048576 camera samples per pixel)"),
+        (&["--spp=-4"], "sample count `-4` is negative (a count: a whole number, at most 1048576)"),
+        (&["--integrals", "light", "--spp", "4294967296"], "too large (at most 4294967295 light samples per shading point)"),
         // Nothing studied that the scene has: every run would be the same image.
         (&["--integrals", "lens,time"], "the scene does not exercise lens, time (no camera aperture, moving shapes)"),
         (&["--spp", ","], "--spp: the list is empty"),
@@ -703,6 +711,8 @@ fn cli_input_errors_exit_2_with_a_message() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{extra:?}: {err}");
         assert!(err.contains(msg), "{extra:?}: expected `{msg}` in: {err}");
+        // A refused study is not also warned of (its runs' warnings came first: a user trial).
+        assert!(!err.contains("warning"), "{extra:?}: warned before refusing: {err}");
     }
     // Moving shapes under a zero-length shutter: one instant, no time integral (a trial's table of MSE 0
     // and efficiency `inf` rows).
@@ -991,4 +1001,40 @@ fn cli_interrupted_reference_is_continued() {
     strata::film::file::write_film(&films[0], &film.header, &film.film).unwrap();
     let (first3, _) = run();
     assert!(first3 < kept2, "a film of another build was continued: the third run began at {first3} of {kept2} kept");
+}
+
+/// A study whose runs equal the reference (its first seed is the reference's own render) has MSE 0,
+/// which a log-scale plot cannot show: the table says MSE 0 and the output says the plot leaves those
+/// rows out (a user trial found an empty study.png and no word of why).
+#[test]
+fn rows_of_zero_error_are_said_to_be_left_off_the_plot() {
+    let dir = tmp_dir("zero");
+    let reference = dir.join("self.exr");
+    let r = reference.to_str().unwrap();
+    let out = strata()
+        .args(["render", "scenes/soft_shadows.toml", "-q", "--threads", "2", "--size", "40x30", "--spp", "16", "--seed", "1", "-o", r])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let d = dir.join("st");
+    let text = run_ok(&[
+        "study",
+        "scenes/soft_shadows.toml",
+        "--size",
+        "40x30",
+        "--threads",
+        "2",
+        "--reference",
+        r,
+        "--strategies",
+        "jittered",
+        "--spp",
+        "16",
+        "--seeds",
+        "1",
+        "--out",
+        d.to_str().unwrap(),
+    ]);
+    assert!(text.contains("1 of 1 rows have MSE 0, equal to the reference"), "{text}");
+    assert!(d.join("study.png").exists());
 }

@@ -494,11 +494,24 @@ pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
     None
 }
 
+/// A shutter holding fewer distinct f32 instants than this is warned about (its motion blur is a
+/// staircase of that many steps).
+const SHUTTER_MIN_INSTANTS: u64 = 1024;
+
+/// How many distinct f32 times the shutter `[t0, t1]` holds (its length over the f32 spacing at its
+/// larger end); `None` for a shutter of no length.
+fn shutter_instants(t0: f32, t1: f32) -> Option<u64> {
+    let m = t0.abs().max(t1.abs()).max(f32::MIN_POSITIVE);
+    let spacing = f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON;
+    (t1 > t0).then(|| ((t1 as f64 - t0 as f64) / spacing as f64).round() as u64)
+}
+
 /// Samples that do not sample what their integral asks: one light sample on a `grid` (the light's centre
 /// for every camera sample: a hard shadow at any spp), 2D grids whose count has no near-square
 /// factorisation (`grid_shape` gives one row, 1 x 2 or 1 x 7 for a prime, or strips more than 4 times
 /// longer than wide: the integral is sampled along one axis; jittered sets of such counts take equal-area strata in rows,
-/// `jitter_rows`), and a shutter of zero length in a scene with motion.
+/// `jitter_rows`), and a shutter of zero length in a scene with motion, or one so far from time 0 for
+/// its length that f32 holds few instants in it ([`SHUTTER_MIN_INSTANTS`]).
 pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     let mut out = Vec::new();
     let [t0, t1] = scene.camera.shutter;
@@ -507,6 +520,13 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
         out.push(format!(
             "shutter [{t0}, {t1}] has zero length{default}: every time sample is the instant {t0}, so shapes with `motion` show no \
              motion blur"
+        ));
+    } else if let Some(n) = shutter_instants(t0, t1).filter(|&n| n < SHUTTER_MIN_INSTANTS && scene.features.motion) {
+        let ulp = (t1 - t0) / n as f32;
+        out.push(format!(
+            "shutter [{t0}, {t1}] lies far from time 0 for its length: f32 times there are {ulp} apart, so it holds only {n} distinct \
+             instants and motion blur comes out in {n} steps; give times near 0 (a moving shape is at its `center` at time 0: \
+             shift the centres by `motion` times the same amount)"
         ));
     }
     if p.light_selection != LightSelection::All && scene.lights.len() <= 1 {

@@ -128,11 +128,17 @@ fn parse_strategy(s: &str) -> Result<Strategy, String> {
     Strategy::parse_or_explain(s)
 }
 
-fn parse_count(s: &str) -> Result<u32, String> {
-    // (Each integral's own upper limit is checked with the plan, which knows what a count means.)
-    match crate::scene::profile::parse_count(s, u32::MAX) {
+/// A count of `--spp`, at most `max` (`what` names its unit: camera samples per pixel, or light samples
+/// per shading point where the light integral is studied alone). (Other limits of an integral, such as
+/// a light grid's, are checked with the plan, which knows what a count means.)
+fn parse_count(s: &str, max: u32, what: &str) -> Result<u32, String> {
+    match crate::scene::profile::parse_count(s, max) {
         Ok(0) => Err(format!("`{s}` is not a sample count (an integer >= 1)")),
+        Ok(n) if n > max => Err(format!("sample count `{s}` is too large (at most {max} {what})")),
         Ok(n) => Ok(n),
+        Err(_) if s.trim().parse::<f64>().is_ok_and(|x| x > u32::MAX as f64) => {
+            Err(format!("sample count `{s}` is too large (at most {max} {what})"))
+        }
         Err(e) => Err(format!("sample count {e}")),
     }
 }
@@ -153,8 +159,6 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
         errln!("warning: {w}");
     }
     let strategies = parse_list("--strategies", &a.strategies, parse_strategy)?;
-    let mut counts = parse_list("--spp", &a.spp, parse_count)?;
-    counts.sort_unstable();
     let integrals = if a.integrals.trim().eq_ignore_ascii_case("all") {
         IntegralSet::all()
     } else {
@@ -166,6 +170,15 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
         })?;
         IntegralSet::of(&list)
     };
+    // n counts camera samples per pixel, or light samples per shading point with the light integral
+    // alone (taken in passes of at most MAX_LIGHT_SAMPLES, up to MAX_SPP passes: beyond u32).
+    let (max, what) = if light_only(&integrals) {
+        (u32::MAX, "light samples per shading point")
+    } else {
+        (crate::scene::MAX_SPP, "camera samples per pixel")
+    };
+    let mut counts = parse_list("--spp", &a.spp, |c| parse_count(c, max, what))?;
+    counts.sort_unstable();
     if a.seeds == 0 || a.seeds > 1000 {
         return Err(Failure::input(format!("--seeds must be in 1..=1000, got {}", a.seeds)));
     }
@@ -198,6 +211,16 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
              error cannot fall with n; study `light` with `pixel` (n = camera samples, each with its own pick), or \
              light_selection = \"all\"",
             profile.light_selection.name()
+        )));
+    }
+    // (Before the runs' warnings: a study of nothing the scene uses is refused, and its runs not warned of.)
+    let unused = unused_integrals(&scene, &integrals);
+    if unused.len() == integrals.len() {
+        return Err(Failure::input(format!(
+            "{}: the scene does not exercise {} (no {}): every run would render the same image; study another integral",
+            a.scene.display(),
+            unused.join(", "),
+            integrals.iter().map(|i| exercised(&scene, i).1).collect::<Vec<_>>().join(", ")
         )));
     }
     // The runs' sampling warnings, as `render` gives them, each once with the first run it concerns.
@@ -345,14 +368,6 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     }
     plan.cancel = Some(cancel);
     let unused = unused_integrals(&scene, &plan.integrals);
-    if unused.len() == plan.integrals.len() {
-        return Err(Failure::input(format!(
-            "{}: the scene does not exercise {} (no {}): every run would render the same image; study another integral",
-            a.scene.display(),
-            unused.join(", "),
-            plan.integrals.iter().map(|i| exercised(&scene, i).1).collect::<Vec<_>>().join(", ")
-        )));
-    }
     if !unused.is_empty() {
         errln!("note: the scene does not exercise {} (their strategy changes nothing)", unused.join(", "));
     }
@@ -460,6 +475,13 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
     plot::write(&plot_path, &summary, &plan.strategies, unit).map_err(Failure::runtime)?;
     outln!("wrote {}", csv_path.display());
     outln!("wrote {}", plot_path.display());
+    let zero = plot::undrawn(&summary, &plan.strategies);
+    if zero > 0 {
+        outln!(
+            "  ({zero} of {} rows have MSE 0, equal to the reference: a log scale has no 0, so study.png leaves them out)",
+            summary.len()
+        );
+    }
     if a.sheet {
         let sheet_path = a.out.join("sheet.png");
         sheet::write(&sheet_path, &series.images, &plan.strategies, &plan.counts, scene.width, scene.height, unit)
@@ -486,8 +508,9 @@ fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool, slopes_too: b
         plan.seeds
     );
     for s in summary {
+        let z = if s.mean_z.is_nan() { "n/a".to_string() } else { format!("{:.1}", s.mean_z) };
         outln!(
-            "{:<9} {:>6} {:>10.4} {:>12.0} {:>12.3e} {:>12.3e} {:>12.3e} {:>9.4} {:>8.1}{}",
+            "{:<9} {:>6} {:>10.4} {:>12.0} {:>12.3e} {:>12.3e} {:>12.3e} {:>9.4} {:>8}{}",
             s.strategy.name(),
             s.n,
             s.seconds,
@@ -496,7 +519,7 @@ fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool, slopes_too: b
             s.relmse,
             s.efficiency,
             s.mean_ratio,
-            s.mean_z,
+            z,
             if s.biased() { " !" } else { "" }
         );
     }
@@ -506,6 +529,9 @@ fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool, slopes_too: b
     );
     if summary.iter().any(|s| !s.mean_ratio.is_finite()) {
         outln!("  (mean/ref NaN: the reference is black)");
+    }
+    if summary.iter().any(|s| s.mean_z.is_nan()) {
+        outln!("  (z n/a: an image of one pixel has no spread to tell noise from bias; mean/ref stands alone)");
     }
     if summary.iter().any(Summary::biased) {
         outln!(

@@ -37,7 +37,8 @@ pub fn relmse(image: &[Vec3], reference: &[DVec3]) -> f64 {
 /// averaged over its channels, which share paths). A render's pixels are independent streams, so with no
 /// bias in the render or the reference `z` is about standard normal; a bias the size of the noise of a
 /// few pixels gives a large `z` over a whole image, where the MSE hardly moves (or drops: a black
-/// image of a dim, noisy region). `z` is 0 for identical images, infinite for a uniform offset.
+/// image of a dim, noisy region). `z` is 0 for identical images, infinite for a uniform offset, NaN for
+/// differing images of one pixel (nothing to estimate the noise from).
 pub fn mean_check(image: &[Vec3], reference: &[DVec3]) -> (f64, f64) {
     mean_check_f64(&image.iter().map(|x| x.as_dvec3()).collect::<Vec<_>>(), reference)
 }
@@ -54,12 +55,13 @@ pub fn mean_check_f64(image: &[DVec3], reference: &[DVec3]) -> (f64, f64) {
         sr += r.element_sum();
     }
     let ratio = if sr > 0.0 { sx / sr } else { f64::NAN };
-    if image.len() < 2 {
-        return (ratio, 0.0);
-    }
     // Per-pixel errors (channel means): their mean and, in a second pass, their spread.
     let e = |(x, r): (&DVec3, &DVec3)| (*x - *r).element_sum() / 3.0;
     let mean = image.iter().zip(reference).map(e).sum::<f64>() / n;
+    if image.len() < 2 {
+        // One pixel has no spread to tell its noise from a bias by (0 read as "no bias": a user trial).
+        return (ratio, if mean == 0.0 { 0.0 } else { f64::NAN });
+    }
     let var = image.iter().zip(reference).map(|p| (e(p) - mean).powi(2)).sum::<f64>() / (n - 1.0);
     let se = (var / n).sqrt();
     let z = if mean == 0.0 { 0.0 } else { mean / se };

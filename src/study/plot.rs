@@ -94,12 +94,14 @@ where
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .label_style(("sans-serif", 13))
         .draw()?;
+    let mut drawn = false;
     for &st in strategies {
         let pts: Vec<(f64, f64)> =
             summary.iter().filter(|s| s.strategy == st).map(|s| (x(s), s.mse)).filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
         if pts.is_empty() {
             continue;
         }
+        drawn = true;
         let (vs_n, vs_t) = slopes(summary, st);
         let fit = if slope_vs_time { vs_t } else { vs_n };
         let label = match fit {
@@ -113,6 +115,16 @@ where
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], c.stroke_width(2)));
         chart.draw_series(pts.iter().map(|p| Circle::new(*p, 4, c.filled())))?;
     }
+    // Rows with no error to draw on a log scale (MSE 0: the runs equal the reference) are said, not
+    // silently left out (an empty plot without a word: a user trial).
+    let zero = undrawn(summary, strategies);
+    if zero > 0 {
+        let note = format!("{zero} row{} with MSE 0 (equal to the reference): not on a log scale", if zero == 1 { "" } else { "s" });
+        area.draw(&Text::new(note, (100, 48), ("sans-serif", 14).into_font().color(&RED)))?;
+    }
+    if !drawn {
+        return Ok(());
+    }
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::LowerLeft)
@@ -121,6 +133,11 @@ where
         .label_font(("sans-serif", 14))
         .draw()?;
     Ok(())
+}
+
+/// The rows of `strategies` in `summary` that a log-scale plot cannot show: MSE 0 (or not a number).
+pub fn undrawn(summary: &[Summary], strategies: &[Strategy]) -> usize {
+    summary.iter().filter(|s| strategies.contains(&s.strategy) && !(s.mse > 0.0)).count()
 }
 
 /// Draw the two panels into an RGB buffer of [`PLOT_SIZE`].
