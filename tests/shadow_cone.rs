@@ -266,6 +266,7 @@ fn single_sphere_lanes_match_the_traversal_and_the_walk() {
                     &rows(d),
                     &tmax.to_array(),
                     &[0.0; LANES],
+                    &[strata::wavefront::MediumStack::default(); LANES],
                     touched & done,
                     &mut arena,
                     &mut walk,

@@ -15,7 +15,7 @@ use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::pick::LightPick;
 use super::queues::{MediumStack, NeeQueue, PathTable};
-use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_from_x8, SingleSpheres, Walk};
+use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, SingleSpheres, Walk};
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{LightBuffer, WideStack, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
@@ -1064,7 +1064,7 @@ fn flush(
         let tr = if through != 0 {
             let arr = |a: &[f32; BATCH]| <[f32; LANES]>::try_from(&a[r.clone()]).unwrap();
             let (o, d) = ([0, 1, 2].map(|a| arr(&pk.o[a])), [0, 1, 2].map(|a| arr(&pk.d[a])));
-            let (tr, w) = transmittance_from_x8(
+            let (tr, w) = transmittance_x8(
                 scene,
                 profile,
                 &o,

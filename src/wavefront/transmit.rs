@@ -133,28 +133,12 @@ impl Walk {
 /// the normals ([`events`]: a sphere's from the point, a box's from the face of its slab, others' as the
 /// shading stage's `surface_hit` finds them); sorted along the segment
 /// (entries before exits, then prim and leaf at equal distance, whatever the traversal order), they are
-/// replayed.
+/// replayed. `start`: per lane, the media the segment starts inside (the stack of the ray that reached
+/// the shading point): a lane whose stack is not empty starts in it, absorbed along the segment even
+/// where it crosses no surface, its crossings replayed from that stack; one whose stack is empty takes
+/// the media around its start from the crossings (see the module doc).
 #[allow(clippy::too_many_arguments)]
 pub fn transmittance_x8(
-    scene: &Scene,
-    profile: &Profile,
-    o: &[[f32; LANES]; 3],
-    d: &[[f32; LANES]; 3],
-    tmax: &[f32; LANES],
-    time: &[f32; LANES],
-    lanes: u32,
-    arena: &mut CsgArena,
-    walk: &mut Walk,
-) -> ([Vec3; LANES], u64) {
-    transmittance_from_x8(scene, profile, o, d, tmax, time, &[MediumStack::default(); LANES], lanes, arena, walk)
-}
-
-/// [`transmittance_x8`] of segments that start inside the media `start` (per lane: the stack of the
-/// ray that reached the shading point). A lane whose stack is empty takes the media around its start
-/// from the crossings (see the module doc); one whose stack is not starts in it, absorbed along the
-/// segment even where it crosses no surface, and its crossings replayed from that stack.
-#[allow(clippy::too_many_arguments)]
-pub fn transmittance_from_x8(
     scene: &Scene,
     profile: &Profile,
     o: &[[f32; LANES]; 3],
@@ -814,7 +798,7 @@ mod tests {
                 (tmax[l], time[l]) = (1.0, if case % 3 == 0 { 0.0 } else { f() });
             }
             let lanes = (f() * 256.0) as u32 | 1;
-            transmittance_x8(&scene, &profile, &o, &d, &tmax, &time, lanes, &mut arena, &mut walk);
+            transmittance_x8(&scene, &profile, &o, &d, &tmax, &time, &[MediumStack::default(); LANES], lanes, &mut arena, &mut walk);
             for l in (0..LANES).filter(|&l| lanes & !walk.full & (1 << l) != 0) {
                 let (o, d) = (Vec3::new(o[0][l], o[1][l], o[2][l]), Vec3::new(d[0][l], d[1][l], d[2][l]));
                 let (len, unit) = (d.length(), d.normalize_or_zero());
@@ -891,8 +875,10 @@ mod tests {
                 time[l] = f();
             }
             let lanes = (f() * 256.0) as u32 | 1;
-            let (a, _) = transmittance_x8(&scene, &profile, &o, &d, &tmax, &time, lanes, &mut arena, &mut fast);
-            let (b, _) = transmittance_x8(&scene, &profile, &o, &d, &tmax, &time, lanes, &mut arena, &mut slow);
+            let (a, _) =
+                transmittance_x8(&scene, &profile, &o, &d, &tmax, &time, &[MediumStack::default(); LANES], lanes, &mut arena, &mut fast);
+            let (b, _) =
+                transmittance_x8(&scene, &profile, &o, &d, &tmax, &time, &[MediumStack::default(); LANES], lanes, &mut arena, &mut slow);
             let bits = |v: &[Vec3; LANES]| v.map(|t| t.to_array().map(f32::to_bits));
             assert_eq!(bits(&a), bits(&b), "case {case}");
             paired += sphere_pair_lanes(&scene, &profile, &fast, lanes & !fast.full).count_ones() as usize;
