@@ -2,7 +2,7 @@
 //! the estimate of the irradiance from an area light is `Le cos_l / d^2 / pdf_area`, times the receiver's
 //! cosine, which the caller applies.
 
-use crate::geometry::{offset_ray_origin, offset_ray_origin_scaled, offset_ray_origin_scaled_x8};
+use crate::geometry::{offset_distance, offset_ray_origin, offset_ray_origin_scaled_x8};
 use crate::sample::{sample_disk_concentric, sample_disk_concentric_x8};
 use crate::scene::Light;
 use crate::simd::{f32x8, Vec3x8, LANES};
@@ -79,7 +79,10 @@ pub fn sample_light(light: &Light, p: Vec3, u: [f32; 2]) -> Option<LightSample> 
             // centre's coordinates `y - center` is zero, the normal NaN, and every such shadow ray
             // passed: speckled shadows. Both user trials.) y was computed from the receiver's position:
             // its error is ULPs of |p| as well.
-            Some(LightSample { target: offset_ray_origin_scaled(y, -wi, p.abs().max_element()), wi, weight: radiance / pdf })
+            // (At most half way back to the receiver: one nearer the sphere than the offset would
+            // otherwise get a target behind it.)
+            let back = offset_distance(y.abs().max_element().max(p.abs().max_element())).min(0.5 * th);
+            Some(LightSample { target: (-wi).mul_add(Vec3::splat(back), y), wi, weight: radiance / pdf })
         }
     }
 }
@@ -327,7 +330,7 @@ mod tests {
     /// the offset, 256 ULPs of the coordinates, is 0.125: along the normal it moved silhouette samples
     /// sideways by that, a light 250x its size). Checked in f64: the target's distance from the ray
     /// `p + t wi` within 4 ULPs of the coordinates and 1e-6 of the distance travelled (the f32 rounding
-    /// of the points), and the target outside the sphere, nearer than its centre.
+    /// of the points), in front of the receiver, and outside the sphere, nearer than its centre.
     #[test]
     fn sphere_light_targets_stay_on_their_rays() {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(46);
@@ -337,8 +340,16 @@ mod tests {
             for radius in [1.0, 1e-3, 5e-4, 1e-6, 1e-9] {
                 let center = Vec3::new(-1.0, 3.0, -1.0) + shift;
                 let light = Light::Sphere { center, radius, radiance: Vec3::ONE };
-                for _ in 0..200 {
-                    let p = Vec3::new(u01() * 6.0 - 3.0, 0.0, u01() * 6.0 - 3.0) + shift;
+                for i in 0..200 {
+                    // Receivers across a floor 3 below the light, and every fourth one near its surface
+                    // (gaps from 1e-4 to 0.1: nearer than the offset 5e3 from the origin, where the
+                    // target must still lie in front of the receiver).
+                    let p = if i % 4 == 0 {
+                        let gap = 10f32.powf(-4.0 + 3.0 * u01());
+                        center + Vec3::new(u01() - 0.5, -1.0, u01() - 0.5).normalize() * (radius + gap)
+                    } else {
+                        Vec3::new(u01() * 6.0 - 3.0, 0.0, u01() * 6.0 - 3.0) + shift
+                    };
                     let Some(s) = sample_light(&light, p, [u01(), u01()]) else { continue };
                     assert!(s.target.is_finite() && s.wi.is_finite(), "radius {radius} at {shift}: {s:?}");
                     let (p64, t64, wi64, c64) = (p.as_dvec3(), s.target.as_dvec3(), s.wi.as_dvec3(), center.as_dvec3());

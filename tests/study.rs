@@ -674,7 +674,7 @@ fn reference_cache_is_reused_only_when_fresh() {
 fn cli_input_errors_exit_2_with_a_message() {
     let dir = tmp_dir("errors");
     let d = dir.to_str().unwrap();
-    let cases: [(&[&str], &str); 24] = [
+    let cases: [(&[&str], &str); 26] = [
         (&["--strategies", "random,magic"], "unknown strategy `magic`"),
         (&["--integrals", "light,light"], "`light` is listed twice"),
         (&["--integrals", "all,light"], "`all` (every integral) stands alone"),
@@ -682,7 +682,17 @@ fn cli_input_errors_exit_2_with_a_message() {
         // The limit named is the one that applies (it said 4294967295, a user trial).
         (&["--spp", "2000000"], "sample count `2000000` is too large (at most 1048576 camera samples per pixel)"),
         (&["--spp=-4"], "sample count `-4` is negative (a count: a whole number, at most 1048576)"),
-        (&["--integrals", "light", "--spp", "4294967296"], "too large (at most 4294967295 light samples per shading point)"),
+        (
+            &["--integrals", "light", "--spp", "4294967296"],
+            "too large (at most 4294963200 light samples per shading point, in multiples of 4096",
+        ),
+        (
+            &["--integrals", "pixel,light", "--light-samples-from-spp", "--spp", "5000"],
+            "too large (at most 4096 with --light-samples-from-spp",
+        ),
+        // Refused after the runs were planned (the default reference is 16 x 100000 samples): not warned
+        // of first (the grid of 7 is a strip).
+        (&["--strategies", "grid", "--spp", "7,100000"], "the default reference (1600000 samples"),
         // Nothing studied that the scene has: every run would be the same image.
         (&["--integrals", "lens,time"], "the scene does not exercise lens, time (no camera aperture, moving shapes)"),
         (&["--spp", ","], "--spp: the list is empty"),

@@ -521,7 +521,9 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
             "shutter [{t0}, {t1}] has zero length{default}: every time sample is the instant {t0}, so shapes with `motion` show no \
              motion blur"
         ));
-    } else if let Some(n) = shutter_instants(t0, t1).filter(|&n| n < SHUTTER_MIN_INSTANTS && scene.features.motion) {
+    } else if let Some(n) =
+        shutter_instants(t0, t1).filter(|&n| n < SHUTTER_MIN_INSTANTS && scene.features.motion && p.time_strategy != Strategy::Center)
+    {
         let ulp = (t1 - t0) / n as f32;
         out.push(format!(
             "shutter [{t0}, {t1}] lies far from time 0 for its length: f32 times there are {ulp} apart, so it holds only {n} distinct \

@@ -2,7 +2,7 @@
 
 use super::Failure;
 use crate::sample::Strategy;
-use crate::scene::{load_scene_sized, Profile, Scene};
+use crate::scene::{load_scene_sized, Profile, Scene, MAX_LIGHT_SAMPLES};
 use crate::study::reference::{obtain, reference_profile, RefError, ReferenceSource};
 use crate::study::run::{
     configure, light_only, run_series, slopes, summarize, Plan, RunResult, Summary, BIAS_Z, TIME_SLOPE_MIN_COUNTS, TIME_SLOPE_MIN_GROWTH,
@@ -171,9 +171,12 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
         IntegralSet::of(&list)
     };
     // n counts camera samples per pixel, or light samples per shading point with the light integral
-    // alone (taken in passes of at most MAX_LIGHT_SAMPLES, up to MAX_SPP passes: beyond u32).
+    // alone (taken in passes of MAX_LIGHT_SAMPLES, up to MAX_SPP passes: beyond u32), or both under
+    // --light-samples-from-spp (at most MAX_LIGHT_SAMPLES).
     let (max, what) = if light_only(&integrals) {
-        (u32::MAX, "light samples per shading point")
+        (u32::MAX / MAX_LIGHT_SAMPLES * MAX_LIGHT_SAMPLES, "light samples per shading point, in multiples of 4096 above 4096")
+    } else if a.light_samples_from_spp {
+        (MAX_LIGHT_SAMPLES, "with --light-samples-from-spp, where n is also the light samples")
     } else {
         (crate::scene::MAX_SPP, "camera samples per pixel")
     };
@@ -224,7 +227,7 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
         )));
     }
     // The runs' sampling warnings, as `render` gives them, each once with the first run it concerns.
-    let mut warned: Vec<String> = Vec::new();
+    let mut warned: Vec<(String, String)> = Vec::new();
     for &s in &strategies {
         for &n in &counts {
             let p = configure(&profile, &integrals, s, n, a.light_samples_from_spp).map_err(|e| Failure::input(format!("--spp: {e}")))?;
@@ -232,9 +235,8 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
                 .map_err(|e| Failure::input(format!("--spp {n}: {e}")))?;
             let identical = super::render_cmd::identical_samples_warning(&scene, &p);
             for w in super::render_cmd::sampling_warnings(&scene, &p).into_iter().chain(identical) {
-                if !warned.contains(&w) {
-                    errln!("warning: {} n = {n}: {w}", s.name());
-                    warned.push(w);
+                if !warned.iter().any(|(_, seen)| *seen == w) {
+                    warned.push((format!("warning: {} n = {n}: {w}", s.name()), w));
                 }
             }
         }
@@ -268,6 +270,10 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
                 )
             }));
         }
+    }
+    // (Printed once nothing is refused: a refused study is not also warned of.)
+    for (line, _) in &warned {
+        errln!("{line}");
     }
     if let Some(l) = fixed_light_grid(&scene, &profile, &plan) {
         errln!(

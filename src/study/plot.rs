@@ -135,9 +135,9 @@ where
     Ok(())
 }
 
-/// The rows of `strategies` in `summary` that a log-scale plot cannot show: MSE 0 (or not a number).
+/// The rows of `strategies` in `summary` that a log-scale plot cannot show for their MSE of 0.
 pub fn undrawn(summary: &[Summary], strategies: &[Strategy]) -> usize {
-    summary.iter().filter(|s| strategies.contains(&s.strategy) && !(s.mse > 0.0)).count()
+    summary.iter().filter(|s| strategies.contains(&s.strategy) && s.mse == 0.0).count()
 }
 
 /// Draw the two panels into an RGB buffer of [`PLOT_SIZE`].

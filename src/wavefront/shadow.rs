@@ -15,7 +15,7 @@ use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::pick::LightPick;
 use super::queues::{MediumStack, NeeQueue, PathTable};
-use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, SingleSpheres, Walk};
+use super::transmit::{absorption_in, any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, SingleSpheres, Walk};
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{LightBuffer, WideStack, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
@@ -1059,10 +1059,13 @@ fn flush(
                 *s = media[pk.req[j * LANES + l] as usize];
             }
         }
-        let inside = lane_bits(|l| start[l] != MediumStack::default());
-        let through = (touched[j] | inside) & !bits & ((1u32 << lanes) - 1);
-        let tr = if through != 0 {
-            let arr = |a: &[f32; BATCH]| <[f32; LANES]>::try_from(&a[r.clone()]).unwrap();
+        let live = !bits & ((1u32 << lanes) - 1);
+        // Lanes that met surfaces they walk through are walked; lanes inside media that met none (the
+        // traversal found nothing on them) are only absorbed by their medium along the segment.
+        let through = touched[j] & live;
+        let absorbed = live & !touched[j] & lane_bits(|l| start[l] != MediumStack::default());
+        let arr = |a: &[f32; BATCH]| <[f32; LANES]>::try_from(&a[r.clone()]).unwrap();
+        let mut tr = if through != 0 {
             let (o, d) = ([0, 1, 2].map(|a| arr(&pk.o[a])), [0, 1, 2].map(|a| arr(&pk.d[a])));
             let (tr, w) = transmittance_x8(
                 scene,
@@ -1081,8 +1084,16 @@ fn flush(
         } else {
             [Vec3::ONE; LANES]
         };
-        // Unoccluded lanes credit their requests (times their transmittance where walked).
-        credit.add_packet(pk, j, !bits & ((1u32 << lanes) - 1), through, &tr);
+        let mut bits_in = absorbed;
+        while bits_in != 0 {
+            let l = bits_in.trailing_zeros() as usize;
+            bits_in &= bits_in - 1;
+            let q = j * LANES + l;
+            let len = (Vec3::new(pk.d[0][q], pk.d[1][q], pk.d[2][q]) * pk.tmax[q]).length();
+            tr[l] = absorption_in(scene, start[l], len);
+        }
+        // Unoccluded lanes credit their requests (times their transmittance where walked or absorbed).
+        credit.add_packet(pk, j, live, through | absorbed, &tr);
     }
     pk.len = 0;
     n as u64 + walked

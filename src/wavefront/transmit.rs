@@ -682,14 +682,20 @@ fn replay_media(scene: &Scene, profile: &Profile, events: &[Event], len: f32) ->
     replay_stack(scene, profile, events, len, stack)
 }
 
+/// Beer-Lambert transmittance over `dist` in the current medium of `stack` (1 in air or a clear medium):
+/// the whole transmittance of a segment that starts in those media and crosses no surface.
+pub fn absorption_in(scene: &Scene, stack: MediumStack, dist: f32) -> Vec3 {
+    match medium::current(scene, stack).and_then(|m| medium::dielectric(scene, m)) {
+        Some(d) if d.sigma_a != Vec3::ZERO => beer_lambert(d.sigma_a, dist),
+        _ => Vec3::ONE,
+    }
+}
+
 /// The replay of [`replay_media`] from the media `stack` around the segment's start.
 fn replay_stack(scene: &Scene, profile: &Profile, events: &[Event], len: f32, stack: MediumStack) -> Vec3 {
     let mut stack = stack;
     let ior = |m: Option<u32>| m.and_then(|m| medium::dielectric(scene, m)).map_or(1.0, |d| d.ior.nominal());
-    let absorb = |stack: MediumStack, dist: f32| match medium::current(scene, stack).and_then(|m| medium::dielectric(scene, m)) {
-        Some(d) if d.sigma_a != Vec3::ZERO => beer_lambert(d.sigma_a, dist),
-        _ => Vec3::ONE,
-    };
+    let absorb = |stack: MediumStack, dist: f32| absorption_in(scene, stack, dist);
     let mut tr = Vec3::ONE;
     let mut s_prev = 0.0;
     for e in events {
