@@ -391,6 +391,9 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
     debug_assert_eq!(nee.alpha.len(), if LOBES { nee.len() } else { 0 }, "lobe columns for every request or none");
     debug_assert!(nee.alpha.iter().all(|&a| a != 0.0), "a queue with lobes holds glossy requests only");
     let mut credit = Credit::new(nee.len(), tables.any_cone, buffers);
+    // The requests' media, where some point lies inside one (else none: the queue's points are all in
+    // air, as in scenes without dielectrics, and nothing below looks them up).
+    let media: &[MediumStack] = if nee.media.iter().any(|m| *m != MediumStack::default()) { &nee.media } else { &[] };
     // Per light (when any has a buffer, and requests did not pick theirs), the packet of an even chunk
     // waiting for its pair.
     let mut held: Vec<Option<BufferJob>> = if buffers && picks.is_none() { vec![None; scene.lights.len()] } else { Vec::new() };
@@ -419,7 +422,7 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
         let req = u32x8::from(req);
         // Requests whose points lie inside media (their shadow rays are absorbed on the way, and
         // cross the media's surfaces from inside): traced and walked, never answered untraced.
-        let inside = if nee.media.is_empty() { 0 } else { lane_bits(|l| l < m && nee.media[base + l] != MediumStack::default()) };
+        let inside = if media.is_empty() { 0 } else { lane_bits(|l| l < m && media[base + l] != MediumStack::default()) };
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
@@ -626,13 +629,11 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
                 let bi = li.min(nb - 1);
                 let lo = if picked.is_some() { bi } else { 0 };
                 if batches[bi].len + LANES > BATCH {
-                    traced +=
-                        flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, &nee.media, arena, walk, single.as_deref_mut());
+                    traced += flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, media, arena, walk, single.as_deref_mut());
                 }
                 batches[bi].append(&Rays8 { o, d: target - o, tmax: end, time, contrib: c, req }, lanes);
                 if batches[bi].len == BATCH {
-                    traced +=
-                        flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, &nee.media, arena, walk, single.as_deref_mut());
+                    traced += flush_upto(scene, profile, &mut batches[lo..=bi], &mut credit, media, arena, walk, single.as_deref_mut());
                 }
             }
             if clear | glass | opaque != 0 {
@@ -647,7 +648,7 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
             traced += resolve_buffered(scene, profile, lb, li, nee, job.take().as_ref(), None, &mut credit, arena);
         }
     }
-    traced += flush_upto(scene, profile, &mut batches[..nb], &mut credit, &nee.media, arena, walk, single);
+    traced += flush_upto(scene, profile, &mut batches[..nb], &mut credit, media, arena, walk, single);
     BATCHES.set(batches);
     credit.to_paths(nee, paths);
     (traced, cleared)
