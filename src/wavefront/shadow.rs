@@ -421,7 +421,8 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
         }
         let req = u32x8::from(req);
         // Requests whose points lie inside media (their shadow rays are absorbed on the way, and
-        // cross the media's surfaces from inside): traced and walked, never answered untraced.
+        // cross the media's surfaces from inside): traced in batches (then absorbed, or walked where
+        // they met surfaces), never answered untraced.
         let inside = if media.is_empty() { 0 } else { lane_bits(|l| l < m && media[base + l] != MediumStack::default()) };
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
@@ -1053,7 +1054,7 @@ fn flush(
         let lanes = (n - j * LANES).min(LANES);
         let r = j * LANES..j * LANES + LANES;
         let bits = occluded[j].to_bitmask();
-        // The media each lane starts in (none, unless the scene has dielectrics).
+        // The media each lane starts in (none, unless some request of the queue lies inside one).
         let mut start = [MediumStack::default(); LANES];
         if !media.is_empty() {
             for (l, s) in start.iter_mut().enumerate().take(lanes) {
