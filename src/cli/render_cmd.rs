@@ -501,8 +501,7 @@ const SHUTTER_MIN_INSTANTS: u64 = 1024;
 /// How many distinct f32 times the shutter `[t0, t1]` holds (its length over the f32 spacing at its
 /// larger end); `None` for a shutter of no length.
 fn shutter_instants(t0: f32, t1: f32) -> Option<u64> {
-    let m = t0.abs().max(t1.abs()).max(f32::MIN_POSITIVE);
-    let spacing = f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON;
+    let spacing = crate::geometry::ulp_at(t0.abs().max(t1.abs()).max(f32::MIN_POSITIVE));
     (t1 > t0).then(|| ((t1 as f64 - t0 as f64) / spacing as f64).round() as u64)
 }
 

@@ -45,9 +45,14 @@ pub fn offset_ray_origin_scaled(p: Vec3, n: Vec3, magnitude: f32) -> Vec3 {
 /// `m`: `OFFSET_ULPS` ULPs of `m` (between 2^-24 and 2^-23 x `OFFSET_ULPS` x `m`).
 #[inline]
 pub fn offset_distance(m: f32) -> f32 {
-    let m = m.abs().max(MIN_SCALE);
-    // ulp(m) = 2^(exponent of m) * 2^-23: keep only the exponent bits.
-    OFFSET_ULPS * (f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON)
+    OFFSET_ULPS * ulp_at(m.abs().max(MIN_SCALE))
+}
+
+/// The f32 spacing at magnitude `m >= f32::MIN_POSITIVE`: `2^(exponent of m) * 2^-23` (the exponent
+/// bits kept alone), between 2^-24 and 2^-23 x `m`.
+#[inline]
+pub fn ulp_at(m: f32) -> f32 {
+    f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON
 }
 /// Eight lanes of [`offset_ray_origin_scaled`], bit-identical to it for finite inputs (same
 /// exponent masking, same fused multiply-add per component).

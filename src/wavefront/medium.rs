@@ -22,7 +22,9 @@
 //! inside it. Camera rays start with the media around the camera (`Scene::camera_media`).
 
 use super::queues::MediumStack;
+use crate::optics::beer_lambert;
 use crate::scene::{Dielectric, Material, Scene};
+use glam::Vec3;
 
 /// The dielectric of material `m` (None for other kinds).
 #[inline]
@@ -36,6 +38,17 @@ pub fn dielectric(scene: &Scene, m: u32) -> Option<&Dielectric> {
 #[inline]
 fn priority(scene: &Scene, m: u32) -> i32 {
     dielectric(scene, m).map_or(i32::MIN, |d| d.priority)
+}
+
+/// Beer-Lambert transmittance over `dist` in the current medium of `stack` (1 in air or a clear
+/// medium): a ray's segment inside it, or the whole of a shadow segment that starts there and crosses
+/// no surface.
+#[inline]
+pub fn absorption(scene: &Scene, stack: MediumStack, dist: f32) -> Vec3 {
+    match current(scene, stack).and_then(|m| dielectric(scene, m)) {
+        Some(d) if d.sigma_a != Vec3::ZERO => beer_lambert(d.sigma_a, dist),
+        _ => Vec3::ONE,
+    }
 }
 
 /// The medium a ray with this stack is in: highest priority, the last entered among equals.

@@ -22,6 +22,11 @@ pub struct MediumStack(pub u64);
 
 impl MediumStack {
     pub const DEPTH: usize = 4;
+    /// Whether the ray is in no medium (air).
+    #[inline(always)]
+    pub fn is_empty(self) -> bool {
+        self.0 == 0
+    }
     /// Innermost medium's material id, if any.
     #[inline]
     pub fn top(self) -> Option<u32> {

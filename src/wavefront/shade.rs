@@ -519,13 +519,7 @@ fn lobe_light_weight(scene: &Scene, profile: &Profile, pick: Option<&LightPick>,
 /// Beer-Lambert absorption along the segment just travelled inside a medium (of length `t |d|`).
 #[inline(always)]
 fn absorb(scene: &Scene, r: &mut RayItem, t: f32) {
-    if let Some(m) = medium::current(scene, r.media) {
-        if let Material::Dielectric(d) = &scene.materials[m as usize] {
-            if d.sigma_a != Vec3::ZERO {
-                r.throughput *= beer_lambert(d.sigma_a, t * r.d.length());
-            }
-        }
-    }
+    r.throughput *= medium::absorption(scene, r.media, t * r.d.length());
 }
 
 /// Beer-Lambert over the stretch a child ray skips at its spawn: its origin `o` is off the surface point

@@ -15,7 +15,7 @@ use super::dims;
 use super::intersect::{in_prim_frame, prim_t_at_x8, prim_t_x8};
 use super::pick::LightPick;
 use super::queues::{MediumStack, NeeQueue, PathTable};
-use super::transmit::{absorption_in, any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, SingleSpheres, Walk};
+use super::transmit::{any_passable, pair_sphere, passes, single_sphere_x8, transmittance_x8, SingleSpheres, Walk};
 use crate::accel::{intersect_aabb_x8, PacketRay};
 use crate::accel::{LightBuffer, WideStack, GROUP, NO_CELL};
 use crate::csg::{first_hit_x8, lanes_may_cross_x8, CsgArena};
@@ -393,7 +393,7 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
     let mut credit = Credit::new(nee.len(), tables.any_cone, buffers);
     // The requests' media, where some point lies inside one (else none: the queue's points are all in
     // air, as in scenes without dielectrics, and nothing below looks them up).
-    let media: &[MediumStack] = if nee.media.iter().any(|m| *m != MediumStack::default()) { &nee.media } else { &[] };
+    let media: &[MediumStack] = if nee.media.iter().any(|m| !m.is_empty()) { &nee.media } else { &[] };
     // Per light (when any has a buffer, and requests did not pick theirs), the packet of an even chunk
     // waiting for its pair.
     let mut held: Vec<Option<BufferJob>> = if buffers && picks.is_none() { vec![None; scene.lights.len()] } else { Vec::new() };
@@ -423,7 +423,7 @@ fn shadow_queue<const LOBES: bool, const PICK: bool>(
         // Requests whose points lie inside media (their shadow rays are absorbed on the way, and
         // cross the media's surfaces from inside): traced in batches (then absorbed, or walked where
         // they met surfaces), never answered untraced.
-        let inside = if media.is_empty() { 0 } else { lane_bits(|l| l < m && media[base + l] != MediumStack::default()) };
+        let inside = if media.is_empty() { 0 } else { lane_bits(|l| l < m && !media[base + l].is_empty()) };
         // Light-stream keys per lane. Across samples a light's stream is shared by the pixel's samples,
         // whose requests are usually consecutive: the keys of the first KEY_CACHE lights are computed
         // once per run of them.
@@ -1065,7 +1065,7 @@ fn flush(
         // Lanes that met surfaces they walk through are walked; lanes inside media that met none (the
         // traversal found nothing on them) are only absorbed by their medium along the segment.
         let through = touched[j] & live;
-        let absorbed = live & !touched[j] & lane_bits(|l| start[l] != MediumStack::default());
+        let absorbed = live & !touched[j] & lane_bits(|l| !start[l].is_empty());
         let arr = |a: &[f32; BATCH]| <[f32; LANES]>::try_from(&a[r.clone()]).unwrap();
         let mut tr = if through != 0 {
             let (o, d) = ([0, 1, 2].map(|a| arr(&pk.o[a])), [0, 1, 2].map(|a| arr(&pk.d[a])));
@@ -1092,7 +1092,7 @@ fn flush(
             bits_in &= bits_in - 1;
             let q = j * LANES + l;
             let len = (Vec3::new(pk.d[0][q], pk.d[1][q], pk.d[2][q]) * pk.tmax[q]).length();
-            tr[l] = absorption_in(scene, start[l], len);
+            tr[l] = super::medium::absorption(scene, start[l], len);
         }
         // Unoccluded lanes credit their requests (times their transmittance where walked or absorbed).
         credit.add_packet(pk, j, live, through | absorbed, &tr);

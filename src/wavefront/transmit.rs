@@ -161,7 +161,7 @@ pub fn transmittance_x8(
 
     let mut tr = [Vec3::ZERO; LANES];
     // Lanes that enter and leave one sphere of a one-medium dielectric (the usual walk) in 8 lanes.
-    let inside = lane_bits(|l| start[l] != MediumStack::default());
+    let inside = lane_bits(|l| !start[l].is_empty());
     let pairs = if cr.sphere_pairs { sphere_pair_lanes(scene, profile, cr, lanes & !cr.full & !inside) } else { 0 };
     if pairs != 0 {
         sphere_pairs_x8(scene, profile, cr, &ray, time, pairs, &mut tr);
@@ -653,7 +653,7 @@ fn replay_one_medium(scene: &Scene, profile: &Profile, events: &[Event], len: f3
 /// Transmittance of one segment of length `len` from its recorded crossings (see the module doc), from
 /// the media `start` where the segment's start is known to be inside some.
 fn replay(scene: &Scene, profile: &Profile, events: &[Event], len: f32, start: MediumStack) -> Vec3 {
-    if start != MediumStack::default() {
+    if !start.is_empty() {
         return replay_stack(scene, profile, events, len, start);
     }
     match replay_one_medium(scene, profile, events, len) {
@@ -682,20 +682,11 @@ fn replay_media(scene: &Scene, profile: &Profile, events: &[Event], len: f32) ->
     replay_stack(scene, profile, events, len, stack)
 }
 
-/// Beer-Lambert transmittance over `dist` in the current medium of `stack` (1 in air or a clear medium):
-/// the whole transmittance of a segment that starts in those media and crosses no surface.
-pub fn absorption_in(scene: &Scene, stack: MediumStack, dist: f32) -> Vec3 {
-    match medium::current(scene, stack).and_then(|m| medium::dielectric(scene, m)) {
-        Some(d) if d.sigma_a != Vec3::ZERO => beer_lambert(d.sigma_a, dist),
-        _ => Vec3::ONE,
-    }
-}
-
 /// The replay of [`replay_media`] from the media `stack` around the segment's start.
 fn replay_stack(scene: &Scene, profile: &Profile, events: &[Event], len: f32, stack: MediumStack) -> Vec3 {
     let mut stack = stack;
     let ior = |m: Option<u32>| m.and_then(|m| medium::dielectric(scene, m)).map_or(1.0, |d| d.ior.nominal());
-    let absorb = |stack: MediumStack, dist: f32| absorption_in(scene, stack, dist);
+    let absorb = |stack: MediumStack, dist: f32| medium::absorption(scene, stack, dist);
     let mut tr = Vec3::ONE;
     let mut s_prev = 0.0;
     for e in events {
