@@ -15,6 +15,8 @@
 //! `[LAMBDA_MIN, LAMBDA_MAX]`. It is inverted in closed form through `tanh`/`atanh`, and keeps the
 //! estimator `wavelength_to_rgb(l) / pdf(l)` much flatter than a uniform density would.
 
+use crate::simd::f32x8;
+
 /// Shortest sampled wavelength (nm).
 pub const LAMBDA_MIN: f32 = 380.0;
 /// Longest sampled wavelength (nm).
@@ -134,6 +136,25 @@ pub fn sample_wavelength(u: f32) -> f32 {
     (SAMPLE_CENTER + t.atanh() / SAMPLE_K).clamp(LAMBDA_MIN, LAMBDA_MAX)
 }
 
+/// Eight lanes of [`sample_wavelength`] (the camera rays of dispersive scenes are made 8 at a time):
+/// the same map, `atanh t` as `ln((1 + t) / (1 - t)) / 2` with `wide`'s vector logarithm instead of
+/// libm's scalar `atanhf` (within 2e-4 nm of the exact map, tested against it in f64).
+#[inline]
+pub fn sample_wavelength_x8(u: f32x8) -> f32x8 {
+    let t = f32x8::splat(TANH_MAX - TANH_MIN).mul_add(u, f32x8::splat(TANH_MIN));
+    let a = ((f32x8::ONE + t) / (f32x8::ONE - t)).ln() * f32x8::splat(0.5 / SAMPLE_K);
+    (f32x8::splat(SAMPLE_CENTER) + a).fast_max(f32x8::splat(LAMBDA_MIN)).fast_min(f32x8::splat(LAMBDA_MAX))
+}
+
+/// Eight lanes of [`sample_wavelength_pdf`] (`wide`'s vector `cosh`; within 2e-6 of the exact density,
+/// relatively); 0 outside `[LAMBDA_MIN, LAMBDA_MAX]`.
+#[inline]
+pub fn sample_wavelength_pdf_x8(lambda: f32x8) -> f32x8 {
+    let inside = lambda.simd_ge(f32x8::splat(LAMBDA_MIN)) & lambda.simd_le(f32x8::splat(LAMBDA_MAX));
+    let ch = (f32x8::splat(SAMPLE_K) * (lambda - f32x8::splat(SAMPLE_CENTER))).cosh();
+    inside.select(f32x8::splat(SAMPLE_K) / (f32x8::splat(TANH_MAX - TANH_MIN) * ch * ch), f32x8::ZERO)
+}
+
 /// Density (per nm) of [`sample_wavelength`]; 0 outside `[LAMBDA_MIN, LAMBDA_MAX]`.
 #[inline]
 pub fn sample_wavelength_pdf(lambda: f32) -> f32 {
@@ -142,4 +163,35 @@ pub fn sample_wavelength_pdf(lambda: f32) -> f32 {
     }
     let ch = (SAMPLE_K * (lambda - SAMPLE_CENTER)).cosh();
     SAMPLE_K / ((TANH_MAX - TANH_MIN) * ch * ch)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 8-lane sampler and density against the exact map and density in f64, over a fine grid of
+    /// `u` with both ends (the scalar pair is checked against each other in `tests/physics.rs`).
+    #[test]
+    fn wavelength_sampler_x8_follows_the_exact_map() {
+        let (t0, t1, k, c) = (TANH_MIN as f64, TANH_MAX as f64, SAMPLE_K as f64, SAMPLE_CENTER as f64);
+        let exact = |u: f64| (c + (t0 + (t1 - t0) * u).atanh() / k).clamp(LAMBDA_MIN as f64, LAMBDA_MAX as f64);
+        let density = |l: f64| k / ((t1 - t0) * (k * (l - c)).cosh().powi(2));
+        let n = 1 << 16;
+        let (mut worst_l, mut worst_p) = (0.0f64, 0.0f64);
+        for block in 0..=n / 8 {
+            let u: [f32; 8] = std::array::from_fn(|l| ((block * 8 + l) as f32 / n as f32).min(1.0 - f32::EPSILON / 2.0));
+            let (w, p) = (
+                sample_wavelength_x8(f32x8::from(u)).to_array(),
+                sample_wavelength_pdf_x8(sample_wavelength_x8(f32x8::from(u))).to_array(),
+            );
+            for l in 0..8 {
+                worst_l = worst_l.max((w[l] as f64 - exact(u[l] as f64)).abs());
+                worst_p = worst_p.max((p[l] as f64 / density(w[l] as f64) - 1.0).abs());
+            }
+        }
+        assert!(worst_l < 2e-4 && worst_p < 2e-6, "wavelength off by {worst_l} nm, density by {worst_p} (relative)");
+        // Outside the range the density is 0, as the scalar's.
+        let out = sample_wavelength_pdf_x8(f32x8::from([379.9, 720.1, -1.0, 1e9, 380.0, 720.0, 500.0, f32::INFINITY])).to_array();
+        assert_eq!(out.map(|p| p > 0.0), [false, false, false, false, true, true, true, false]);
+    }
 }

@@ -41,7 +41,10 @@ mod refract;
 mod spectrum;
 
 pub use absorption::{beer_lambert, sigma_from_transmittance};
-pub use dispersion::{sample_wavelength, sample_wavelength_pdf, Ior, LAMBDA_C, LAMBDA_D, LAMBDA_F, LAMBDA_MAX, LAMBDA_MIN};
+pub use dispersion::{
+    sample_wavelength, sample_wavelength_pdf, sample_wavelength_pdf_x8, sample_wavelength_x8, Ior, LAMBDA_C, LAMBDA_D, LAMBDA_F,
+    LAMBDA_MAX, LAMBDA_MIN,
+};
 pub use fresnel::{cos_t_sq, critical_angle, fresnel_dielectric, fresnel_dielectric_f64, fresnel_schlick};
 pub use lambert::{onb, onb_x8, sample_hemisphere_cos, sample_hemisphere_cos_pdf, sample_hemisphere_cos_x8, to_local, to_world};
 pub use microfacet::{
@@ -49,4 +52,4 @@ pub use microfacet::{
     sample_ggx_reflect_weight, sample_ggx_reflect_weight_x8, sample_ggx_reflect_x8, GGX_ALPHA_MIN,
 };
 pub use refract::{fresnel_dielectric_x8, fresnel_refract_x8, reflect, reflect_x8, refract};
-pub use spectrum::{cie_xyz_fit, wavelength_to_rgb, xyz_to_linear_srgb};
+pub use spectrum::{cie_xyz_fit, wavelength_to_rgb, wavelength_to_rgb_x8, xyz_to_linear_srgb};

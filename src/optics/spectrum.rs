@@ -16,6 +16,8 @@
 
 use glam::Vec3;
 
+use crate::simd::f32x8;
+
 use super::dispersion::{LAMBDA_MAX, LAMBDA_MIN};
 
 /// One lobe of the Wyman-Sloan-Shirley fit: a Gaussian with different widths left and right of `mu`.
@@ -62,4 +64,75 @@ pub fn wavelength_to_rgb(lambda: f32) -> Vec3 {
         return Vec3::ZERO;
     }
     xyz_to_linear_srgb(cie_xyz_fit(lambda)).max(Vec3::ZERO) * RGB_NORM
+}
+
+/// One lobe of [`cie_xyz_fit`] in 8 lanes (`wide`'s vector `exp`; the widths' reciprocals multiply).
+#[inline(always)]
+fn lobe_x8(lambda: f32x8, mu: f32, sigma_left: f32, sigma_right: f32) -> f32x8 {
+    let left = lambda.simd_lt(f32x8::splat(mu));
+    let t = (lambda - f32x8::splat(mu)) * left.select(f32x8::splat(1.0 / sigma_left), f32x8::splat(1.0 / sigma_right));
+    (f32x8::splat(-0.5) * t * t).exp()
+}
+
+/// Eight lanes of [`wavelength_to_rgb`] (the camera rays of dispersive scenes are made 8 at a time),
+/// as rows `[r, g, b]`: the same fit, matrix, clamp and normalisation with vector `exp` (within 2e-6 of
+/// the peak weight of the exact function, tested against it in f64); 0 outside `[LAMBDA_MIN, LAMBDA_MAX]`.
+#[inline]
+pub fn wavelength_to_rgb_x8(lambda: f32x8) -> [f32x8; 3] {
+    let l = lambda;
+    let s = f32x8::splat;
+    let x = s(1.056) * lobe_x8(l, 599.8, 37.9, 31.0) + s(0.362) * lobe_x8(l, 442.0, 16.0, 26.7) - s(0.065) * lobe_x8(l, 501.1, 20.4, 26.2);
+    let y = s(0.821) * lobe_x8(l, 568.8, 46.9, 40.5) + s(0.286) * lobe_x8(l, 530.9, 16.3, 31.1);
+    let z = s(1.217) * lobe_x8(l, 437.0, 11.8, 36.0) + s(0.681) * lobe_x8(l, 459.0, 26.0, 13.8);
+    let inside = l.simd_ge(s(LAMBDA_MIN)) & l.simd_le(s(LAMBDA_MAX));
+    let row =
+        |m: [f32; 3], norm: f32| inside.select((s(m[0]) * x + s(m[1]) * y + s(m[2]) * z).fast_max(f32x8::ZERO) * s(norm), f32x8::ZERO);
+    [
+        row([3.240_454_2, -1.537_138_5, -0.498_531_4], RGB_NORM.x),
+        row([-0.969_266, 1.876_010_8, 0.041_556], RGB_NORM.y),
+        row([0.055_643_4, -0.204_025_9, 1.057_225_2], RGB_NORM.z),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The Wyman-Sloan-Shirley fit, matrix, clamp and normalisation in f64.
+    fn rgb_f64(l: f64) -> [f64; 3] {
+        let lobe = |mu: f64, sl: f64, sr: f64| {
+            let t = (l - mu) / if l < mu { sl } else { sr };
+            (-0.5 * t * t).exp()
+        };
+        let x = 1.056 * lobe(599.8, 37.9, 31.0) + 0.362 * lobe(442.0, 16.0, 26.7) - 0.065 * lobe(501.1, 20.4, 26.2);
+        let y = 0.821 * lobe(568.8, 46.9, 40.5) + 0.286 * lobe(530.9, 16.3, 31.1);
+        let z = 1.217 * lobe(437.0, 11.8, 36.0) + 0.681 * lobe(459.0, 26.0, 13.8);
+        let m = [[3.240_454_2, -1.537_138_5, -0.498_531_4], [-0.969_266, 1.876_010_8, 0.041_556], [0.055_643_4, -0.204_025_9, 1.057_225_2]];
+        let norm = [RGB_NORM.x as f64, RGB_NORM.y as f64, RGB_NORM.z as f64];
+        std::array::from_fn(|c| (m[c][0] * x + m[c][1] * y + m[c][2] * z).max(0.0) * norm[c])
+    }
+
+    /// [`wavelength_to_rgb_x8`] against the f64 fit every 1/64 nm over the range and past its ends
+    /// (0 outside), and the scalar [`wavelength_to_rgb`] against the same, within 2e-6 of the peak.
+    #[test]
+    fn wavelength_to_rgb_x8_follows_the_fit() {
+        let peak = (0..3400).map(|i| rgb_f64(380.0 + i as f64 * 0.1).into_iter().fold(0.0, f64::max)).fold(0.0, f64::max);
+        let (mut worst_x8, mut worst_scalar) = (0.0f64, 0.0f64);
+        for block in 0..(360 * 64 / 8) {
+            let l: [f32; 8] = std::array::from_fn(|k| 370.0 + (block * 8 + k) as f32 / 64.0);
+            let v = wavelength_to_rgb_x8(f32x8::from(l)).map(|c| c.to_array());
+            for (k, &lk) in l.iter().enumerate() {
+                let r = if (LAMBDA_MIN..=LAMBDA_MAX).contains(&lk) { rgb_f64(lk as f64) } else { [0.0; 3] };
+                let s = wavelength_to_rgb(lk);
+                for c in 0..3 {
+                    worst_x8 = worst_x8.max((v[c][k] as f64 - r[c]).abs());
+                    worst_scalar = worst_scalar.max((s[c] as f64 - r[c]).abs());
+                    if r[c] == 0.0 {
+                        assert_eq!(v[c][k], 0.0, "{lk} nm, channel {c}");
+                    }
+                }
+            }
+        }
+        assert!(worst_x8 < 2e-6 * peak && worst_scalar < 2e-6 * peak, "off by {worst_x8} (x8), {worst_scalar} (scalar); peak {peak}");
+    }
 }

@@ -6,7 +6,7 @@
 
 use super::dims;
 use super::queues::{PathTable, RayQueue, RayRows};
-use crate::optics::{sample_wavelength, sample_wavelength_pdf, wavelength_to_rgb};
+use crate::optics::{sample_wavelength_pdf_x8, sample_wavelength_x8, wavelength_to_rgb_x8};
 use crate::sample::hash::RUN_MAX;
 use crate::sample::{sample_1d_keyed, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
 use crate::scene::{Profile, Scene};
@@ -106,20 +106,26 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
             media: [media; LANES],
             ..RayRows::default()
         };
-        if f.motion || f.dispersion {
+        if f.motion {
             for l in 0..k {
-                if f.motion {
-                    rows.time[l] = cam.time(sample_1d_keyed(profile.time_strategy, keys[2][l], index[l], spp));
-                    if media_move {
-                        rows.media[l] = scene.camera_media_at(rows.time[l]);
-                    }
+                rows.time[l] = cam.time(sample_1d_keyed(profile.time_strategy, keys[2][l], index[l], spp));
+                if media_move {
+                    rows.media[l] = scene.camera_media_at(rows.time[l]);
                 }
-                if f.dispersion {
-                    // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only.
-                    let w = sample_wavelength(sample_1d_keyed(profile.wavelength_strategy, keys[3][l], index[l], spp));
-                    let t = wavelength_to_rgb(w) / sample_wavelength_pdf(w);
-                    (rows.lambda[l], rows.throughput[0][l], rows.throughput[1][l], rows.throughput[2][l]) = (w, t.x, t.y, t.z);
-                }
+            }
+        }
+        if f.dispersion {
+            // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only. The
+            // wavelengths and their weights (`rgb / pdf`) in 8 lanes (lanes past `k` are not pushed).
+            let mut u = [0.0f32; LANES];
+            for l in 0..k {
+                u[l] = sample_1d_keyed(profile.wavelength_strategy, keys[3][l], index[l], spp);
+            }
+            let w = sample_wavelength_x8(f32x8::from(u));
+            let (rgb, pdf) = (wavelength_to_rgb_x8(w), sample_wavelength_pdf_x8(w));
+            rows.lambda = w.to_array();
+            for (row, c) in rows.throughput.iter_mut().zip(rgb) {
+                *row = (c / pdf).to_array();
             }
         }
         rays.push_rows(k, &rows);
