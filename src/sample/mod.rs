@@ -61,5 +61,7 @@ pub mod warp;
 pub use filter::{sample_filter, sample_filter_pdf, sample_filter_x8, Filter};
 pub use hash::{hash_combine, hash_u32, mix64, permute, random_2d_keyed, random_f32, random_f32_keyed, stream_key, ONE_MINUS_EPSILON};
 pub use sobol::{sobol_owen_1d, sobol_owen_2d};
-pub use strategy::{grid_shape, jitter_rows, sample_1d, sample_1d_keyed, sample_2d, sample_2d_keyed, JitterRows, Sampler2d, Strategy};
+pub use strategy::{
+    grid_shape, jitter_rows, sample_1d, sample_1d_keyed, sample_1d_keyed_x8, sample_2d, sample_2d_keyed, JitterRows, Sampler2d, Strategy,
+};
 pub use warp::{sample_disk_concentric, sample_disk_concentric_pdf, sample_disk_concentric_x8};

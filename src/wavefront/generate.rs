@@ -8,7 +8,7 @@ use super::dims;
 use super::queues::{PathTable, RayQueue, RayRows};
 use crate::optics::{sample_wavelength_pdf_x8, sample_wavelength_x8, wavelength_to_rgb_x8};
 use crate::sample::hash::RUN_MAX;
-use crate::sample::{sample_1d_keyed, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
+use crate::sample::{sample_1d_keyed_x8, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
 use crate::scene::{Profile, Scene};
 use crate::simd::{f32x8, LANES};
 use std::ops::Range;
@@ -107,9 +107,9 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
             ..RayRows::default()
         };
         if f.motion {
-            for l in 0..k {
-                rows.time[l] = cam.time(sample_1d_keyed(profile.time_strategy, keys[2][l], index[l], spp));
-                if media_move {
+            rows.time = sample_1d_keyed_x8(profile.time_strategy, &keys[2], index, spp, one).map(|u| cam.time(u));
+            if media_move {
+                for l in 0..k {
                     rows.media[l] = scene.camera_media_at(rows.time[l]);
                 }
             }
@@ -117,10 +117,7 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
         if f.dispersion {
             // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only. The
             // wavelengths and their weights (`rgb / pdf`) in 8 lanes (lanes past `k` are not pushed).
-            let mut u = [0.0f32; LANES];
-            for l in 0..k {
-                u[l] = sample_1d_keyed(profile.wavelength_strategy, keys[3][l], index[l], spp);
-            }
+            let u = sample_1d_keyed_x8(profile.wavelength_strategy, &keys[3], index, spp, one);
             let w = sample_wavelength_x8(f32x8::from(u));
             let (rgb, pdf) = (wavelength_to_rgb_x8(w), sample_wavelength_pdf_x8(w));
             rows.lambda = w.to_array();
