@@ -1094,3 +1094,157 @@ fn a_difference_of_one_operand_is_warned_about() {
     let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
     assert!(s.warnings.iter().any(|w| w.contains("one of its leaves is thinner than f32 resolves where it lies")), "{:?}", s.warnings);
 }
+
+/// A material name written under an enclosing material (which overrides it) must still name a
+/// material: a CSG child's, a group child's and a named solid's own `material` placed by a `use` that
+/// gives one (a trial's `"nope"` was accepted silently there). The error is the one given elsewhere,
+/// at the name's line and field. A valid name that is overridden is no error and no warning.
+#[test]
+fn an_overridden_material_name_must_still_name_a_material() {
+    let ball = |m: &str| format!("{{ type = \"sphere\", center = [0, 0, 0], radius = 1{m} }}");
+    let node = |kind: &str, child: &str| {
+        let op = if kind == "csg" { "op = \"union\"\n" } else { "" };
+        format!("[[shapes]]\ntype = \"{kind}\"\n{op}material = \"m\"\nchildren = [\n  {child},\n  {}\n]\n", ball(""))
+    };
+    let nested = format!("{{ type = \"csg\", op = \"union\", children = [{}] }}", ball(", material = \"nope\""));
+    let solid = "[solids.a]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"nope\"\n";
+    let cases = [
+        (node("csg", &ball(", material = \"nope\"")), "shapes[0].children[0].material", "nope"),
+        (node("group", &ball(", material = \"nope\"")), "shapes[0].children[0].material", "nope"),
+        (node("csg", &nested), "shapes[0].children[0].children[0].material", "nope"),
+        (format!("{solid}[[shapes]]\nuse = \"a\"\nmaterial = \"m\"\n"), "solids.a.material", "\"nope\""),
+        (format!("{solid}{}", node("csg", "{ use = \"a\" }")), "solids.a.material", "\"nope\""),
+    ];
+    let cases: Vec<(&str, &str, &str)> = cases.iter().map(|(e, f, n)| (e.as_str(), *f, *n)).collect();
+    for msg in fails_at(&cases) {
+        assert!(msg.starts_with("no material named `nope` (defined: m)"), "{msg}");
+    }
+    // A valid name under an override: accepted, silently.
+    let two = "[materials.n]\ntype = \"mirror\"\n";
+    for extra in [
+        format!("{two}{}", node("csg", &ball(", material = \"n\""))),
+        format!("{two}{}[[shapes]]\nuse = \"a\"\nmaterial = \"m\"\n", solid.replace("nope", "n")),
+    ] {
+        let s = parse_scene(Path::new("ok.toml"), &format!("{BASE}{extra}")).unwrap_or_else(|e| panic!("{extra}: {e}"));
+        assert!(s.warnings.is_empty(), "{extra}: {:?}", s.warnings);
+    }
+}
+
+/// The 1e15 limit holds for a moving shape over the whole shutter, not at time 0 alone: a sphere
+/// moving by 9e14 per unit time reaches 9e15 by the close of a shutter [0, 10], and one moving by 1 by
+/// that of [0, 1e30] (both were accepted); the error names the motion, its line and the time. Within
+/// the limit over its shutter it is accepted.
+#[test]
+fn a_moving_shape_is_held_to_the_limit_over_the_whole_shutter() {
+    let scene = |shutter: &str, shape: &str| {
+        let text = format!("{}{shape}", BASE.replace("fov = 40", &format!("fov = 40\nshutter = {shutter}")));
+        (parse_scene(Path::new("m.toml"), &text), text)
+    };
+    let sphere =
+        |motion: &str| format!("[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\nmotion = {motion}\n");
+    let solid = |motion: &str| {
+        format!("[solids.p]\ntype = \"box\"\nmin = [-1, -1, -1]\nmax = [1, 1, 1]\nmaterial = \"m\"\n[[shapes]]\nuse = \"p\"\nmotion = {motion}\n")
+    };
+    for (shutter, shape, time) in [
+        ("[0, 10]", sphere("[9e14, 0, 0]"), "at time 10 (camera.shutter's close"),
+        ("[0, 1e30]", sphere("[1, 0, 0]"), "at time 1e30 (camera.shutter's close"),
+        ("[-10, 0]", sphere("[0, 9e14, 0]"), "at time -10 (camera.shutter's open"),
+        ("[0, 1e30]", solid("[0, 0, 1]"), "at time 1e30"),
+    ] {
+        let (r, text) = scene(shutter, &shape);
+        let e = r.err().unwrap_or_else(|| panic!("accepted: shutter {shutter}, {shape}"));
+        let line = text.lines().position(|l| l.starts_with("motion")).unwrap() + 1;
+        assert_eq!((e.field.as_str(), e.line), ("shapes[0].motion", line), "{e}");
+        assert!(e.message.contains(time) && e.message.contains("the limit is 1e15"), "{shutter}: {e}");
+    }
+    for (shutter, shape) in [("[0, 1]", sphere("[9e14, 0, 0]")), ("[0, 1e10]", sphere("[1, 0, 0]")), ("[0, 1e30]", solid("[0, 0, 0]"))] {
+        let (r, _) = scene(shutter, &shape);
+        r.unwrap_or_else(|e| panic!("shutter {shutter}, {shape}: {e}"));
+    }
+}
+
+/// `focus_distance` without an aperture (or with aperture 0) changes nothing in the image: a warning at
+/// its line and field says so; with an aperture there is none.
+#[test]
+fn a_focus_distance_without_an_aperture_is_warned_of() {
+    for (camera, warned) in [
+        ("focus_distance = 3", true),
+        ("aperture = 0\nfocus_distance = 3", true),
+        ("aperture = 0.1\nfocus_distance = 3", false),
+        ("aperture = 0.1", false),
+    ] {
+        let text = BASE.replace("fov = 40", &format!("fov = 40\n{camera}"));
+        let s = parse_scene(Path::new("f.toml"), &text).unwrap();
+        let w: Vec<_> = s.warnings.iter().filter(|w| w.contains("focus_distance has no effect without an aperture > 0")).collect();
+        assert_eq!(w.len(), usize::from(warned), "{camera}: {:?}", s.warnings);
+        if warned {
+            let at = format!("f.toml:{}:", text.lines().position(|l| l.starts_with("focus_distance")).unwrap() + 1);
+            assert!(w[0].starts_with(&at) && w[0].contains("`camera.focus_distance`"), "{}", w[0]);
+        }
+    }
+}
+
+/// Messages say what is the case: "an" before a vowel (`an emissive material`); a direction that is
+/// not zero but too short to normalise is said so (an exact zero is still "the zero vector"); a
+/// camera whose look_at differs from its position by too little is "too close", not "must differ"; a
+/// length that underflows f32 to 0 is said to, not "got 0"; `motion` in a named solid's definition is
+/// said to be there, not in "a CSG child".
+#[test]
+fn messages_say_what_the_input_is() {
+    let (_, _, msg) = fail("[materials.e]\ntype = \"emissive\"\nradiance = [1, 1, 1]\nalbedo = [0.5, 0.5, 0.5]\n");
+    assert!(msg.starts_with("does not apply to an `emissive` material"), "{msg}");
+    let (_, _, msg) = fail("[materials.l]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\ntint = [1, 1, 1]\n");
+    assert!(msg.starts_with("does not apply to a `lambert` material"), "{msg}");
+
+    let camera = |from: &str, to: &str| {
+        let text = BASE.replace(from, to);
+        (parse_scene(Path::new("c.toml"), &text).map(|_| ()).unwrap_err(), text)
+    };
+    for (up, short) in [("[0, 1e-30, 0]", true), ("[0, 1e-40, 0]", true), ("[0, 0, 0]", false)] {
+        let (e, _) = camera("fov = 40", &format!("fov = 40\nup = {up}"));
+        assert_eq!(e.field, "camera.up");
+        let says = if short { "is too short to normalise" } else { "must not be the zero vector" };
+        assert!(e.message.starts_with(says), "{up}: {}", e.message);
+    }
+    for (position, close) in [("[0, 0, 1e-20]", true), ("[0, 0, 0]", false)] {
+        let (e, text) = camera("position = [0, 1, 5]", &format!("position = {position}"));
+        assert_eq!((e.field.as_str(), e.line), ("camera.look_at", text.lines().position(|l| l.starts_with("look_at")).unwrap() + 1));
+        let says = if close { "is too close to camera.position to give a viewing direction" } else { "must differ from camera.position" };
+        assert!(e.message.starts_with(says), "{position}: {}", e.message);
+    }
+    for (normal, short) in [("[0, 1e-30, 0]", true), ("[0, 0, 0]", false)] {
+        let (_, field, msg) = fail(&format!("[[shapes]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = {normal}\nmaterial = \"m\"\n"));
+        assert_eq!(field, "shapes[0].normal");
+        let says = if short { "is too short to normalise" } else { "must not be the zero vector" };
+        assert!(msg.starts_with(says), "{normal}: {msg}");
+    }
+    for (radius, says) in [("1e-50", "got 1e-50, which underflows f32 to 0"), ("0", "got 0"), ("-1e-60", "got -1e-60, which underflows")] {
+        let (_, field, msg) = fail(&format!("[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = {radius}\nmaterial = \"m\"\n"));
+        assert_eq!(field, "shapes[0].radius");
+        assert!(msg.ends_with(says) || msg.contains(&format!("{says} ")), "{radius}: {msg}");
+        assert_eq!(msg.contains("underflows"), radius != "0", "{radius}: {msg}");
+    }
+
+    let def = "[solids.a]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\nmotion = [1, 0, 0]\n";
+    for extra in [def.to_string(), format!("{def}[[shapes]]\nuse = \"a\"\n")] {
+        let (line, field, msg) = fail(&extra);
+        assert_eq!((field.as_str(), line), ("solids.a.motion", line_of(&extra, "motion")));
+        assert!(msg.starts_with("a named solid's definition takes no motion") && !msg.contains("CSG child"), "{msg}");
+    }
+    let child = "[solids.a]\ntype = \"csg\"\nop = \"union\"\nmaterial = \"m\"\nchildren = [{ type = \"sphere\", radius = 1, motion = [1, 0, 0] }]\n";
+    let (_, field, msg) = fail(child);
+    assert_eq!(field, "solids.a.children[0].motion");
+    assert!(msg.contains("not a CSG child"), "{msg}");
+}
+
+/// A profile file without `name` (or with an empty one) is named after its file, not printed blank in
+/// the render summary; a given name is kept.
+#[test]
+fn a_profile_without_a_name_is_named_after_its_file() {
+    use strata::scene::Profile;
+    let body = "spp = 4\npixel_strategy = \"jittered\"\nlight_samples = 1\nlight_strategy = \"jittered\"\nmax_depth = 4\n";
+    for (name, want) in [("", "my_look"), ("name = \"\"\n", "my_look"), ("name = \"quick\"\n", "quick")] {
+        let p = Profile::parse(Path::new("some/dir/my_look.toml"), &format!("{name}{body}")).unwrap();
+        assert_eq!(p.name, want, "{name:?}");
+    }
+}

@@ -2,7 +2,7 @@
 //!
 //! Every check names the field (`shapes[2].children[0].radius`) and its line and column.
 
-use super::error::{read_text, InputError, Source};
+use super::error::{a_or_an, read_text, InputError, Source};
 use super::format::{CameraDef, Field, LightDef, MaterialDef, Nums, SceneFile, ShapeDef, TransformDef, S, V3};
 use super::{
     CameraMedium, Dielectric, Features, Light, Material, MaterialKind, Prim, Scene, Shape, Texture, MAX_IMAGE_SIDE, MAX_PIXELS, MAX_PRIMS,
@@ -276,12 +276,25 @@ impl Compiler<'_> {
     fn positive(&self, v: &S<f32>, field: impl Display + Copy) -> R<f32> {
         let x = *v.get_ref();
         if !(x.is_finite() && x > 0.0) {
-            return Err(self.err(v.span(), field, format!("must be a finite number > 0, got {x}")));
+            return Err(self.err(v.span(), field, format!("must be a finite number > 0, got {}", self.as_read(v))));
         }
         if x > MAX_MAGNITUDE {
             return Err(self.err(v.span(), field, format!("must be at most {MAX_MAGNITUDE:e} ({BEYOND}), got {x:e}")));
         }
         Ok(x)
+    }
+
+    /// A number as it was read, for a message: `0`, or where the file's digits are not zero but round
+    /// to 0 in f32 (`1e-50`), those digits and that they underflow (`got 0` for `1e-50` read as a lie).
+    fn as_read(&self, v: &S<f32>) -> String {
+        let x = *v.get_ref();
+        let written = self.src.text.get(v.span()).unwrap_or("").trim();
+        match written.replace('_', "").parse::<f64>() {
+            Ok(w) if x == 0.0 && w != 0.0 => {
+                format!("{written}, which underflows f32 to {x} (the smallest positive f32 is about 1.4e-45)")
+            }
+            _ => format!("{x}"),
+        }
     }
 
     fn req<'b, T, F: Field<T>>(&self, v: &'b Option<F>, table: Range<usize>, field: impl Display + Copy) -> R<&'b S<T>> {
@@ -332,6 +345,17 @@ impl Compiler<'_> {
                         camera.lens_radius,
                         camera.lens_radius * f32::EPSILON
                     ),
+                );
+            }
+        }
+        if let Some(f) = &file.camera.get_ref().focus_distance {
+            // (Valid, but the image is the one without it: most likely an aperture left out.)
+            if camera.lens_radius == 0.0 {
+                self.warn(
+                    f.span(),
+                    "camera.focus_distance",
+                    "focus_distance has no effect without an aperture > 0 (a pinhole camera is in focus everywhere): give \
+                     camera.aperture for depth of field",
                 );
             }
         }
@@ -1046,11 +1070,22 @@ impl Compiler<'_> {
         let forward = look_at - position;
         // (Both within MAX_MAGNITUDE: their distance is finite.)
         if forward.length_squared() <= f32::MIN_POSITIVE {
-            return Err(self.err(c.look_at.span(), "camera.look_at", "must differ from camera.position"));
+            // (Points that differ by so little that the square of their distance is below f32's normal
+            // range give no direction either: said as such, not as equal points.)
+            let msg = if look_at == position {
+                "must differ from camera.position".to_string()
+            } else {
+                format!(
+                    "is too close to camera.position to give a viewing direction (they are {:e} apart; at least {:.1e} is needed)",
+                    forward.as_dvec3().length() as f32,
+                    f32::MIN_POSITIVE.sqrt()
+                )
+            };
+            return Err(self.err(c.look_at.span(), "camera.look_at", msg));
         }
         let up_span = c.up.as_ref().map_or(def.span(), |u| u.span());
         if up.length_squared() <= f32::MIN_POSITIVE {
-            return Err(self.err(up_span, "camera.up", "must not be the zero vector"));
+            return Err(self.err(up_span, "camera.up", too_short(up, f32::MIN_POSITIVE.sqrt())));
         }
         if forward.normalize().cross(up.normalize()).length() < 1e-6 {
             if c.up.is_none() {
@@ -1149,7 +1184,7 @@ impl Compiler<'_> {
                 return Err(self.err(
                     span.clone(),
                     f(name),
-                    format!("does not apply to a `{kind}` material (allowed: {})", allowed.join(", ")),
+                    format!("does not apply to {} `{kind}` material (allowed: {})", a_or_an(kind), allowed.join(", ")),
                 ));
             }
         }
@@ -1345,11 +1380,14 @@ impl Compiler<'_> {
     }
 
     /// A placed shape (after its transforms) within [`MAX_MAGNITUDE`] of the origin: its box, or a
-    /// plane's distance.
-    fn within_range(&self, shape: &Shape, def: &S<ShapeDef>, field: impl Display + Copy) -> R<()> {
-        let reach = match (shape, prim_bounds(shape, &self.csg)) {
+    /// plane's distance; and, moving by `motion` (it sits at `shape + motion * t`), at every time of the
+    /// camera's shutter (checked before the shapes): the farthest it gets is at the shutter's open or
+    /// close, the motion being linear.
+    fn within_range(&self, shape: &Shape, motion: Vec3, def: &S<ShapeDef>, field: impl Display + Copy) -> R<()> {
+        let bounds = prim_bounds(shape, &self.csg).filter(|b| !b.is_empty());
+        let reach = match (shape, bounds) {
             (Shape::Plane(p), _) => p.offset.abs(),
-            (_, Some(b)) if !b.is_empty() => b.min.abs().max(b.max.abs()).max_element(),
+            (_, Some(b)) => b.min.abs().max(b.max.abs()).max_element(),
             _ => 0.0,
         };
         if reach > MAX_MAGNITUDE {
@@ -1357,6 +1395,30 @@ impl Compiler<'_> {
                 def.span(),
                 field,
                 format!("placed, it reaches {reach:e} from the origin; the limit is {MAX_MAGNITUDE:e} ({BEYOND})"),
+            ));
+        }
+        let (Some(b), Some(m)) = (bounds, def.get_ref().motion.as_ref()) else { return Ok(()) };
+        if motion == Vec3::ZERO {
+            return Ok(());
+        }
+        // (In f64: a shutter time of 1e30 times a motion of 1e15 overflows f32.)
+        let shutter = self.file.camera.get_ref().shutter.as_ref().map_or([0.0, 0.0], |s| s.get_ref().0);
+        let at = |t: f32| {
+            let d = motion.as_dvec3() * t as f64;
+            (b.min.as_dvec3() + d).abs().max((b.max.as_dvec3() + d).abs()).max_element()
+        };
+        let (t, far) = shutter.into_iter().map(|t| (t, at(t))).fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+        if far > MAX_MAGNITUDE as f64 {
+            let end = if t == shutter[1] { "close" } else { "open" };
+            return Err(self.err(
+                m.span(),
+                Sub(field, "motion"),
+                format!(
+                    "moving by this motion, it reaches {far:.2e} from the origin at time {} (camera.shutter's {end}; a moving \
+                     shape is at its given place at time 0); the limit is {MAX_MAGNITUDE:e} ({BEYOND}): give a slower \
+                     motion or a shorter shutter",
+                    plain_number(t)
+                ),
             ));
         }
         Ok(())
@@ -1413,7 +1475,8 @@ impl Compiler<'_> {
     fn check_fields(&self, def: &S<ShapeDef>, field: impl Display + Copy, kind: &str, allowed: &[&str]) -> R<()> {
         match def.get_ref().misfit(allowed) {
             Some((name, span)) => {
-                Err(self.err(span, Sub(field, name), format!("does not apply to a `{kind}` (allowed: {})", allowed.join(", "))))
+                let a = a_or_an(kind);
+                Err(self.err(span, Sub(field, name), format!("does not apply to {a} `{kind}` (allowed: {})", allowed.join(", "))))
             }
             None => Ok(()),
         }
@@ -1445,7 +1508,7 @@ impl Compiler<'_> {
             if matches!(shape, Shape::Plane(_)) && motion != Vec3::ZERO {
                 return Err(self.err(s.motion.as_ref().unwrap().span(), Sub(at, "motion"), "an infinite plane cannot move"));
             }
-            self.within_range(&shape, def, at)?;
+            self.within_range(&shape, motion, def, at)?;
             self.thin_glass(&shape, material, def, at);
             self.prims.push(Prim { shape, material, motion, is_light: false });
             self.prim_at.push((def.span(), PrimField::Shape(i)));
@@ -1524,7 +1587,7 @@ impl Compiler<'_> {
             });
         }
         let shape = Shape::Csg { solid };
-        self.within_range(&shape, def, field)?;
+        self.within_range(&shape, motion, def, field)?;
         self.prims.push(Prim { shape, material: material.unwrap_or(0), motion, is_light: false });
         self.prim_at.push((def.span(), PrimField::Path(field.to_string())));
         Ok(())
@@ -1629,7 +1692,7 @@ impl Compiler<'_> {
     fn unit(&self, v: &V3, field: impl Display + Copy) -> R<Vec3> {
         let n = self.vec3(v, field)?;
         if n.length_squared() < 1e-20 {
-            return Err(self.err(v.span(), field, "must not be the zero vector"));
+            return Err(self.err(v.span(), field, too_short(n, 1e-10)));
         }
         Ok(n.normalize())
     }
@@ -1708,18 +1771,32 @@ impl Compiler<'_> {
         let f = |n: &str| format!("{field}.{n}");
         if depth > 0 {
             if let Some(m) = &s.motion {
-                return Err(self.err(m.span(), f("motion"), "motion applies to a whole top-level shape, not a CSG child"));
+                // (A named solid's own definition is reached at depth 1 and up, under its own name.)
+                let msg = match uses.last().filter(|n| field.strip_prefix("solids.") == Some(n.as_str())) {
+                    Some(name) => format!(
+                        "a named solid's definition takes no motion: give it where the solid is placed at the top level, \
+                         `[[shapes]]` with `use = \"{name}\"` and `motion = [...]`"
+                    ),
+                    None => "motion applies to a whole top-level shape, not a CSG child".to_string(),
+                };
+                return Err(self.err(m.span(), f("motion"), msg));
             }
         }
-        // Outermost material wins: a node's material overrides its descendants.
+        // Outermost material wins: a node's material overrides its descendants. Every material name
+        // written must still name a material, overridden or not (a misspelt name is an error wherever
+        // it is written, not only where it would be used).
         let saved_from = self.material_from.clone();
-        let material = match (material, &s.material) {
-            (Some(m), _) => Some(m),
-            (None, Some(m)) => {
-                self.material_from = Some((m.span(), f("material")));
-                Some(self.material_ref(m, &f("material"))?)
+        let own = match &s.material {
+            Some(m) => Some(self.material_ref(m, &f("material"))?),
+            None => None,
+        };
+        let material = match (material, own, &s.material) {
+            (Some(m), _, _) => Some(m),
+            (None, Some(m), Some(d)) => {
+                self.material_from = Some((d.span(), f("material")));
+                Some(m)
             }
-            (None, None) => None,
+            _ => None,
         };
         if let Some(u) = &s.use_solid {
             let name = u.get_ref();
@@ -1945,7 +2022,7 @@ impl Compiler<'_> {
                 return Err(self.err(
                     span.clone(),
                     f(name),
-                    format!("does not apply to a `{kind}` light (allowed: {})", allowed.join(", ")),
+                    format!("does not apply to {} `{kind}` light (allowed: {})", a_or_an(kind), allowed.join(", ")),
                 ));
             }
         }
@@ -2113,6 +2190,28 @@ fn mark_passable(materials: &mut [Material], used: &[bool]) {
             d.passable = f;
         }
     }
+}
+
+/// A number for a message: as written for ordinary magnitudes (`10`, `0.5`), in exponent form for
+/// others (`1e30`, not its 31 digits).
+fn plain_number(x: f32) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// Why a direction (`normal`, `up`) shorter than `min` is refused: the zero vector, or a vector that is
+/// not zero but too short to normalise (`[0, 1e-30, 0]`: its squared length underflows f32).
+fn too_short(v: Vec3, min: f32) -> String {
+    if v == Vec3::ZERO {
+        return "must not be the zero vector".to_string();
+    }
+    format!(
+        "is too short to normalise (length {:e}, below {min:.1e}): give the direction at an ordinary length, e.g. [0, 1, 0]",
+        v.as_dvec3().length() as f32
+    )
 }
 
 /// The uniform scale of a similarity transform (rotation x uniform scale), or None.

@@ -274,6 +274,15 @@ impl Source<'_> {
     }
 }
 
+/// The indefinite article for `word` (a material, shape or light kind): "an" before a vowel sound
+/// (`an emissive material`), "a" elsewhere (`a lambert material`, `a use`: a `u` that sounds as "you").
+pub(crate) fn a_or_an(word: &str) -> &'static str {
+    match word.as_bytes().first().map(u8::to_ascii_lowercase) {
+        Some(b'a' | b'e' | b'i' | b'o') => "an",
+        _ => "a",
+    }
+}
+
 /// The reader's words for the file's tables ("expected struct MaterialDef", serde's name for the Rust
 /// type) as what a scene writer knows them by.
 fn plain_struct_names(message: &str) -> String {

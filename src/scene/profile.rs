@@ -94,6 +94,8 @@ pub const MAX_DEPTH: u32 = 1024;
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Profile {
+    /// The name the render summary prints; a file without one is named after the file
+    /// (`Profile::name_after`).
     #[serde(default)]
     pub name: String,
     /// Camera samples per pixel.
@@ -165,7 +167,8 @@ impl Profile {
     /// Parse profile text; `path` is used in error messages.
     pub fn parse(path: &Path, text: &str) -> Result<Profile, InputError> {
         let src = Source { path, text };
-        let p: Profile = toml::from_str(text).map_err(|e| src.from_toml(&e))?;
+        let mut p: Profile = toml::from_str(text).map_err(|e| src.from_toml(&e))?;
+        p.name_after(path);
         p.validate().map_err(|(field, msg)| {
             let span = find_key(text, field).unwrap_or(0..0);
             src.error(span, field, msg)
@@ -189,6 +192,7 @@ impl Profile {
         let (path, text) = Self::find(name_or_path).map_err(|e| e.to_string())?;
         let src = Source { path: &path, text: &text };
         let mut p: Profile = toml::from_str(&text).map_err(|e| src.from_toml(&e).to_string())?;
+        p.name_after(&path);
         let pairs = overrides(&p);
         let mut set = Vec::new();
         for (k, v) in general_strategy_first(pairs.iter().map(|(k, v)| (k.trim(), v.as_str()))) {
@@ -243,6 +247,14 @@ impl Profile {
             local.display(),
             BUILTIN.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
         )))
+    }
+
+    /// A profile file without a `name` (or with `name = ""`) is named after its file: `my_preview` for
+    /// `my_preview.toml` (the summary printed a blank name).
+    fn name_after(&mut self, path: &Path) {
+        if self.name.trim().is_empty() {
+            self.name = path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+        }
     }
 
     pub fn builtin(name: &str) -> Profile {
