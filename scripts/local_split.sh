@@ -53,20 +53,30 @@ for ((i = 0; i < PARTS; i++)); do
         --film "$film" --checkpoint-every "$CHECKPOINT" -o "$WORKDIR/part_$i.exr" "$@")
     if [ -f "$film" ]; then args+=(--resume "$film"); fi
     printf '%q ' "${args[@]}" >> "$cmds"
-    printf '> %q 2>&1 && echo %q || { echo %q >&2; exit 1; }\n' "$WORKDIR/part_$i.log" \
-        "part $i (samples $a..$b) done" "part $i (samples $a..$b) failed: see $WORKDIR/part_$i.log" >> "$cmds"
+    printf '> %q 2>&1 && echo %q || { [ $? = 130 ] && echo %q >&2 || echo %q >&2; exit 1; }\n' "$WORKDIR/part_$i.log" \
+        "part $i (samples $a..$b) done" "part $i (samples $a..$b) interrupted: its film is kept" \
+        "part $i (samples $a..$b) failed: see $WORKDIR/part_$i.log" >> "$cmds"
 done
 
 echo "rendering $PARTS parts of $SPP spp, $JOBS at a time, $THREADS threads each (logs in $WORKDIR)"
+# Ctrl-C signals every process of the terminal's group: each part writes its film and exits, while this
+# script, xargs (or parallel) and the per-part shells ignore it and wait for them, then say where the
+# parts stand (killed by the signal, the script used to end without a word).
+interrupted=0
+trap 'interrupted=1' INT
 status=0
 if [ "${PARALLEL:-0}" = 1 ]; then
-    parallel --jobs "$JOBS" < "$cmds" || status=$?
+    (trap '' INT; exec parallel --jobs "$JOBS") < "$cmds" || status=$?
 else
-    xargs -P "$JOBS" -d '\n' -n 1 bash -c < "$cmds" || status=$?
+    (trap '' INT; exec xargs -P "$JOBS" -d '\n' -n 1 bash -c) < "$cmds" || status=$?
 fi
-if [ "$status" -ne 0 ]; then
+if [ "$status" -ne 0 ] || [ "$interrupted" = 1 ]; then
     "$STRATA" merge --status "$WORKDIR"/part_*.film >&2 || true
-    echo "error: some parts failed or were interrupted; run the same command again to resume them" >&2
+    if [ "$interrupted" = 1 ]; then
+        echo "interrupted: the parts wrote their films; run the same command again to resume them" >&2
+    else
+        echo "error: some parts failed or were interrupted; run the same command again to resume them" >&2
+    fi
     exit 1
 fi
 "$STRATA" merge "$WORKDIR"/part_*.film -o "$OUT" --film "$WORKDIR/merged.film"

@@ -34,6 +34,20 @@ fn missing_output_directory_fails_before_rendering() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("does not exist"));
 }
 
+/// A `--resume` film that is not there is told before the scene is read (a trial waited a second for a
+/// large scene's setup first), naming the flag: the same with a scene that does not exist either.
+#[test]
+fn missing_resume_film_fails_before_the_scene_is_read() {
+    let film = tmp("not-there.film");
+    for scene in ["scenes/showcase.toml", "/nonexistent-dir/scene.toml"] {
+        let out =
+            strata().args(["render", scene, "--resume", film.to_str().unwrap(), "-o", tmp("r.png").to_str().unwrap()]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.starts_with(&format!("error: --resume {}: ", film.display())), "{scene}: {err}");
+    }
+}
+
 #[test]
 fn bad_flags_are_input_errors() {
     let o = tmp("x.png");
@@ -831,7 +845,7 @@ fn a_zero_length_shutter_with_motion_is_warned_about() {
             let err = String::from_utf8_lossy(&o.stderr);
             assert_eq!(o.status.code(), Some(0), "{err}");
             // (Not where time is held at one instant: no blur to come out in steps.)
-            let said = err.contains("f32 times there are 0.0625 apart, so it holds only 16 distinct instants");
+            let said = err.contains("f32 times there are 0.0625 apart, so it holds only 17 distinct instants");
             assert_eq!(said, warned && sampled, "{shutter} {time}: {err}");
         }
     }

@@ -556,3 +556,45 @@ fn sobol_sets_off_powers_of_two_and_light_sets_past_2_24_are_warned_of() {
         "{w}"
     );
 }
+
+/// A scene lit by emissive shapes alone, under `diffuse_depth = 0`, is warned of: emissive surfaces are
+/// not sampled as lights, so its Lambert surfaces get no light at all (a trial's emissive ball over a
+/// floor rendered the floor black without a word). Not with diffuse bounces, not with a `[[lights]]`
+/// entry (an area light's own surface is emissive too, and sampled), not with an emissive CSG part
+/// where bounces reach it, and not without Lambert surfaces.
+#[test]
+fn emissive_shapes_that_light_nothing_are_warned_of() {
+    let base = "[image]\nwidth = 8\nheight = 6\n[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\nfov = 40\n\
+                [materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
+                [materials.e]\ntype = \"emissive\"\nradiance = [5, 5, 5]\n\
+                [materials.k]\ntype = \"mirror\"\n";
+    let floor = |m: &str| format!("[[shapes]]\ntype = \"plane\"\npoint = [0, -1, 0]\nnormal = [0, 1, 0]\nmaterial = \"{m}\"\n");
+    let lamp = "[[shapes]]\ntype = \"sphere\"\ncenter = [0, 1, 0]\nradius = 0.5\nmaterial = \"e\"\n";
+    let csg_lamp = "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [ { type = \"sphere\", center = [0, 1, 0], radius = 0.5, \
+                    material = \"e\" }, { type = \"box\", min = [1, 0, 0], max = [2, 1, 1], material = \"m\" } ]\n";
+    let light = "[[lights]]\ntype = \"quad\"\norigin = [-1, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]\nradiance = [1, 1, 1]\n";
+    let warned = |shapes: &str, dd: &str| {
+        let scene = strata::scene::parse_scene(std::path::Path::new("e.toml"), &format!("{base}{shapes}")).unwrap();
+        let mut p = strata::scene::Profile::builtin("preview");
+        p.set("diffuse_depth", dd).unwrap();
+        strata::cli::render_cmd::sampling_warnings(&scene, &p).iter().any(|w| w.contains("emissive surfaces light others only"))
+    };
+    assert!(warned(&format!("{}{lamp}", floor("m")), "0"));
+    assert!(warned(&format!("{}{csg_lamp}", floor("k")), "0"));
+    assert!(!warned(&format!("{}{lamp}", floor("m")), "2"));
+    assert!(!warned(&format!("{}{lamp}{light}", floor("m")), "0"));
+    assert!(!warned(&format!("{}{light}", floor("m")), "0"));
+    assert!(!warned(&format!("{}{lamp}", floor("k")), "0"));
+    // Nothing that gives light at all (a trial's black render came without a word): said so.
+    let dark = |text: &str| {
+        let scene = strata::scene::parse_scene(std::path::Path::new("d.toml"), text).unwrap();
+        let p = strata::scene::Profile::builtin("preview");
+        strata::cli::render_cmd::sampling_warnings(&scene, &p).iter().any(|w| w.starts_with("the scene has no light"))
+    };
+    let plain = "[image]\nwidth = 8\nheight = 6\n[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\nfov = 40\n\
+                 [materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n";
+    assert!(dark(&format!("{plain}{}", floor("m"))));
+    assert!(!dark(&format!("{plain}{}{light}", floor("m"))));
+    assert!(!dark(&format!("{base}{}{lamp}", floor("m"))));
+    assert!(!dark(&format!("{}{}", plain.replace("height = 6\n", "height = 6\nbackground = [0.1, 0.1, 0.1]\n"), floor("m"))));
+}

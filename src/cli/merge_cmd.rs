@@ -114,10 +114,20 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     }
     // (With --allow-gaps the range is the span the films cover, marked incomplete.)
     let provenance = Provenance { samples: range.clone(), complete: problems.is_empty(), ..Provenance::of(first) };
+    // (The merged film's header first: a film --film would replace is refused before anything is written.)
+    let film_out = match &a.film {
+        Some(fp) => {
+            let completed = vec![true; unit_count(first.width, first.height, first.tile, range.clone())];
+            let h = FilmHeader { samples: range.clone(), completed, build, ..first.clone() };
+            if let Some(w) = super::render_cmd::check_film_replaced(fp, "--film", &h)? {
+                errln!("warning: {w}");
+            }
+            Some((fp, h))
+        }
+        None => None,
+    };
     write_image_with(&out, merged.width, merged.height, &merged.to_rgb(), Some(&provenance)).map_err(Failure::runtime)?;
-    if let Some(fp) = &a.film {
-        let completed = vec![true; unit_count(first.width, first.height, first.tile, range.clone())];
-        let h = FilmHeader { samples: range.clone(), completed, build, ..first.clone() };
+    if let Some((fp, h)) = film_out {
         write_film(fp, &h, &merged).map_err(Failure::runtime)?;
     }
     let ranges: Vec<String> = films.iter().map(|(_, f)| range_text(&f.header.samples)).collect();

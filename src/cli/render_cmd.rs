@@ -6,9 +6,10 @@ use crate::film::output::{check_file_writable, check_writable, write_image_with,
 use crate::film::Film;
 use crate::render::{check_render_size, render_resumable, Checkpoint, RenderJob, RenderStats};
 use crate::sample::Strategy;
-use crate::scene::{load_scene_sized, LightSelection, Profile, Scene};
+use crate::scene::{load_scene_sized, LightSelection, Material, MaterialKind, Profile, Scene, NOT_A_LIGHT};
 use crate::wavefront::Settings;
 use clap::Args;
+use glam::Vec3;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
@@ -174,6 +175,26 @@ fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
     (!d.is_empty()).then(|| d.join("; "))
 }
 
+/// What `flag` writing a film of the render `this` at `path` would replace: a partial film of another
+/// render (or of another sample range or tile of the same scene) is refused, since it is work in
+/// progress (a trial's 6% of a `final` render went so without a word); a complete one is replaced, with
+/// a warning (returned). Nothing there, a film of this very render, or a file that is no film: `Ok(None)`
+/// (a partial film of this same render is `render`'s to refuse, offering `--resume`).
+pub(super) fn check_film_replaced(path: &Path, flag: &str, this: &FilmHeader) -> Result<Option<String>, Failure> {
+    let Ok(saved) = read_film(path) else { return Ok(None) };
+    let Some(why) = resume_mismatch(&saved.header, this) else { return Ok(None) };
+    if !saved.header.is_complete() {
+        return Err(Failure::input(format!(
+            "{}: a partial film of another render ({} of {} work units; {why}) is there, which {flag} would replace: \
+             name another film, or remove it first",
+            path.display(),
+            saved.header.units_done(),
+            saved.header.completed.len()
+        )));
+    }
+    Ok(Some(format!("{}: {flag} replaces a complete film of another render ({why})", path.display())))
+}
+
 pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     // Until the render's own handler: a signal during setup (reading the scene, its BVH) quits at once.
     super::on_signal(|| {
@@ -227,6 +248,10 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         inputs.push(("the --resume film", r));
     }
     super::check_distinct_files(&outputs, &inputs, &[("--film", "the --resume film"), ("--resume", "the --resume film")])?;
+    if let Some(r) = &a.resume {
+        // (Read after the scene's setup, which it must match: whether it is there at all, told at once.)
+        std::fs::File::open(r).map_err(|e| Failure::input(format!("--resume {}: {e}", r.display())))?;
+    }
     let checkpoint_every = match a.checkpoint_every {
         None => None,
         Some(s) if s.is_finite() && s > 0.0 && s < 1e9 => Some(Duration::from_secs_f64(s)),
@@ -273,9 +298,14 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             }
         }
     }
+    if let Some(f) = a.film.as_deref().filter(|&f| a.resume.as_deref() != Some(f)) {
+        if let Some(w) = check_film_replaced(f, "--film", &header)? {
+            errln!("warning: {w}");
+        }
+    }
     let mut film = Film::new(scene.width, scene.height);
     if let Some(r) = &a.resume {
-        let saved = read_film(r).map_err(Failure::input)?;
+        let saved = read_film(r).map_err(|e| Failure::input(format!("--resume {e}")))?;
         if let Some(why) = resume_mismatch(&saved.header, &header) {
             return Err(Failure::input(format!("{}: cannot resume: the film is from a different render: {why}", r.display())));
         }
@@ -498,11 +528,12 @@ pub fn identical_samples_warning(scene: &Scene, p: &Profile) -> Option<String> {
 /// staircase of that many steps).
 const SHUTTER_MIN_INSTANTS: u64 = 1024;
 
-/// How many distinct f32 times the shutter `[t0, t1]` holds (its length over the f32 spacing at its
-/// larger end); `None` for a shutter of no length.
+/// How many distinct f32 times the shutter `[t0, t1]` holds: its length over the f32 spacing at its
+/// larger end, plus one (both ends: `t0 + (t1 - t0) u` rounds to `t1` for `u` near 1 where the spacing
+/// is coarse); `None` for a shutter of no length.
 fn shutter_instants(t0: f32, t1: f32) -> Option<u64> {
     let spacing = crate::geometry::ulp_at(t0.abs().max(t1.abs()).max(f32::MIN_POSITIVE));
-    (t1 > t0).then(|| ((t1 as f64 - t0 as f64) / spacing as f64).round() as u64)
+    (t1 > t0).then(|| ((t1 as f64 - t0 as f64) / spacing as f64).round() as u64 + 1)
 }
 
 /// Samples that do not sample what their integral asks: one light sample on a `grid` (the light's centre
@@ -523,12 +554,37 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     } else if let Some(n) =
         shutter_instants(t0, t1).filter(|&n| n < SHUTTER_MIN_INSTANTS && scene.features.motion && p.time_strategy != Strategy::Center)
     {
-        let ulp = (t1 - t0) / n as f32;
+        let ulp = (t1 - t0) / (n - 1) as f32;
         out.push(format!(
             "shutter [{t0}, {t1}] lies far from time 0 for its length: f32 times there are {ulp} apart, so it holds only {n} distinct \
              instants and motion blur comes out in {n} steps; give times near 0 (a moving shape is at its `center` at time 0: \
              shift the centres by `motion` times the same amount)"
         ));
+    }
+    if !scene.has_light() {
+        out.push(
+            "the scene has no light: no [[lights]], no emissive material of radiance > 0 and a black background, so the image is \
+             black"
+                .to_string(),
+        );
+    }
+    if p.diffuse_depth == 0 && scene.lights.is_empty() {
+        // (Emissive shapes of the scene's own, not the surfaces of its area lights, which are sampled. With
+        // lights, a panel seen in reflections alone is a choice: `scenes/glossy.toml`'s.)
+        let kinds = || scene.prim_kind.iter().chain(&scene.leaf_kind);
+        let glowing = scene.materials.iter().any(|m| matches!(m, Material::Emissive { radiance } if *radiance != Vec3::ZERO));
+        let emits = glowing
+            && (scene.leaf_kind.contains(&MaterialKind::Emissive)
+                || scene.prim_kind.iter().zip(&scene.light_of_prim).any(|(&k, &l)| k == MaterialKind::Emissive && l == NOT_A_LIGHT));
+        if emits && kinds().any(|&k| k == MaterialKind::Lambert) {
+            out.push(
+                "emissive surfaces light others only through the paths that reach them (diffuse bounces, mirrors, glass, glossy \
+                 lobes), not as lights sampled at shading points: with diffuse_depth 0 (this profile's) the Lambert surfaces \
+                 receive no light at all (give diffuse_depth > 0, e.g. --set diffuse_depth=4, or model the lamp as a \
+                 [[lights]] quad, disk or sphere)"
+                    .to_string(),
+            );
+        }
     }
     if p.light_selection != LightSelection::All && scene.lights.len() <= 1 {
         out.push(format!(

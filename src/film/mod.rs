@@ -66,8 +66,10 @@ pub fn dim_warning(film: &Film, lit: bool) -> Option<String> {
     let fix = "if the scene's light should be brighter, scale every radiance and intensity up by one factor (the image is linear)";
     if brightest == 0.0 {
         Some(format!(
-            "every pixel of the image is 0: no light reached the camera, or it was below the film's resolution (each sample is stored to \
-             2^-32, 2.3e-10, so light below 1.2e-10 per sample rounds to nothing); {fix}"
+            "every pixel of the image is 0: no light reached the camera (look for a quad or disk light facing away from the scene, a \
+             light inside or on a surface, an emissive surface seen from its back, or shapes between the lights and all the camera \
+             sees), or it was below the film's resolution (each sample is stored to 2^-32, 2.3e-10, so light below 1.2e-10 per sample \
+             rounds to nothing); {fix}"
         ))
     } else if brightest < DIM_PIXEL {
         let off = 0.5 / FIXED_ONE / brightest as f64;

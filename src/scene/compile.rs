@@ -598,8 +598,9 @@ impl Compiler<'_> {
     /// sphere, ellipsoid or box of a non-thin dielectric, or a CSG solid with such a leaf; static)
     /// whose bounds touch, 3 x 6^2 axis rays across the overlap of their bounds, the f64 crossings of
     /// both compared (closer than the spawn offset, 256 ULPs of the point; a CSG solid's by its leaves
-    /// near the overlap, whether or not they bound it there). Shapes the sphere check warned of
-    /// (`spheres`) are not warned of twice; the probes stop after 2^22 leaf tests (about 0.05 s).
+    /// near the overlap, whether or not they bound it there); pairs of balls analytically
+    /// ([`balls_nearly_tangent`]: the probes miss the small cap of two nearly tangent balls). Shapes the
+    /// sphere check warned of (`spheres`) are not warned of twice; the probes stop after 2^22 leaf tests (about 0.05 s).
     fn coincident_glass_surfaces(&mut self, spheres: &[(usize, usize)]) {
         use crate::csg::reference::leaf_f64;
         use glam::DVec3;
@@ -701,6 +702,15 @@ impl Compiler<'_> {
                     break 'outer;
                 }
                 if *s1 && *s2 {
+                    // Two balls: analytic (the probes' rays miss the small cap where two nearly tangent
+                    // balls come within the offset: a trial's liquid ball poking 3e-5 out of its glass
+                    // ball took the glass's absorption away from the rays through that cap).
+                    if balls_nearly_tangent(&self.prims[*i].shape, &self.prims[*j].shape) {
+                        let pair = ((*i).max(*j), (*i).min(*j));
+                        if !spheres.iter().any(|s| s.0 == pair.0) {
+                            pairs.push(pair);
+                        }
+                    }
                     continue;
                 }
                 let (lo, hi) = (lo1.max(*lo2) - slack, hi1.min(*hi2) + slack);
@@ -2296,6 +2306,24 @@ fn csg_torus_placement(center: Vec3, major: f32) -> Affine3A {
 fn csg_halfspace_placement(point: Vec3, normal: Vec3) -> Affine3A {
     // Canonical half-space: z <= 0 (outward normal +z), rotated so +z becomes `normal`, moved to `point`.
     Affine3A::from_rotation_translation(Quat::from_rotation_arc(Vec3::Z, normal), point)
+}
+
+/// Whether two balls (`Shape::Sphere`) have surfaces within the spawn offset of each other: tangent
+/// outside or inside within it, or one poking out of the other (or overlapping it) by less than it. The
+/// surfaces are nearest along the line of centres, where the gap is `d - (r1 + r2)` (balls apart or
+/// overlapping) or `|r1 - r2| - d` (one inside the other, or poking out of it); either within 256 ULPs of
+/// the farthest coordinate of the two balls (the spawn offset, taken where it is largest), in f64.
+/// Equal balls give `true` too; the caller leaves out the pairs the sphere check
+/// (`coincident_glass_spheres`) warned of.
+fn balls_nearly_tangent(a: &Shape, b: &Shape) -> bool {
+    let (Shape::Sphere { center: c1, radius: r1 }, Shape::Sphere { center: c2, radius: r2 }) = (a, b) else {
+        return false;
+    };
+    let (c1, c2, r1, r2) = (c1.as_dvec3(), c2.as_dvec3(), *r1 as f64, *r2 as f64);
+    let d = (c2 - c1).length();
+    let far = (c1.abs().max_element() + r1).max(c2.abs().max_element() + r2);
+    let tol = 256.0 * far * f32::EPSILON as f64;
+    (d - (r1 + r2)).abs() <= tol || ((r1 - r2).abs() - d).abs() <= tol
 }
 
 #[cfg(test)]
