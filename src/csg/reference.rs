@@ -231,7 +231,10 @@ pub fn intervals_f64(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f
 const OFFSET: f64 = 0.381_966_011_250_105;
 
 /// Whether any of `3 n^2` axis-parallel rays through the solid's bounds (an `n x n` grid of cells across
-/// each pair of axes, each ray at [`OFFSET`] within its cell) finds an inside interval longer than `1e-6` of the bounds' largest extent.
+/// each pair of axes, each ray at [`OFFSET`] within its cell) finds an inside interval longer than `1e-6` of
+/// the bounds' largest extent and than the solid's coincidence tolerance (crossings closer than that are
+/// one for the render, so such an interval renders as nothing: a trial's intersection of two boxes sharing
+/// a face was said to look empty at some scales and not at others, by the rounding of their faces).
 /// `false` means the solid is very likely empty (a hole larger than its part, `A - A`), or thinner than
 /// the grid's spacing everywhere. Solids with unbounded or empty bounds are reported as not empty (the
 /// bounds already decide those). Most solids answer at their first ray.
@@ -242,7 +245,7 @@ pub fn probe_finds_volume(csg: &Csg, solid: u32, n: u32) -> bool {
         return true;
     }
     let ext = hi - lo;
-    let min_len = 1e-6 * ext.max_element();
+    let min_len = (1e-6 * ext.max_element()).max(super::merge::COINCIDENT_EPS as f64 * csg.scale(solid) as f64);
     let mut out = Vec::new();
     for axis in 0..3 {
         let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);

@@ -1561,8 +1561,13 @@ impl Compiler<'_> {
         let tol = crate::csg::merge::COINCIDENT_EPS * scale;
         // (A solid that looks empty costs the probe all its rays, ~0.4 ms: past `MAX_EMPTY_PROBED` of them
         // the rest are not probed, and the count says so.)
+        // (Bounds no thicker than the tolerance hold nothing the render keeps, whatever a probe's rays find
+        // there: an intersection of two boxes that share a face has bounds of ~0 thickness, and rays
+        // lying in the face found it inside or not by the rounding of the faces, so it was said to look
+        // empty at some scales and not at others.)
+        let flat = (hi - lo).min_element() <= tol;
         if !self.counted_at_least(WarnKind::LooksEmpty, MAX_EMPTY_PROBED)
-            && !crate::csg::reference::probe_finds_volume(&self.csg, solid, EMPTY_PROBE_GRID)
+            && (flat || !crate::csg::reference::probe_finds_volume(&self.csg, solid, EMPTY_PROBE_GRID))
         {
             // Kept (the probe can miss a solid thinner than its spacing), but most likely a mistake; or its
             // walls are thinner than the tolerance (a thin shell far from the origin), which merges them

@@ -58,8 +58,9 @@ fn compact_bits(v: u64) -> u32 {
 
 /// Camera rays (and their paths) for samples `samples` of every pixel of `tile`, pixels in Z order, a
 /// pixel's samples consecutive. Positions, lens points and directions are made 8 rays at a time (the
-/// sampler, the box filter, the lens disk and `Camera::rays_x8` in 8 lanes); shutter times and
-/// wavelengths, only for scenes that have them, lane by lane.
+/// sampler, the box filter, the lens disk and `Camera::rays_x8` in 8 lanes), and so are shutter times
+/// and wavelengths with their weights, only for scenes that have them (`sample_1d_keyed_x8`, the
+/// `_x8` spectral functions: the scalar ones per lane cost a dispersive scene half its render).
 pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples: Range<u32>, paths: &mut PathTable, rays: &mut RayQueue) {
     let f = &scene.features;
     let cam = &scene.camera;
