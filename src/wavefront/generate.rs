@@ -6,9 +6,11 @@
 
 use super::dims;
 use super::queues::{PathTable, RayQueue, RayRows};
-use crate::optics::{sample_wavelength_pdf_x8, sample_wavelength_x8, wavelength_to_rgb_x8};
+use crate::optics::{sample_wavelength_pdf_x8, sample_wavelength_x8, wavelength_to_rgb_x8, LAMBDA_D};
 use crate::sample::hash::RUN_MAX;
-use crate::sample::{sample_1d_keyed_x8, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d};
+use crate::sample::{
+    sample_1d_keyed_x8, sample_disk_concentric_x8, sample_filter, sample_filter_x8, stream_key, Filter, Sampler2d, Strategy,
+};
 use crate::scene::{Profile, Scene};
 use crate::simd::{f32x8, LANES};
 use std::ops::Range;
@@ -81,6 +83,8 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
     // The media the camera is inside (none, nearly always); by each ray's time where one moves past it.
     let media = scene.camera_media_at(cam.shutter[0]);
     let media_move = f.motion && scene.camera_media_move();
+    // Whether the wavelength integral has one sample point: then it is held at the nominal index.
+    let nominal = profile.wavelength_strategy == Strategy::Center || (profile.wavelength_strategy == Strategy::Grid && spp == 1);
     // Rays (and their path ids, from `next_path` on) for the first `k` lanes of `b`; `one`: its lanes are
     // one pixel's samples (one key per dimension, in lane 0).
     // `made`: the packet's pixel and lens samples, where they were made beforehand (`Sampler2d::sample_x8_run`).
@@ -115,7 +119,12 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
                 }
             }
         }
-        if f.dispersion {
+        if f.dispersion && nominal {
+            // One point for the spectrum (`center`, a grid of one): the d line, weight 1 (the path RGB,
+            // every dielectric at its nominal index): the image without dispersion. The midpoint of the
+            // wavelength density, 541 nm, rendered the whole scene green (weight (0, 3.05, 0)).
+            rows.lambda = [LAMBDA_D; LANES];
+        } else if f.dispersion {
             // Its own strategy: with the pixel's, `center` pixels rendered one wavelength only. The
             // wavelengths and their weights (`rgb / pdf`) in 8 lanes (lanes past `k` are not pushed).
             let u = sample_1d_keyed_x8(profile.wavelength_strategy, &keys[3], index, spp, one);

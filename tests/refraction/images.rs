@@ -4,6 +4,7 @@
 use super::*;
 use strata::film::Film;
 use strata::render::{render_into, RenderJob};
+use strata::sample::Strategy;
 use strata::wavefront::Settings;
 
 pub fn render(s: &Scene, profile: Profile, seed: u64) -> Film {
@@ -183,6 +184,38 @@ fn white_furnace_with_dispersion() {
         let se = (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
         eprintln!("dispersive furnace channel {c}: mean {mean:.4} +- {se:.4}");
         assert!((mean - 1.0).abs() < 5.0 * se + depth_loss_bound(64), "channel {c}: {mean} +- {se}");
+    }
+}
+
+/// A wavelength integral of one point (`center`, or a `grid` at 1 spp) holds the spectrum at the d line
+/// with weight 1, every dielectric at its nominal index: the image without dispersion, grey in the
+/// furnace (a trial's `center` wavelength, the density's midpoint at 541 nm, rendered it (0, 3.05, 0):
+/// green alone, and `strata study` held unstudied wavelengths at `center`). Every pixel's channels are
+/// equal and within the furnace's bounds of 1, as the non-dispersive glass of index 1.7 gives.
+#[test]
+fn a_one_point_wavelength_integral_renders_without_dispersion() {
+    let glass = |m: &str| {
+        format!("{FURNACE_CAMERA}[materials.flint]\ntype = \"dielectric\"\n{m}\n[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"flint\"\n")
+    };
+    let means = |text: &str, strategy: Strategy, spp: u32| {
+        let s = scene(text);
+        let mut profile = Profile::builtin("final");
+        (profile.spp, profile.max_depth, profile.branching, profile.wavelength_strategy) = (spp, 64, Branching::Roulette, strategy);
+        let film = render(&s, profile, 9);
+        film.pixels().map(|p| p.mean().as_dvec3()).collect::<Vec<_>>()
+    };
+    let plain = means(&glass("ior = 1.7"), Strategy::Center, 4);
+    for (strategy, spp) in [(Strategy::Center, 4), (Strategy::Grid, 1)] {
+        let one = means(&glass("abbe = [1.7, 20]"), strategy, spp);
+        let bound = depth_loss_bound(64);
+        for (i, m) in one.iter().enumerate() {
+            assert!(m.x == m.y && m.y == m.z, "{strategy:?} at {spp} spp, pixel {i}: {m:?} is not grey");
+            assert!(m.x <= 1.0 + 1e-6 && m.x >= 1.0 - bound - 0.05, "{strategy:?} at {spp} spp, pixel {i}: {m:?}");
+        }
+        if spp == 4 {
+            let worst = one.iter().zip(&plain).map(|(a, b)| (*a - *b).abs().max_element()).fold(0.0, f64::max);
+            assert!(worst < 1e-3, "{strategy:?}: differs from the index-1.7 glass by {worst}");
+        }
     }
 }
 
