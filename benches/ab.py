@@ -48,6 +48,8 @@ def main():
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("binaries", nargs="+")
     argv = sys.argv[1:]
+    if "--" not in argv and ("-h" in argv or "--help" in argv):
+        ap.parse_args(["--help"])
     if "--" not in argv:
         ap.error("separate the binaries from the scene and render flags with --")
     cut = argv.index("--")

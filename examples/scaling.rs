@@ -48,6 +48,9 @@ fn parse_args() -> Result<Opts, String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut i = 0;
     while i < args.len() {
+        if args[i] == "--help" || args[i] == "-h" {
+            return Err(String::new());
+        }
         let val = args.get(i + 1).ok_or_else(|| format!("{} needs a value", args[i]))?;
         let num = |v: &str| v.parse::<u64>().map_err(|_| format!("{}: `{v}` is not a number", args[i]));
         match args[i].as_str() {
@@ -226,7 +229,9 @@ fn threads(o: &Opts) -> Result<(), String> {
         ratios.sort_by(f64::total_cmp);
         let (one, two) = (fastest(ones), fastest(twos));
         let s = one.stats.seconds / two.stats.seconds;
-        let median = ratios[ratios.len() / 2];
+        // (Of an even count, the mean of the middle two: with 2 reps, `ratios[1]` was the larger.)
+        let n = ratios.len();
+        let median = if n % 2 == 1 { ratios[n / 2] } else { (ratios[n / 2 - 1] + ratios[n / 2]) / 2.0 };
         println!(
             "| {file} | {} | {:.3} | {} | {} | {:.3} | {} | {} | {s:.2}x ({median:.2}x, {:.2}-{:.2}) | {:.0}% ({:.0}%) |",
             m(two.stats.rays.total as f64),
@@ -390,6 +395,19 @@ fn lights(o: &Opts) -> Result<(), String> {
 fn main() -> ExitCode {
     match parse_args().and_then(|o| run(&o)) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is_empty() => {
+            println!(
+                "usage: cargo run --release --example scaling [-- OPTIONS]\n\
+                 Markdown tables of how Strata scales on this machine (bench profile, best of --reps runs):\n\
+                 threads (1 against 2, alternating), prims (1e2 .. --max-prims spheres, twice: radii kept and\n\
+                 the same density), resolution, leaves (of one CSG solid) and lights (per light selection).\n\
+                 options:\n  --reps N        runs per configuration, the fastest kept (default 2)\n\
+                 \x20 --spp N         samples per pixel (default: the bench profile's 16)\n\
+                 \x20 --max-prims N   largest sphere count of the prims tables (default 1000000)\n\
+                 \x20 --only TABLE    threads, prims, resolution, leaves or lights (default: all five)"
+            );
+            ExitCode::SUCCESS
+        }
         Err(e) => {
             eprintln!("scaling: {e}");
             ExitCode::from(2)

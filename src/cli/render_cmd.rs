@@ -816,7 +816,7 @@ pub fn print_summary(path: &Path, scene: &Scene, job: &RenderJob, s: &RenderStat
     let rate = |n: u64, secs: f64| if secs > 0.0 { format!("{:.1}", n as f64 / secs / 1e6) } else { "-".into() };
     let traced = s.rays.camera + s.rays.secondary;
     wl!(
-        "  stage rates (M per thread s): generate {} camera rays, intersect {} rays, csg_merge {} candidates, shade {} hits, shadow {} shadow rays",
+        "  stage rates (M per thread s): generate {} camera rays, intersect {} rays, csg_merge {} candidates, shade {} rays, shadow {} shadow rays",
         rate(s.rays.camera, t.generate),
         rate(traced, t.intersect),
         rate(s.csg_candidates, t.csg_merge),
