@@ -1216,6 +1216,11 @@ fn messages_say_what_the_input_is() {
     assert!(msg.starts_with("does not apply to an `emissive` material"), "{msg}");
     let (_, _, msg) = fail("[materials.l]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\ntint = [1, 1, 1]\n");
     assert!(msg.starts_with("does not apply to a `lambert` material"), "{msg}");
+    // A `use` names all it takes (`allowed: motion, hole` was read as the whole list).
+    let (_, field, msg) =
+        fail("[solids.a]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n[[shapes]]\nuse = \"a\"\nmaterial = \"m\"\nradius = 2\n");
+    assert_eq!(field, "shapes[0].radius");
+    assert!(msg.contains("(allowed: material, transform, motion (at the top level), hole (in a group's children))"), "{msg}");
 
     let camera = |from: &str, to: &str| {
         let text = BASE.replace(from, to);

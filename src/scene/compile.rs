@@ -1486,7 +1486,14 @@ impl Compiler<'_> {
         match def.get_ref().misfit(allowed) {
             Some((name, span)) => {
                 let a = a_or_an(kind);
-                Err(self.err(span, Sub(field, name), format!("does not apply to {a} `{kind}` (allowed: {})", allowed.join(", "))))
+                // (A `use` places a solid: its own geometry is the definition's; a trial read `allowed:
+                // motion, hole` as the whole list.)
+                let allowed = if kind == "use" {
+                    "material, transform, motion (at the top level), hole (in a group's children)".to_string()
+                } else {
+                    allowed.join(", ")
+                };
+                Err(self.err(span, Sub(field, name), format!("does not apply to {a} `{kind}` (allowed: {allowed})")))
             }
             None => Ok(()),
         }
