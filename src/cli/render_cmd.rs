@@ -181,15 +181,22 @@ fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
 /// a warning (returned). Nothing there, a film of this very render, or a file that is no film: `Ok(None)`
 /// (a partial film of this same render is `render`'s to refuse, offering `--resume`).
 pub(super) fn check_film_replaced(path: &Path, flag: &str, this: &FilmHeader) -> Result<Option<String>, Failure> {
-    let Ok(saved) = read_film(path) else { return Ok(None) };
-    let Some(why) = resume_mismatch(&saved.header, this) else { return Ok(None) };
-    if !saved.header.is_complete() {
+    match read_film(path) {
+        Ok(saved) => check_film_header_replaced(path, &saved.header, flag, this),
+        Err(_) => Ok(None),
+    }
+}
+
+/// [`check_film_replaced`] for a film already read (`saved`, the header of the film at `path`).
+fn check_film_header_replaced(path: &Path, saved: &FilmHeader, flag: &str, this: &FilmHeader) -> Result<Option<String>, Failure> {
+    let Some(why) = resume_mismatch(saved, this) else { return Ok(None) };
+    if !saved.is_complete() {
         return Err(Failure::input(format!(
             "{}: a partial film of another render ({} of {} work units; {why}) is there, which {flag} would replace: \
              name another film, or remove it first",
             path.display(),
-            saved.header.units_done(),
-            saved.header.completed.len()
+            saved.units_done(),
+            saved.completed.len()
         )));
     }
     Ok(Some(format!("{}: {flag} replaces a complete film of another render ({why})", path.display())))
@@ -285,6 +292,13 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     if a.resume.is_none() {
         let here = film_path.clone().unwrap_or_else(|| out.with_extension("film"));
         if let Ok(saved) = read_film(&here) {
+            // (Where --film names it, a film of another render: refused if partial, else replaced with a
+            // warning; read once for both checks.)
+            if a.film.is_some() {
+                if let Some(w) = check_film_header_replaced(&here, &saved.header, "--film", &header)? {
+                    errln!("warning: {w}");
+                }
+            }
             if !saved.header.is_complete() && resume_mismatch(&saved.header, &header).is_none() {
                 return Err(Failure::input(format!(
                     "{}: a partial film of this same render ({} of {} work units) is there{}: continue it with --resume {}, \
@@ -298,7 +312,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             }
         }
     }
-    if let Some(f) = a.film.as_deref().filter(|&f| a.resume.as_deref() != Some(f)) {
+    if let Some(f) = a.film.as_deref().filter(|&f| a.resume.as_deref().is_some_and(|r| r != f)) {
         if let Some(w) = check_film_replaced(f, "--film", &header)? {
             errln!("warning: {w}");
         }
