@@ -409,7 +409,7 @@ fn shadow_packets_own(scene: &Scene, qs: &[RayQueue]) -> (Vec<strata::simd::Ray8
                 let p = r.o + r.d * hits.t[i];
                 let prim = &scene.prims[hits.prim[i] as usize];
                 let normal = match prim.shape {
-                    Shape::Sphere { center, .. } => p - center,
+                    Shape::Sphere { center, .. } => strata::geometry::normal_sphere(center, p),
                     Shape::Plane(pl) => pl.normal,
                     _ => panic!("shadow benchmark scene: spheres and planes only"),
                 };

@@ -28,26 +28,31 @@ fn lobe(lambda: f32, mu: f32, sigma_left: f32, sigma_right: f32) -> f32 {
     (-0.5 * t * t).exp()
 }
 
+/// The fit's lobes of `x̄`, `ȳ` and `z̄`: `[weight, mu, sigma_left, sigma_right]` (Wyman, Sloan & Shirley
+/// 2013; parameters are those of the paper). One table for the scalar fit, its 8-lane twin and the
+/// tests' f64 reference.
+const FIT_X: [[f32; 4]; 3] = [[1.056, 599.8, 37.9, 31.0], [0.362, 442.0, 16.0, 26.7], [-0.065, 501.1, 20.4, 26.2]];
+const FIT_Y: [[f32; 4]; 2] = [[0.821, 568.8, 46.9, 40.5], [0.286, 530.9, 16.3, 31.1]];
+const FIT_Z: [[f32; 4]; 2] = [[1.217, 437.0, 11.8, 36.0], [0.681, 459.0, 26.0, 13.8]];
+
+/// CIE XYZ -> linear sRGB (D65 white), IEC 61966-2-1 matrix, by rows.
+const XYZ_TO_SRGB: [[f32; 3]; 3] =
+    [[3.240_454_2, -1.537_138_5, -0.498_531_4], [-0.969_266, 1.876_010_8, 0.041_556], [0.055_643_4, -0.204_025_9, 1.057_225_2]];
+
 /// CIE 1931 2° colour matching functions `(x̄, ȳ, z̄)` at `lambda` nm (multi-lobe fit of Wyman, Sloan
-/// & Shirley 2013; parameters are those of the paper).
+/// & Shirley 2013: [`FIT_X`], [`FIT_Y`], [`FIT_Z`]).
 #[inline]
 pub fn cie_xyz_fit(lambda: f32) -> Vec3 {
-    let l = lambda;
-    let x = 1.056 * lobe(l, 599.8, 37.9, 31.0) + 0.362 * lobe(l, 442.0, 16.0, 26.7) - 0.065 * lobe(l, 501.1, 20.4, 26.2);
-    let y = 0.821 * lobe(l, 568.8, 46.9, 40.5) + 0.286 * lobe(l, 530.9, 16.3, 31.1);
-    let z = 1.217 * lobe(l, 437.0, 11.8, 36.0) + 0.681 * lobe(l, 459.0, 26.0, 13.8);
-    Vec3::new(x, y, z)
+    let sum = |fit: &[[f32; 4]]| fit.iter().fold(0.0, |a, &[w, mu, sl, sr]| a + w * lobe(lambda, mu, sl, sr));
+    Vec3::new(sum(&FIT_X), sum(&FIT_Y), sum(&FIT_Z))
 }
 
 /// CIE XYZ -> linear sRGB (D65 white), IEC 61966-2-1 matrix. Out-of-gamut colours give negative
 /// channels (not clamped here).
 #[inline]
 pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
-    Vec3::new(
-        3.240_454_2 * xyz.x - 1.537_138_5 * xyz.y - 0.498_531_4 * xyz.z,
-        -0.969_266 * xyz.x + 1.876_010_8 * xyz.y + 0.041_556 * xyz.z,
-        0.055_643_4 * xyz.x - 0.204_025_9 * xyz.y + 1.057_225_2 * xyz.z,
-    )
+    let row = |m: [f32; 3]| m[0] * xyz.x + m[1] * xyz.y + m[2] * xyz.z;
+    Vec3::new(row(XYZ_TO_SRGB[0]), row(XYZ_TO_SRGB[1]), row(XYZ_TO_SRGB[2]))
 }
 
 /// `1 / ∫ max(0, M xyz(l)) dl` over `[LAMBDA_MIN, LAMBDA_MAX]` per channel (f64 midpoint quadrature,
@@ -79,37 +84,33 @@ fn lobe_x8(lambda: f32x8, mu: f32, sigma_left: f32, sigma_right: f32) -> f32x8 {
 /// the peak weight of the exact function, tested against it in f64); 0 outside `[LAMBDA_MIN, LAMBDA_MAX]`.
 #[inline]
 pub fn wavelength_to_rgb_x8(lambda: f32x8) -> [f32x8; 3] {
-    let l = lambda;
     let s = f32x8::splat;
-    let x = s(1.056) * lobe_x8(l, 599.8, 37.9, 31.0) + s(0.362) * lobe_x8(l, 442.0, 16.0, 26.7) - s(0.065) * lobe_x8(l, 501.1, 20.4, 26.2);
-    let y = s(0.821) * lobe_x8(l, 568.8, 46.9, 40.5) + s(0.286) * lobe_x8(l, 530.9, 16.3, 31.1);
-    let z = s(1.217) * lobe_x8(l, 437.0, 11.8, 36.0) + s(0.681) * lobe_x8(l, 459.0, 26.0, 13.8);
-    let inside = l.simd_ge(s(LAMBDA_MIN)) & l.simd_le(s(LAMBDA_MAX));
+    let sum = |fit: &[[f32; 4]]| fit.iter().fold(f32x8::ZERO, |a, &[w, mu, sl, sr]| a + s(w) * lobe_x8(lambda, mu, sl, sr));
+    let (x, y, z) = (sum(&FIT_X), sum(&FIT_Y), sum(&FIT_Z));
+    let inside = lambda.simd_ge(s(LAMBDA_MIN)) & lambda.simd_le(s(LAMBDA_MAX));
     let row =
         |m: [f32; 3], norm: f32| inside.select((s(m[0]) * x + s(m[1]) * y + s(m[2]) * z).fast_max(f32x8::ZERO) * s(norm), f32x8::ZERO);
-    [
-        row([3.240_454_2, -1.537_138_5, -0.498_531_4], RGB_NORM.x),
-        row([-0.969_266, 1.876_010_8, 0.041_556], RGB_NORM.y),
-        row([0.055_643_4, -0.204_025_9, 1.057_225_2], RGB_NORM.z),
-    ]
+    [row(XYZ_TO_SRGB[0], RGB_NORM.x), row(XYZ_TO_SRGB[1], RGB_NORM.y), row(XYZ_TO_SRGB[2], RGB_NORM.z)]
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The Wyman-Sloan-Shirley fit, matrix, clamp and normalisation in f64.
+    /// The Wyman-Sloan-Shirley fit, matrix, clamp and normalisation in f64 (the same parameters).
     fn rgb_f64(l: f64) -> [f64; 3] {
-        let lobe = |mu: f64, sl: f64, sr: f64| {
-            let t = (l - mu) / if l < mu { sl } else { sr };
-            (-0.5 * t * t).exp()
+        let sum = |fit: &[[f32; 4]]| {
+            fit.iter()
+                .map(|p| {
+                    let [w, mu, sl, sr] = p.map(|v| v as f64);
+                    let t = (l - mu) / if l < mu { sl } else { sr };
+                    w * (-0.5 * t * t).exp()
+                })
+                .sum::<f64>()
         };
-        let x = 1.056 * lobe(599.8, 37.9, 31.0) + 0.362 * lobe(442.0, 16.0, 26.7) - 0.065 * lobe(501.1, 20.4, 26.2);
-        let y = 0.821 * lobe(568.8, 46.9, 40.5) + 0.286 * lobe(530.9, 16.3, 31.1);
-        let z = 1.217 * lobe(437.0, 11.8, 36.0) + 0.681 * lobe(459.0, 26.0, 13.8);
-        let m = [[3.240_454_2, -1.537_138_5, -0.498_531_4], [-0.969_266, 1.876_010_8, 0.041_556], [0.055_643_4, -0.204_025_9, 1.057_225_2]];
+        let xyz = [sum(&FIT_X), sum(&FIT_Y), sum(&FIT_Z)];
         let norm = [RGB_NORM.x as f64, RGB_NORM.y as f64, RGB_NORM.z as f64];
-        std::array::from_fn(|c| (m[c][0] * x + m[c][1] * y + m[c][2] * z).max(0.0) * norm[c])
+        std::array::from_fn(|c| (0..3).map(|k| XYZ_TO_SRGB[c][k] as f64 * xyz[k]).sum::<f64>().max(0.0) * norm[c])
     }
 
     /// [`wavelength_to_rgb_x8`] against the f64 fit every 1/64 nm over the range and past its ends
