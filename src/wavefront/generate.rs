@@ -189,7 +189,7 @@ pub fn generate(scene: &Scene, profile: &Profile, seed: u64, tile: Tile, samples
             stream_key(seed, stream, dims::PIXEL),
             if f.lens { stream_key(seed, stream, dims::LENS) } else { 0 },
             if f.motion { stream_key(seed, stream, dims::TIME) } else { 0 },
-            if f.dispersion { stream_key(seed, stream, dims::WAVELENGTH) } else { 0 },
+            if f.dispersion && !nominal { stream_key(seed, stream, dims::WAVELENGTH) } else { 0 },
         ];
         paths.push_ids(pixel, samples.clone());
         // Whole packets of this pixel's samples (from 8 samples per pixel on) are filled as vectors:
