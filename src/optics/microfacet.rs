@@ -21,11 +21,12 @@
 //! f32 direction can resolve usefully, yet every quantity stays finite (`D <= 1 / (pi alpha^2)`).
 //! No Fresnel term: the caller tints by its conductor/dielectric Fresnel at `dot(wo, h)`.
 
-use crate::simd::{f32x8, Vec3x8, LANES};
+use crate::simd::{f32x8, Vec3x8};
 use glam::Vec3;
-use std::f32::consts::{FRAC_1_PI, TAU};
+use std::f32::consts::FRAC_1_PI;
 
 use super::lambert::{onb, onb_x8, to_local, to_world};
+use crate::sample::warp::{sin_cos_turns, sin_cos_turns_x8};
 
 /// Smallest roughness used (smaller values are clamped). Sampled directions converge to the mirror
 /// direction as alpha approaches it.
@@ -135,7 +136,7 @@ pub fn sample_ggx_reflect(wo: Vec3, n: Vec3, alpha: f32, u: [f32; 2]) -> Option<
     // Uniform point on the unit disk, then the half of the disk that is hidden from vh is squeezed
     // by the projection factor s (Heitz 2018, listing 1, written out independently).
     let r = u[0].max(0.0).min(1.0).sqrt();
-    let (sp, cp) = (TAU * u[1]).sin_cos();
+    let (sp, cp) = sin_cos_turns(u[1]);
     let p1 = r * cp;
     let s = 0.5 * (1.0 + vh.z);
     let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * (r * sp);
@@ -150,8 +151,8 @@ pub fn sample_ggx_reflect(wo: Vec3, n: Vec3, alpha: f32, u: [f32; 2]) -> Option<
     Some(to_world(wi_l, t, b, n).normalize_or(n))
 }
 
-/// [`sample_ggx_reflect`] in 8 lanes, the same operations in the same order (the sine and cosine per
-/// lane by the scalar `sin_cos`), so each lane's bits equal the scalar call's: the directions, and the
+/// [`sample_ggx_reflect`] in 8 lanes, the same operations in the same order (the sine and cosine of the
+/// angle by [`sin_cos_turns_x8`], the scalar's [`sin_cos_turns`] in 8 lanes), so each lane's bits equal the scalar call's: the directions, and the
 /// lanes where it returns `Some`.
 #[inline(always)]
 pub fn sample_ggx_reflect_x8(wo: Vec3x8, n: Vec3x8, alpha: f32x8, u: [f32x8; 2]) -> (Vec3x8, f32x8) {
@@ -166,12 +167,7 @@ pub fn sample_ggx_reflect_x8(wo: Vec3x8, n: Vec3x8, alpha: f32x8, u: [f32x8; 2])
         Vec3x8::select(len2.simd_gt(f32x8::splat(1e-14)), Vec3x8::new(-vh.y / len, vh.x / len, zero / len), Vec3x8::new(one, zero, zero));
     let t2 = vh.cross(t1);
     let r = u[0].max(zero).min(one).sqrt();
-    let phi = (f32x8::splat(TAU) * u[1]).to_array();
-    let (mut sp, mut cp) = ([0.0f32; LANES], [0.0f32; LANES]);
-    for l in 0..LANES {
-        (sp[l], cp[l]) = phi[l].sin_cos();
-    }
-    let (sp, cp) = (f32x8::from(sp), f32x8::from(cp));
+    let (sp, cp) = sin_cos_turns_x8(u[1]);
     let p1 = r * cp;
     let s = f32x8::splat(0.5) * (one + vh.z);
     let p2 = (one - s) * (one - p1 * p1).max(zero).sqrt() + s * (r * sp);
@@ -272,6 +268,7 @@ pub fn sample_ggx_reflect_weight(wo: Vec3, n: Vec3, wi: Vec3, alpha: f32) -> f32
 #[cfg(test)]
 mod x8_tests {
     use super::*;
+    use crate::simd::LANES;
 
     /// The 8-lane GGX sampling and weight against the scalar functions, bit for bit: normals all over
     /// the sphere (poles, both signs of z, -0), outgoing directions from the normal to grazing and

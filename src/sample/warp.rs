@@ -1,6 +1,6 @@
 //! Warps of the unit square onto other domains (the lens disk).
 
-use std::f32::consts::FRAC_PI_4;
+use std::f32::consts::{FRAC_PI_4, TAU};
 use wide::f32x8;
 
 /// Shirley & Chiu 1997, "A Low Distortion Map Between Disk and Square": concentric squares of
@@ -60,21 +60,75 @@ pub fn sample_disk_concentric_x8(u: [f32x8; 2]) -> [f32x8; 2] {
 
 /// Sine and cosine of `x` in `[-pi / 4, pi / 4]`: their Taylor polynomials to degrees 9 and 10, whose
 /// truncation errors there (`(pi / 4)^11 / 11!` and `(pi / 4)^12 / 12!`, below 2e-9) are far below an
-/// f32 ulp; evaluated by Horner's rule in `x^2` with fused multiply-adds.
+/// f32 ulp; evaluated by Horner's rule in `x^2` with fused multiply-adds. [`sin_cos_quarter`] is the
+/// same arithmetic on one lane (bit for bit).
 #[inline(always)]
 pub fn sin_cos_quarter_x8(x: f32x8) -> (f32x8, f32x8) {
     let x2 = x * x;
-    let k = |v: f64| f32x8::splat(v as f32);
-    let sin_p = x2.mul_add(k(1.0 / 362_880.0), k(-1.0 / 5_040.0));
-    let sin_p = x2.mul_add(sin_p, k(1.0 / 120.0));
-    let sin_p = x2.mul_add(sin_p, k(-1.0 / 6.0));
+    let k = |i: usize, c: &[f64]| f32x8::splat(c[i] as f32);
+    let sin_p = x2.mul_add(k(0, &SIN_TAYLOR), k(1, &SIN_TAYLOR));
+    let sin_p = x2.mul_add(sin_p, k(2, &SIN_TAYLOR));
+    let sin_p = x2.mul_add(sin_p, k(3, &SIN_TAYLOR));
     let s = (x * x2).mul_add(sin_p, x);
-    let cos_p = x2.mul_add(k(-1.0 / 3_628_800.0), k(1.0 / 40_320.0));
-    let cos_p = x2.mul_add(cos_p, k(-1.0 / 720.0));
-    let cos_p = x2.mul_add(cos_p, k(1.0 / 24.0));
-    let cos_p = x2.mul_add(cos_p, k(-0.5));
+    let cos_p = x2.mul_add(k(0, &COS_TAYLOR), k(1, &COS_TAYLOR));
+    let cos_p = x2.mul_add(cos_p, k(2, &COS_TAYLOR));
+    let cos_p = x2.mul_add(cos_p, k(3, &COS_TAYLOR));
+    let cos_p = x2.mul_add(cos_p, k(4, &COS_TAYLOR));
     let c = x2.mul_add(cos_p, f32x8::ONE);
     (s, c)
+}
+
+/// The Taylor coefficients of `sin x / x - 1` and `cos x - 1` in powers of `x^2`, highest first (from
+/// `x^8 / 9!` and `x^10 / 10!` down to `-x^2 / 3!` and `-x^2 / 2`).
+const SIN_TAYLOR: [f64; 4] = [1.0 / 362_880.0, -1.0 / 5_040.0, 1.0 / 120.0, -1.0 / 6.0];
+const COS_TAYLOR: [f64; 5] = [-1.0 / 3_628_800.0, 1.0 / 40_320.0, -1.0 / 720.0, 1.0 / 24.0, -0.5];
+
+/// One lane of [`sin_cos_quarter_x8`], the same operations (so the same bits).
+#[inline(always)]
+pub fn sin_cos_quarter(x: f32) -> (f32, f32) {
+    let x2 = x * x;
+    let k = |i: usize, c: &[f64]| c[i] as f32;
+    let sin_p = x2.mul_add(k(0, &SIN_TAYLOR), k(1, &SIN_TAYLOR));
+    let sin_p = x2.mul_add(sin_p, k(2, &SIN_TAYLOR));
+    let sin_p = x2.mul_add(sin_p, k(3, &SIN_TAYLOR));
+    let s = (x * x2).mul_add(sin_p, x);
+    let cos_p = x2.mul_add(k(0, &COS_TAYLOR), k(1, &COS_TAYLOR));
+    let cos_p = x2.mul_add(cos_p, k(2, &COS_TAYLOR));
+    let cos_p = x2.mul_add(cos_p, k(3, &COS_TAYLOR));
+    let cos_p = x2.mul_add(cos_p, k(4, &COS_TAYLOR));
+    let c = x2.mul_add(cos_p, 1.0);
+    (s, c)
+}
+
+/// `sin(2 pi u)` and `cos(2 pi u)` for `u` in `[0, 1]` (an angle in turns, as samplers give it), without
+/// libm: `u` is reduced to the nearest quarter turn `q / 4` exactly (`4u`, its rounding and `u - q / 4`
+/// are all exact in f32 there), the remainder's angle lies in `[-pi / 4, pi / 4]` ([`sin_cos_quarter`]),
+/// and the quarter turns swap and negate the pair. Within ~2 ulp of the exact values of `2 pi u`
+/// (closer than `(2 pi u).sin_cos()`, which first rounds the angle). [`sin_cos_turns_x8`] is the same
+/// arithmetic in 8 lanes, bit for bit.
+#[inline(always)]
+pub fn sin_cos_turns(u: f32) -> (f32, f32) {
+    let q = u.mul_add(4.0, 0.5).floor();
+    let (s, c) = sin_cos_quarter((u - q * 0.25) * TAU);
+    let k = q as i32 & 3;
+    let (a, b) = if k & 1 != 0 { (c, s) } else { (s, c) };
+    (if k >= 2 { -a } else { a }, if k == 1 || k == 2 { -b } else { b })
+}
+
+/// Eight lanes of [`sin_cos_turns`], bit for bit.
+#[inline(always)]
+pub fn sin_cos_turns_x8(u: f32x8) -> (f32x8, f32x8) {
+    let q = u.mul_add(f32x8::splat(4.0), f32x8::splat(0.5)).floor();
+    let (s, c) = sin_cos_quarter_x8((u - q * f32x8::splat(0.25)) * f32x8::splat(TAU));
+    // q mod 4 (floored: the scalar's two's-complement `& 3`), exact in f32 for |q| < 2^24.
+    let four = f32x8::splat(4.0);
+    let k = q - four * (q * f32x8::splat(0.25)).floor();
+    let (one, two, three) = (f32x8::ONE, f32x8::splat(2.0), f32x8::splat(3.0));
+    let odd = k.simd_eq(one) | k.simd_eq(three);
+    let (a, b) = (odd.select(c, s), odd.select(s, c));
+    let neg_a = k.simd_ge(two);
+    let neg_b = k.simd_eq(one) | k.simd_eq(two);
+    (neg_a.select(-a, a), neg_b.select(-b, b))
 }
 
 /// Density of [`sample_disk_concentric`] with respect to area on the unit disk: `1 / pi`.
@@ -151,6 +205,45 @@ mod tests {
             }
         }
         assert!(worst_s <= 1.5 && worst_c <= 1.5, "sin {worst_s} ulp, cos {worst_c} ulp");
+    }
+
+    /// [`sin_cos_turns`] against f64 `sin` and `cos` of `2 pi u` (every 2^-20 of `[0, 1]`, each quarter
+    /// turn's ends and neighbours, the largest f32 below 1): within 2.5 ulp of the result's magnitude
+    /// (or 1e-12 absolutely, the f64 reference's own error where the exact value is 0); and the 8-lane twin
+    /// bit for bit.
+    #[test]
+    fn sin_cos_turns_matches_f64_and_x8() {
+        let mut us: Vec<f32> = (0..=(1 << 20)).map(|i| i as f32 / (1 << 20) as f32).collect();
+        for k in 0..=8 {
+            let e = k as f32 / 8.0;
+            us.extend([e, f32::from_bits(e.to_bits().wrapping_add(1)), f32::from_bits(e.to_bits().wrapping_sub(1)).max(0.0)]);
+        }
+        us.extend([1.0 - f32::EPSILON / 2.0, 1e-30, f32::MIN_POSITIVE]);
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(11);
+        us.extend((0..4096).map(|_| (rng.next_u32() >> 8) as f32 / 16_777_216.0));
+        let (mut worst_s, mut worst_c) = (0.0f64, 0.0f64);
+        for chunk in us.chunks(8) {
+            let lane = f32x8::from(std::array::from_fn::<f32, 8, _>(|i| chunk.get(i).copied().unwrap_or(0.0)));
+            let (sv, cv) = sin_cos_turns_x8(lane);
+            for (i, &u) in chunk.iter().enumerate() {
+                let (s, c) = sin_cos_turns(u);
+                assert_eq!((sv.to_array()[i].to_bits(), cv.to_array()[i].to_bits()), (s.to_bits(), c.to_bits()), "u = {u:e}");
+                let angle = std::f64::consts::TAU * u as f64;
+                let err = |got: f32, want: f64| {
+                    let ulp = f32::from_bits(got.abs().max(f32::MIN_POSITIVE).to_bits() + 1) as f64 - got.abs() as f64;
+                    let e = (got as f64 - want).abs();
+                    if e <= 1e-12 {
+                        0.0
+                    } else {
+                        e / ulp
+                    }
+                };
+                worst_s = worst_s.max(err(s, angle.sin()));
+                worst_c = worst_c.max(err(c, angle.cos()));
+                assert!(s.abs() <= 1.0 && c.abs() <= 1.0, "u = {u:e}: ({s}, {c})");
+            }
+        }
+        assert!(worst_s <= 2.5 && worst_c <= 2.5, "sin {worst_s} ulp, cos {worst_c} ulp");
     }
 
     #[test]
