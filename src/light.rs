@@ -2,10 +2,11 @@
 //! the estimate of the irradiance from an area light is `Le cos_l / d^2 / pdf_area`, times the receiver's
 //! cosine, which the caller applies.
 
-use crate::geometry::{offset_distance, offset_ray_origin, offset_ray_origin_scaled_x8};
+use crate::geometry::{offset_distance, offset_distance_x8, offset_ray_origin, offset_ray_origin_scaled_x8};
+use crate::sample::warp::{sin_cos_turns, sin_cos_turns_x8};
 use crate::sample::{sample_disk_concentric, sample_disk_concentric_x8};
 use crate::scene::Light;
-use crate::simd::{f32x8, Vec3x8, LANES};
+use crate::simd::{f32x8, Vec3x8};
 use glam::Vec3;
 
 /// One light sample seen from a point.
@@ -60,9 +61,9 @@ pub fn sample_light(light: &Light, p: Vec3, u: [f32; 2]) -> Option<LightSample> 
             let w = u[0] * one_minus_cos; // 1 - cos_t
             let cos_t = 1.0 - w;
             let sin_t = (w * (2.0 - w)).max(0.0).sqrt();
-            let phi = 2.0 * std::f32::consts::PI * u[1];
+            let (sin_phi, cos_phi) = sin_cos_turns(u[1]);
             let (t, s) = crate::optics::onb(axis);
-            let wi = (t * (sin_t * phi.cos()) + s * (sin_t * phi.sin()) + axis * cos_t).normalize();
+            let wi = (t * (sin_t * cos_phi) + s * (sin_t * sin_phi) + axis * cos_t).normalize();
             // Distance to the near side of the sphere along wi, as (|v|^2 - r^2) / (b + sqrt(disc)): the
             // root b - sqrt(disc) loses all its digits when disc = r^2 - |v - wi b|^2 is rounding noise
             // (a light much smaller than its distance).
@@ -214,8 +215,8 @@ pub struct LightSample8 {
 
 /// Eight lanes of [`sample_light`]: receiver points `p`, uniform points `u = [u0s, u1s]`. Point and
 /// quad lights are bit-identical to the scalar function (same operations, no FMA where it has none);
-/// disk lights agree to ~1e-6 (wide's `sin_cos` in the concentric map); sphere lights (rare, and
-/// trigonometric throughout) call the scalar function per lane.
+/// disk lights agree to ~1e-6 (wide's `sin_cos` in the concentric map); sphere lights are bit-identical
+/// too (their angle's sine and cosine by [`sin_cos_turns`] in both).
 #[inline]
 pub fn sample_light_x8(light: &Light, p: Vec3x8, u: [f32x8; 2]) -> LightSample8 {
     let zero = f32x8::ZERO;
@@ -232,27 +233,40 @@ pub fn sample_light_x8(light: &Light, p: Vec3x8, u: [f32x8; 2]) -> LightSample8 
             let (y, target) = light_points_x8(light, u).expect("an area light");
             sample_light_at_x8(light, p, y, target)
         }
-        Light::Sphere { .. } => {
-            let (pa, u0, u1) = (p.rows(), u[0].to_array(), u[1].to_array());
-            let mut out = [[0.0f32; LANES]; 10];
-            for l in 0..LANES {
-                if let Some(s) = sample_light(light, Vec3::new(pa[0][l], pa[1][l], pa[2][l]), [u0[l], u1[l]]) {
-                    let v = [s.target, s.wi, s.weight];
-                    for (k, c) in v.iter().flat_map(|v| v.to_array()).enumerate() {
-                        out[k][l] = c;
-                    }
-                    out[9][l] = f32::from_bits(u32::MAX);
-                }
-            }
-            let f = |k: usize| f32x8::from(out[k]);
-            LightSample8 {
-                target: Vec3x8::new(f(0), f(1), f(2)),
-                wi: Vec3x8::new(f(3), f(4), f(5)),
-                weight: Vec3x8::new(f(6), f(7), f(8)),
-                valid: f(9),
-            }
-        }
+        Light::Sphere { center, radius, radiance } => sample_sphere_x8(center, radius, radiance, p, u),
     }
+}
+
+/// Eight lanes of [`sample_light`]'s sphere, the same operations in the same order (bit-identical lane
+/// by lane where the scalar gives a sample).
+#[inline(always)]
+fn sample_sphere_x8(center: Vec3, radius: f32, radiance: Vec3, p: Vec3x8, u: [f32x8; 2]) -> LightSample8 {
+    let (zero, one) = (f32x8::ZERO, f32x8::ONE);
+    let v = Vec3x8::splat(center) - p;
+    let d2 = v.dot_unfused(v);
+    let r2 = f32x8::splat(radius * radius);
+    let outside = !d2.simd_le(r2 * f32x8::splat(1.000_001));
+    let dist = d2.sqrt();
+    let axis = Vec3x8::new(v.x / dist, v.y / dist, v.z / dist);
+    let sin2_max = r2 / d2;
+    let cos_max = (one - sin2_max).max(zero).sqrt();
+    let one_minus_cos = sin2_max / (one + cos_max);
+    let w = u[0] * one_minus_cos;
+    let cos_t = one - w;
+    let sin_t = (w * (f32x8::splat(2.0) - w)).max(zero).sqrt();
+    let (sin_phi, cos_phi) = sin_cos_turns_x8(u[1]);
+    let (t, s) = crate::optics::onb_x8(axis);
+    let wi = (t.scale(sin_t * cos_phi) + s.scale(sin_t * sin_phi) + axis.scale(cos_t)).normalize();
+    let b = v.dot_unfused(wi);
+    let off = v - wi.scale(b);
+    let disc = (r2 - off.dot_unfused(off)).max(zero);
+    let th = (d2 - r2) / (b + disc.sqrt());
+    let y = p + wi.scale(th);
+    let pdf = one / (f32x8::splat(2.0 * std::f32::consts::PI) * one_minus_cos);
+    let back = offset_distance_x8(y.max_abs_element().max(p.max_abs_element())).min(f32x8::splat(0.5) * th);
+    let target = Vec3x8::new(-wi.x, -wi.y, -wi.z).mul_add(back, y);
+    let weight = Vec3x8::new(f32x8::splat(radiance.x) / pdf, f32x8::splat(radiance.y) / pdf, f32x8::splat(radiance.z) / pdf);
+    LightSample8 { target, wi, weight, valid: outside & one_minus_cos.simd_gt(zero) }
 }
 
 /// The points of a quad or disk light that [`sample_light_x8`] samples for the uniform points `u`, and
@@ -308,6 +322,7 @@ fn area_sample_x8(p: Vec3x8, y: Vec3x8, target: Vec3x8, n_light: Vec3, area: f32
 mod tests {
     use super::*;
     use crate::geometry::{Disk, Quad};
+    use crate::simd::LANES;
     use rand_core::{Rng, SeedableRng};
     use rand_xoshiro::Xoshiro256PlusPlus;
 

@@ -38,7 +38,9 @@ pub use ellipsoid::{
     ellipsoid_hits_x8, ellipsoid_interval_x8, intersect_ellipsoid_f64, intersect_ellipsoid_x8, normal_ellipsoid, Ellipsoid,
 };
 pub use obox::{intersect_obox_f64, intersect_obox_x8, normal_obox, obox_hits_x8, obox_interval_x8, OBox};
-pub use offset::{offset_distance, offset_ray_origin, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, ulp_at, OFFSET_ULPS};
+pub use offset::{
+    offset_distance, offset_distance_x8, offset_ray_origin, offset_ray_origin_scaled, offset_ray_origin_scaled_x8, ulp_at, OFFSET_ULPS,
+};
 pub use plane::{intersect_plane_f64, intersect_plane_x8, occludes_plane, Plane};
 pub use quad::{intersect_quad_f64, intersect_quad_x8, Quad};
 pub use refine::{refine_ellipsoid_point, refine_flat_point, refine_flat_point_x8, refine_obox_point};

@@ -54,6 +54,14 @@ pub fn offset_distance(m: f32) -> f32 {
 pub fn ulp_at(m: f32) -> f32 {
     f32::from_bits(m.to_bits() & 0x7f80_0000) * f32::EPSILON
 }
+/// Eight lanes of [`offset_distance`], bit-identical to it for finite inputs.
+#[inline(always)]
+pub fn offset_distance_x8(m: f32x8) -> f32x8 {
+    let m = m.abs().max(f32x8::splat(MIN_SCALE));
+    let exp = bytemuck::cast::<f32x8, u32x8>(m) & u32x8::splat(0x7f80_0000);
+    f32x8::splat(OFFSET_ULPS) * (bytemuck::cast::<u32x8, f32x8>(exp) * f32x8::splat(f32::EPSILON))
+}
+
 /// Eight lanes of [`offset_ray_origin_scaled`], bit-identical to it for finite inputs (same
 /// exponent masking, same fused multiply-add per component).
 #[inline(always)]
