@@ -19,9 +19,7 @@ pub(crate) fn csg_merge_candidates(scene: &Scene, rays: &RayQueue, cands: &mut C
     if cands.is_empty() {
         return;
     }
-    cands.sorted.clear();
-    cands.sorted.extend(cands.ray.iter().zip(&cands.prim).map(|(&r, &p)| ((p as u64) << 32) | r as u64));
-    cands.sorted.sort_unstable();
+    group_by_solid(cands);
     let sorted = &cands.sorted;
     let mut out = [None::<CsgHit>; LANES];
     let mut i = 0;
@@ -70,6 +68,86 @@ pub(crate) fn csg_merge_candidates(scene: &Scene, rays: &RayQueue, cands: &mut C
                     hits.flip[r] = h.flip;
                 }
             }
+        }
+    }
+}
+
+/// `cands.sorted`: the candidates as `prim << 32 | ray`, those of one solid together so that they form
+/// packets. Where the solids' ids span at most as many slots as there are candidates (a scene's few
+/// solids), a counting sort by solid that keeps the order the intersect stage found them in (its
+/// packets' order: as coherent as the rays' own); else a sort of the keys (solid, then ray). Either
+/// way a ray's hit does not depend on which rays share its packet.
+fn group_by_solid(cands: &mut CsgCandidates) {
+    let CsgCandidates { ray, prim, sorted, counts } = cands;
+    sorted.clear();
+    let key = |r: u32, p: u32| ((p as u64) << 32) | r as u64;
+    let (lo, hi) = prim.iter().fold((u32::MAX, 0), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let span = (hi - lo) as usize + 1;
+    if span == 1 {
+        sorted.extend(ray.iter().map(|&r| key(r, lo)));
+    } else if span <= prim.len() {
+        counts.clear();
+        counts.resize(span + 1, 0);
+        for &p in prim.iter() {
+            counts[(p - lo) as usize + 1] += 1;
+        }
+        for i in 1..=span {
+            counts[i] += counts[i - 1];
+        }
+        sorted.resize(prim.len(), 0);
+        for (&r, &p) in ray.iter().zip(prim.iter()) {
+            let at = &mut counts[(p - lo) as usize];
+            sorted[*at as usize] = key(r, p);
+            *at += 1;
+        }
+    } else {
+        sorted.extend(ray.iter().zip(prim.iter()).map(|(&r, &p)| key(r, p)));
+        sorted.sort_unstable();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every candidate once, each solid's together, in all three ways of grouping (one solid, the
+    /// counting sort, the sort of keys), and the counting sort keeping each solid's candidates in the
+    /// order they came.
+    #[test]
+    fn group_by_solid_keeps_every_candidate_and_groups_solids() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = |m: u32| {
+            state = crate::sample::mix64(state.wrapping_add(1));
+            (state % m as u64) as u32
+        };
+        for (n, solids, base) in [(1usize, 1, 7), (50, 1, 3), (300, 5, 100), (40, 30, 0), (20, 1000, 9), (500, 2, u32::MAX - 2)] {
+            let mut c = CsgCandidates::default();
+            for i in 0..n {
+                c.ray.push(next(4096) + i as u32);
+                c.prim.push(base + next(solids));
+            }
+            group_by_solid(&mut c);
+            let mut want: Vec<u64> = c.ray.iter().zip(&c.prim).map(|(&r, &p)| ((p as u64) << 32) | r as u64).collect();
+            let mut got = c.sorted.clone();
+            assert_eq!(got.len(), want.len());
+            // Each solid's run is contiguous (a solid seen again after another's run would fail).
+            let mut seen = std::collections::HashSet::new();
+            for w in got.windows(2) {
+                if w[0] >> 32 != w[1] >> 32 {
+                    assert!(seen.insert(w[0] >> 32), "solid {} in two runs", w[0] >> 32);
+                }
+            }
+            if (solids as usize) <= n {
+                // The counting sort: within a solid, the order of arrival.
+                for p in c.prim.iter().collect::<std::collections::BTreeSet<_>>() {
+                    let arrived: Vec<u64> = want.iter().copied().filter(|k| (k >> 32) as u32 == *p).collect();
+                    let run: Vec<u64> = got.iter().copied().filter(|k| (k >> 32) as u32 == *p).collect();
+                    assert_eq!(run, arrived, "solid {p}");
+                }
+            }
+            got.sort_unstable();
+            want.sort_unstable();
+            assert_eq!(got, want, "{n} candidates of {solids} solids");
         }
     }
 }

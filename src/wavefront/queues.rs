@@ -408,8 +408,10 @@ impl HitQueue {
 pub struct CsgCandidates {
     pub ray: Vec<u32>,
     pub prim: Vec<u32>,
-    /// Scratch: (prim << 32 | ray), sorted so that rays of one solid form packets.
+    /// Scratch: (prim << 32 | ray), grouped by solid so that rays of one solid form packets.
     pub sorted: Vec<u64>,
+    /// Scratch: the counting sort's slot per solid.
+    pub counts: Vec<u32>,
 }
 
 impl CsgCandidates {
@@ -417,6 +419,7 @@ impl CsgCandidates {
         self.ray.clear();
         self.prim.clear();
         self.sorted.clear();
+        self.counts.clear();
     }
     pub fn len(&self) -> usize {
         self.ray.len()
