@@ -16,8 +16,9 @@ Translation (what "the same scene" means):
     box pixel filter in both (Strata averages uniform samples over the pixel square).
   * `lambert` -> `twosided(diffuse)`: Strata shades both sides of a surface with the same albedo.
   * `mirror` -> `twosided(conductor, material none)`, `glossy` -> `twosided(roughconductor, ggx,
-    alpha = roughness^2)` (Mitsuba's GGX uses the separable Smith G; Strata the height-correlated one, so
-    rough glossy surfaces differ slightly), `dielectric` (constant ior, no absorption) -> `dielectric`.
+    alpha = roughness^2)` (Mitsuba's GGX uses the separable Smith G; Strata the height-correlated one:
+    within 0.1% at roughness <= 0.3, but rough surfaces seen obliquely differ a lot: Strata brighter by
+    4% at roughness 0.6 and 80 degrees, 10% at roughness 1 and 60, 28% at 80; a user trial's furnace), `dielectric` (constant ior, no absorption) -> `dielectric`.
   * `emissive` material and area lights -> `area` emitters on the same shapes, one-sided in both (Mitsuba's
     emitters emit on the side of the shape normal: rectangle normal = u x v, disk normal, sphere outwards).
     The light's own surface has a black BSDF in both (Strata stops a path at an emitter).
