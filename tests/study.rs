@@ -982,7 +982,7 @@ fn cli_interrupted_reference_is_continued() {
     use std::io::{BufRead, BufReader};
     let dir = tmp_dir("resume_ref");
     // Interrupt at the first progress line of the reference; the units kept, and the first line's count.
-    let run = || -> (usize, usize) {
+    let run = || -> (usize, usize, bool) {
         let mut child = strata()
             .args(["study", "scenes/soft_shadows.toml", "--size", "40x30", "--integrals", "light", "--spp", "4"])
             .args(["--reference-spp", "4194304", "--seeds", "1", "--threads", "1", "--out", dir.to_str().unwrap()])
@@ -992,8 +992,10 @@ fn cli_interrupted_reference_is_continued() {
             .unwrap();
         let mut first = None;
         let mut kept = None;
+        let mut warned = false;
         for line in BufReader::new(child.stderr.take().unwrap()).lines() {
             let line = line.unwrap();
+            warned |= line.contains("film") && line.contains("cannot be continued") && line.contains("rendered from the start");
             if first.is_none() && line.contains("reference: ") && line.contains("work units") {
                 // `  reference: 10% (10/96 work units, 1.2 s)`
                 let done = line.split('(').nth(1).and_then(|r| r.split('/').next()).unwrap().parse::<usize>().unwrap();
@@ -1005,23 +1007,34 @@ fn cli_interrupted_reference_is_continued() {
             }
         }
         assert_eq!(child.wait().unwrap().code(), Some(130));
-        (first.expect("a progress line of the reference"), kept.expect("the units kept are reported"))
+        (first.expect("a progress line of the reference"), kept.expect("the units kept are reported"), warned)
     };
-    let (_, kept1) = run();
-    assert!(kept1 >= 1);
-    let (first2, kept2) = run();
-    assert!(first2 >= kept1 && kept2 > kept1, "first run kept {kept1}; the second began at {first2}, kept {kept2}");
+    let (_, kept1, warned1) = run();
+    assert!(kept1 >= 1 && !warned1);
+    let (first2, kept2, warned2) = run();
+    assert!(first2 >= kept1 && kept2 > kept1 && !warned2, "first run kept {kept1}; the second began at {first2}, kept {kept2}");
     let films: Vec<_> =
         std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension() == Some("film".as_ref())).collect();
     assert_eq!(films.len(), 1);
     // The partial film names its build (a trial found it stamped 0, unknown, which any build would
-    // have continued), and one of another build is not continued: the run starts over.
+    // have continued), and one of another build is not continued: the run starts over, and says so.
     let mut film = strata::film::file::read_film(&films[0]).unwrap();
     assert_ne!(film.header.build, 0);
     film.header.build ^= 1;
     strata::film::file::write_film(&films[0], &film.header, &film.film).unwrap();
-    let (first3, _) = run();
-    assert!(first3 < kept2, "a film of another build was continued: the third run began at {first3} of {kept2} kept");
+    let (first3, kept3, warned3) = run();
+    assert!(
+        first3 < kept2 && warned3,
+        "a film of another build was continued (or silently dropped): the third run began at {first3} of {kept2} kept"
+    );
+    // A damaged film (one byte flipped) is not continued either, and that is said (a user trial: the
+    // study started over without a word after promising to continue).
+    let mut bytes = std::fs::read(&films[0]).unwrap();
+    let at = bytes.len() / 2;
+    bytes[at] ^= 0x40;
+    std::fs::write(&films[0], &bytes).unwrap();
+    let (first4, _, warned4) = run();
+    assert!(first4 < kept3 && warned4, "a damaged film: the fourth run began at {first4} of {kept3} kept, warned: {warned4}");
 }
 
 /// A study whose runs equal the reference (its first seed is the reference's own render) has MSE 0,

@@ -299,9 +299,24 @@ fn rendered(
     let fresh = FilmHeader::fresh(scene, &ref_profile, 0..ref_profile.spp, TILE, REFERENCE_SEED);
     let header = fresh.stamped(fresh.completed.clone(), false);
     let n_units = header.completed.len();
+    // A partial film that cannot be continued is said so at once, before the reference's wait (a user
+    // trial: one flipped byte, and the study rendered the reference from the start without a word
+    // after promising to continue it).
     let (film, completed) = match read_film(&partial) {
         Ok(f) if f.header == FilmHeader { completed: f.header.completed.clone(), ..header.clone() } => (f.film, f.header.completed),
-        _ => (Film::new(scene.width, scene.height), header.completed.clone()),
+        other => {
+            if partial.exists() {
+                let why = match other {
+                    Err(e) => e,
+                    Ok(_) => "it is not of this reference and build".to_string(),
+                };
+                errln!(
+                    "warning: the interrupted reference's film {} cannot be continued ({why}): the reference is rendered from the start",
+                    partial.display()
+                );
+            }
+            (Film::new(scene.width, scene.height), header.completed.clone())
+        }
     };
     let resumed = completed.iter().filter(|&&c| c).count();
     let mut job = RenderJob::new(scene, Settings { profile: ref_profile.clone(), seed: REFERENCE_SEED });
