@@ -463,7 +463,11 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
             summary.len()
         );
     }
-    print_table(&summary, &plan, fixed_light_grid(&scene, &profile, &plan).is_some(), !series.interrupted);
+    // The MSE of rounding the reference's values to f32 (an error uniform within half an ulp, ulp^2 / 12,
+    // with the ulp about 2^-23 of the value): where the runs' error cannot go much lower.
+    let ref_ms = reference.image.iter().map(|p| p.length_squared() / 3.0).sum::<f64>() / reference.image.len().max(1) as f64;
+    let f32_floor = ref_ms * (f32::EPSILON as f64).powi(2) / 12.0;
+    print_table(&summary, &plan, fixed_light_grid(&scene, &profile, &plan).is_some(), !series.interrupted, f32_floor);
 
     let unit = if light_only(&plan.integrals) { "light samples" } else { "spp" };
     let csv_path = a.out.join("study.csv");
@@ -499,7 +503,9 @@ pub fn run(a: StudyArgs) -> Result<u8, Failure> {
 
 /// `grid_floor`: the grid runs' light integral is a fixed grid (see [`fixed_light_grid`]).
 /// `slopes`: fit and print the slopes (not for an interrupted series).
-fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool, slopes_too: bool) {
+/// `f32_floor`: the MSE of rounding the reference's values to f32; a strategy whose error comes within
+/// 10x of it has its slope flattened by rounding, not sampling.
+fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool, slopes_too: bool, f32_floor: f64) {
     outln!(
         "\n{:<9} {:>6} {:>10} {:>12} {:>12} {:>12} {:>12} {:>9} {:>8}   (means over {} seeds; efficiency = 1 / (mean mse x mean seconds))",
         "strategy",
@@ -558,10 +564,14 @@ fn print_table(summary: &[Summary], plan: &Plan, grid_floor: bool, slopes_too: b
         let (vs_n, vs_t) = slopes(summary, st);
         omitted |= vs_t.is_none();
         let f = |x: Option<crate::study::metrics::LogLogFit>| x.map_or("n/a".to_string(), |f| format!("{:+.3}", f.slope));
+        let least = summary.iter().filter(|s| s.strategy == st).map(|s| s.mse).fold(f64::INFINITY, f64::min);
         let floor = if grid_floor && st == Strategy::Grid {
-            "   (the light grid's bias floor, not a convergence rate: see the warning)"
+            "   (the light grid's bias floor, not a convergence rate: see the warning)".to_string()
+        } else if least <= 10.0 * f32_floor && least.is_finite() {
+            // (A user trial: sobol levelling off at 1.2e-16, its slope -0.79 printed without a word.)
+            format!("   (its error reaches {least:.1e}, within 10x of the MSE of rounding the image to f32, {f32_floor:.1e}: rounding, not sampling, flattens the slope there)")
         } else {
-            ""
+            String::new()
         };
         outln!("  {:<9} {} / {}{floor}", st.name(), f(vs_n), f(vs_t));
     }
