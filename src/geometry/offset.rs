@@ -66,8 +66,5 @@ pub fn offset_distance_x8(m: f32x8) -> f32x8 {
 /// exponent masking, same fused multiply-add per component).
 #[inline(always)]
 pub fn offset_ray_origin_scaled_x8(p: Vec3x8, n: Vec3x8, magnitude: f32x8) -> Vec3x8 {
-    let m = p.x.abs().max(p.y.abs()).max(p.z.abs()).max(magnitude).max(f32x8::splat(MIN_SCALE));
-    let exp = bytemuck::cast::<f32x8, u32x8>(m) & u32x8::splat(0x7f80_0000);
-    let ulp = bytemuck::cast::<u32x8, f32x8>(exp) * f32x8::splat(f32::EPSILON);
-    n.mul_add(ulp * f32x8::splat(OFFSET_ULPS), p)
+    n.mul_add(offset_distance_x8(p.x.abs().max(p.y.abs()).max(p.z.abs()).max(magnitude)), p)
 }
