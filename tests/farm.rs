@@ -406,6 +406,82 @@ fn local_split_script_matches_one_render() {
     assert!(o.status.success(), "{}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
     assert!(bytes(&p("split.exr")) == bytes(&p("full.exr")), "2-process split differs from one render");
     assert!(p("parts/part_0.film").exists() && p("parts/part_1.film").exists());
+    // Run again with another PARTS: its part films hold other sample ranges. Refused at once, saying to
+    // run it with the PARTS it was started with (strata's own advice, `pass --samples 0..3`, is of no
+    // use inside the script).
+    let o = Command::new("bash")
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("STRATA", env!("CARGO_BIN_EXE_strata"))
+        .env("WORKDIR", p("parts"))
+        .args(["scripts/local_split.sh", "3", "6", s(&p("split3.exr")), s(&sc)])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("a split into 2 parts of 6 spp, not 3 of 6") && err.contains("PARTS 2 and SPP 6 as it was started"), "{err}");
+    assert!(!err.contains("--samples") && !p("parts/part_2.film").exists(), "{err}");
+    // PARALLEL=1 without GNU parallel says so, before anything runs (it said only "some parts failed").
+    let bash = std::env::split_paths(&std::env::var_os("PATH").unwrap()).map(|d| d.join("bash")).find(|b| b.is_file()).unwrap();
+    let empty = d.join("empty-path");
+    std::fs::create_dir_all(&empty).unwrap();
+    let o = Command::new(&bash)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("PATH", &empty)
+        .env("PARALLEL", "1")
+        .args(["scripts/local_split.sh", "2", "6", s(&p("par.exr")), s(&sc)])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("PARALLEL=1 but GNU parallel is not installed"), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// Ctrl-C (a SIGINT to the script's whole process group, as a terminal sends it) while the first of 3
+/// parts runs one at a time (`JOBS=1`): that part writes its film, and no other part starts (xargs used
+/// to start the next parts after the interrupt and render them to the end). The signal is sent once
+/// part 0's log shows its first progress line, with 90% of its work left.
+#[cfg(unix)]
+#[test]
+fn local_split_interrupt_starts_no_further_part() {
+    use std::os::unix::process::CommandExt;
+    let d = dir("split-int");
+    let sc = d.join("slow.toml");
+    // Part 0 (samples 0..256 at 160 x 100, 1,120 work units) takes about a second on one thread.
+    std::fs::write(&sc, scene_text().replace(&format!("width = {W}"), "width = 160").replace(&format!("height = {H}"), "height = 100"))
+        .unwrap();
+    let p = |n: &str| d.join(n);
+    let child = Command::new("bash")
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("STRATA", env!("CARGO_BIN_EXE_strata"))
+        .env("WORKDIR", p("parts"))
+        .env("JOBS", "1")
+        .env("THREADS", "1")
+        .args(["scripts/local_split.sh", "3", "768", s(&p("split.exr")), s(&sc), "--profile", "final", "--seed", "7"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while !std::fs::read_to_string(p("parts/part_0.log")).unwrap_or_default().contains("work units") {
+        assert!(t0.elapsed() < Duration::from_secs(60), "part 0 shows no progress");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let kill = Command::new("kill").args(["-INT", "--", &format!("-{}", child.id())]).status().unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("part 0 (samples 0..256) interrupted: its film is kept"), "{err}");
+    for (i, r) in [(1, "256..512"), (2, "512..768")] {
+        assert!(err.contains(&format!("part {i} (samples {r}) not started: interrupted")), "{err}");
+        assert!(!p(&format!("parts/part_{i}.film")).exists() && !p(&format!("parts/part_{i}.log")).exists(), "{err}");
+    }
+    assert!(err.contains("interrupted: the parts that ran wrote their films, and no part started after the interrupt"), "{err}");
+    let saved = decode(&bytes(&p("parts/part_0.film"))).unwrap();
+    assert!(!saved.header.is_complete() && saved.header.units_done() > 0);
+    assert!(!p("split.exr").exists());
     let _ = std::fs::remove_dir_all(&d);
 }
 
