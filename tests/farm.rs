@@ -379,6 +379,23 @@ fn cli_merge_refuses_mismatched_films_and_writes_nothing() {
             .unwrap(),
         &["cannot write a merged film"],
     );
+    // A missing first or last range is refused as a gap between films is (a 4-part split missing its
+    // last part merged `samples 0..192 of spp 256`, exit 0): the image would not be the full render.
+    for (film, needles) in [
+        ("a.film", ["missing: samples 2..6 of spp 6 are in no film (after", "a.film 0..2)"]),
+        ("b.film", ["missing: samples 0..2 of spp 6 are in no film (before", "b.film 2..6)"]),
+    ] {
+        let o = strata().args(["merge", s(&p(film)), "-o", s(&p("new.exr")), "--film", s(&p("new.film"))]).output().unwrap();
+        refused(&o, &[needles[0], needles[1], "not be the full render", "--allow-gaps"]);
+        assert!(!p("new.exr").exists() && !p("new.film").exists(), "{film}: a refused merge wrote output");
+    }
+    // --allow-gaps merges such a range alone, with a warning, and (complete and contiguous) into the film
+    // of that range: here b.film's own bytes.
+    let o =
+        ok(strata().args(["merge", s(&p("b.film")), "--allow-gaps", "-o", s(&p("b2.exr")), "--film", s(&p("b2.film"))]).output().unwrap());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("warning: missing: samples 0..2 of spp 6") && err.contains("not the full render"), "{err}");
+    assert!(bytes(&p("b2.film")) == good, "the film of b.film's range alone differs from b.film");
     // --status on a damaged film names it and exits 2.
     let st = strata().args(["merge", "--status", s(&p("a.film")), s(&p("short.film"))]).output().unwrap();
     assert_eq!(st.status.code(), Some(2));

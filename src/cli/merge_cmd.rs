@@ -24,7 +24,9 @@ pub struct MergeArgs {
     /// Also write the merged film (possible when the ranges are complete and contiguous).
     #[arg(long, value_name = "MERGED")]
     pub film: Option<PathBuf>,
-    /// Merge even when ranges leave gaps or films are incomplete: the image then has fewer samples.
+    /// Merge even when the ranges leave gaps (between films, or before the first or after the last: not
+    /// all of 0..spp) or films are incomplete: the image then has fewer samples. A film is written only
+    /// of complete films of one contiguous range (the film of that range).
     #[arg(long)]
     pub allow_gaps: bool,
     /// List the sample ranges present and missing and each film's completeness; write nothing.
@@ -84,6 +86,44 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
             ));
         }
     }
+    // Samples before the first film or after the last: the image would not be the whole render, which
+    // the merge of a split's parts is taken for (a split missing its last part merged `samples 0..192 of
+    // spp 256` without a word). Refused as a gap between films is; `--allow-gaps` merges such a range
+    // alone, and (its films complete and contiguous) into a film of that range, which merges later with
+    // the rest.
+    let (first_film, last_film) = (&films[0], &films[films.len() - 1]);
+    let spp = first_film.1.header.spp;
+    let mut outside = Vec::new();
+    let (start, end) = (first_film.1.header.samples.start, last_film.1.header.samples.end);
+    if start > 0 {
+        outside.push(format!(
+            "missing: samples 0..{start} of spp {spp} are in no film (before {} {})",
+            first_film.0.display(),
+            range_text(&first_film.1.header.samples)
+        ));
+    }
+    if end < spp {
+        outside.push(format!(
+            "missing: samples {end}..{spp} of spp {spp} are in no film (after {} {})",
+            last_film.0.display(),
+            range_text(&last_film.1.header.samples)
+        ));
+    }
+    if !outside.is_empty() && !a.allow_gaps {
+        let all: Vec<&String> = problems.iter().chain(&outside).collect();
+        let alone = if problems.is_empty() {
+            format!(
+                "; --allow-gaps merges samples {start}..{end} alone, into an image{} that is not the full render",
+                if a.film.is_some() { " and a film of that range" } else { "" }
+            )
+        } else {
+            String::new()
+        };
+        return Err(Failure::input(format!(
+            "cannot merge: {}: the image would not be the full render (give every part's film, or use --allow-gaps to merge              anyway{alone})",
+            all.iter().map(|p| p.as_str()).collect::<Vec<_>>().join("; ")
+        )));
+    }
     if !problems.is_empty() {
         if !a.allow_gaps {
             return Err(Failure::input(format!("cannot merge: {} (use --allow-gaps to merge anyway)", problems.join("; "))));
@@ -142,6 +182,9 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     );
     for p in &problems {
         errln!("warning: {p}");
+    }
+    for p in &outside {
+        errln!("warning: {p}: the image holds samples {start}..{end} of {spp} only, not the full render");
     }
     Ok(0)
 }
