@@ -542,6 +542,17 @@ fn a_directory_as_profile_is_named_a_directory() {
 /// rays per sample are traced), started with stderr piped; returns the child and its stderr lines.
 #[cfg(unix)]
 fn slow_render(name: &str, extra: &[&str]) -> (std::process::Child, std::io::Lines<std::io::BufReader<std::process::ChildStderr>>) {
+    slow_render_in(name, std::path::Path::new(env!("CARGO_MANIFEST_DIR")), 10, extra)
+}
+
+/// [`slow_render`] of `spp` work units, run in the directory `cwd`.
+#[cfg(unix)]
+fn slow_render_in(
+    name: &str,
+    cwd: &std::path::Path,
+    spp: u32,
+    extra: &[&str],
+) -> (std::process::Child, std::io::Lines<std::io::BufReader<std::process::ChildStderr>>) {
     use std::io::BufRead;
     let light =
         |x: f32| format!("[[lights]]\ntype = \"quad\"\norigin = [{x}, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]\nradiance = [1, 1, 1]\n");
@@ -555,7 +566,8 @@ fn slow_render(name: &str, extra: &[&str]) -> (std::process::Child, std::io::Lin
         + &light(0.0);
     std::fs::write(&scene, text).unwrap();
     let mut child = strata()
-        .args(["render", scene.to_str().unwrap(), "--spp", "10", "--tile", "64", "--threads", "1", "--light-samples", "4096"])
+        .current_dir(cwd)
+        .args(["render", scene.to_str().unwrap(), "--spp", &spp.to_string(), "--tile", "64", "--threads", "1", "--light-samples", "4096"])
         .args(extra)
         .stdin(std::process::Stdio::null())
         .stdout(std::process::Stdio::piped())
@@ -666,6 +678,52 @@ fn an_image_that_cannot_be_written_leaves_the_film_and_stats() {
         let o = strata().args(cmd).output().unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.code() == Some(2) && err.contains("a film is not an image"), "{cmd:?}: {err}");
+    }
+}
+
+/// A render that completes but whose image cannot be written (its directory removed while it renders),
+/// without --film: the film is still written, where an interrupt writes it (beside the image: gone too)
+/// or else in the working directory, the error says where and how to make the image from it, and
+/// --stats-json is written (the render was lost: no film anywhere). And a film that cannot be written
+/// (its directory removed) while the image can: the film goes to the working directory and --stats-json
+/// is still written (with a full disk it was not), exit 1. (The directory is removed after the first of
+/// the render's 2 work units, ~0.5 s each.)
+#[cfg(unix)]
+#[test]
+fn a_failed_write_keeps_the_render_in_a_film_and_writes_the_stats() {
+    let cwd = tmp("fallback-cwd");
+    std::fs::create_dir_all(&cwd).unwrap();
+    let cwd = std::fs::canonicalize(&cwd).unwrap();
+    for image_fails in [true, false] {
+        let gone = tmp(&format!("gone-{image_fails}"));
+        std::fs::create_dir_all(&gone).unwrap();
+        let json = tmp(&format!("fallback-{image_fails}.json"));
+        let (png, film) = if image_fails { (gone.join("x.png"), None) } else { (tmp("fallback.png"), Some(gone.join("y.film"))) };
+        let mut args = vec!["-o", png.to_str().unwrap(), "--stats-json", json.to_str().unwrap()];
+        if let Some(f) = &film {
+            args.extend(["--film", f.to_str().unwrap()]);
+        }
+        let (mut child, mut lines) = slow_render_in(&format!("fallback-{image_fails}"), &cwd, 2, &args);
+        read_until(&mut lines, "work units");
+        std::fs::remove_dir_all(&gone).unwrap();
+        let rest: String = lines.map(|l| l.unwrap() + "\n").collect();
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(1), "{rest}");
+        let kept = cwd.join(if image_fails { "x.film" } else { "y.film" });
+        assert!(rest.contains(&format!("the film was written to {} instead", kept.display())), "{rest}");
+        assert!(rest.contains(&format!("--stats-json {} was written", json.display())), "{rest}");
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!((v["completed"].as_bool(), v["work_units"]["done"].as_u64()), (Some(true), Some(2)), "{v}");
+        assert_eq!(png.exists(), !image_fails, "{rest}");
+        if image_fails {
+            // Complete: the film gives the whole image, no --allow-gaps needed.
+            let how = format!("the render is kept in the film {}: `strata merge {} -o IMAGE`", kept.display(), kept.display());
+            assert!(rest.contains(&how), "{rest}");
+            let out = tmp("from_fallback.png");
+            let m = strata().args(["merge", kept.to_str().unwrap(), "-o", out.to_str().unwrap()]).output().unwrap();
+            assert!(m.status.success() && out.exists(), "{}", String::from_utf8_lossy(&m.stderr));
+        }
+        assert!(kept.exists(), "{rest}");
     }
 }
 

@@ -160,6 +160,26 @@ fn interrupt_film_path(out: &Path) -> PathBuf {
     (2u32..).map(|n| out.with_extension(format!("{n}.film"))).find(|p| !p.exists()).expect("a free name")
 }
 
+/// Write a film that could not be written at `path` (its directory removed, a full disk) where it can
+/// be: under its file name in the working directory, else in the temporary directory, at the first free
+/// name (`x.film`, `x.2.film`, ...: never replacing a file). Returns where it went, or None and why each
+/// place failed.
+fn write_film_elsewhere(path: &Path, header: &FilmHeader, film: &Film) -> (Option<PathBuf>, Vec<String>) {
+    let stem = path.file_stem().map_or_else(|| "render".into(), |s| s.to_string_lossy().into_owned());
+    let mut tried = Vec::new();
+    for dir in [std::env::current_dir().ok(), Some(std::env::temp_dir())].into_iter().flatten() {
+        let name = std::iter::once(dir.join(format!("{stem}.film")))
+            .chain((2u32..).map(|n| dir.join(format!("{stem}.{n}.film"))))
+            .find(|p| !p.exists())
+            .expect("a free name");
+        match write_film(&name, header, film) {
+            Ok(()) => return (Some(name), tried),
+            Err(e) => tried.push(e),
+        }
+    }
+    (None, tried)
+}
+
 /// Why a film cannot be resumed by this render, if it cannot.
 fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
     let mut d = film.identity_differences(this, ("film", "this render"));
@@ -395,9 +415,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
 
     let image = write_image_with(&out, film.width, film.height, &film.to_rgb(), Some(&Provenance::of(&header)));
-    // An interrupted render always leaves its film, so that it can be resumed.
-    let film_out = film_path.clone().or_else(|| (!stats.completed).then(|| film_out_interrupted.clone()));
-    let write_stats = || -> Result<(), Failure> {
+    let write_stats = || -> Result<(), String> {
         let Some(j) = &a.stats_json else { return Ok(()) };
         let json = StatsJson {
             stats: &stats,
@@ -407,31 +425,56 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             filter: job.settings.profile.filter.name(),
             strategies: UsedStrategies(used_strategies(&scene, &job.settings.profile)),
         };
-        let text = serde_json::to_string_pretty(&json).map_err(Failure::runtime)?;
-        crate::film::output::write_atomic(j, |tmp| std::fs::write(tmp, text).map_err(|e| e.to_string())).map_err(Failure::runtime)
+        let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;
+        crate::film::output::write_atomic(j, |tmp| std::fs::write(tmp, text).map_err(|e| format!("{}: {e}", j.display())))
     };
     // If the image could not be written (its directory removed, a full disk), what was rendered is still
-    // kept wherever it can be, in the statistics and the film asked for (the statistics first).
-    if image.is_err() {
-        let _ = write_stats();
-    }
-    if let Some(f) = &film_out {
-        write_film(f, &header.stamped(header.completed.clone(), mixed), &film).map_err(|fe| match &image {
-            Ok(()) => Failure::runtime(fe),
-            Err(e) => Failure::runtime(format!("{e}; {fe}")),
-        })?;
-    }
-    if let Err(e) = image {
-        let kept = match &film_out {
-            Some(f) => format!(
-                "; the render is kept in the film {}: `strata merge {}{} -o IMAGE` writes its image",
+    // kept wherever it can be: the statistics first, then the film.
+    let stats_early = image.is_err().then(write_stats);
+    // The film: the one asked for (--film, --resume); else, for an interrupted render (always, so that
+    // it can be resumed) or one whose image failed (the render is kept in it), where an interrupt writes
+    // it. Where that write fails too, the film goes to the first place that takes it: the working
+    // directory, then the temporary directory (its name there free, never replacing a file).
+    let film_wanted = film_path.clone().or_else(|| (!stats.completed || image.is_err()).then(|| film_out_interrupted.clone()));
+    let mut film_error = None;
+    let film_out = match &film_wanted {
+        None => None,
+        Some(f) => {
+            let stamped = header.stamped(header.completed.clone(), mixed);
+            match write_film(f, &stamped, &film) {
+                Ok(()) => Some(f.clone()),
+                Err(fe) => {
+                    let (kept, tried) = write_film_elsewhere(f, &stamped, &film);
+                    film_error = Some(match &kept {
+                        Some(k) => format!("{fe}; the film was written to {} instead", k.display()),
+                        None => format!("{fe}; nor could it be written elsewhere ({})", tried.join("; ")),
+                    });
+                    kept
+                }
+            }
+        }
+    };
+    let stats_error = stats_early.unwrap_or_else(write_stats).err();
+    if image.is_err() || film_error.is_some() || stats_error.is_some() {
+        let mut m: Vec<String> = Vec::new();
+        if let Err(e) = &image {
+            m.push(e.clone());
+        }
+        m.extend(film_error);
+        if let (Err(_), Some(f)) = (&image, &film_out) {
+            m.push(format!(
+                "the render is kept in the film {}: `strata merge {}{} -o IMAGE` writes its image",
                 f.display(),
                 f.display(),
                 if header.is_complete() { "" } else { " --allow-gaps" }
-            ),
-            None => String::new(),
-        };
-        return Err(Failure::runtime(format!("{e}{kept}")));
+            ));
+        }
+        match (&a.stats_json, stats_error) {
+            (_, Some(e)) => m.push(e),
+            (Some(j), None) => m.push(format!("--stats-json {} was written", j.display())),
+            (None, None) => {}
+        }
+        return Err(Failure::runtime(m.join("; ")));
     }
     if !a.quiet {
         print_summary(&a.scene, &scene, &job, &stats, setup_seconds + stats.selection_seconds, &out);
@@ -448,7 +491,6 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             outln!("  wrote film {}", f.display());
         }
     }
-    write_stats()?;
     crate::film::warn_discarded(stats.nonfinite_samples);
     crate::film::warn_lost_media(stats.lost_media);
     crate::film::warn_dim(&film, scene.has_light());
