@@ -208,15 +208,10 @@ fn cli_merge_of_ranges_is_bit_identical_to_one_render() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-#[test]
-fn cli_resume_of_an_interrupted_render_is_bit_identical() {
-    let d = dir("resume");
-    let sc = write_scene(&d);
-    let p = |n: &str| d.join(n);
-    ok(render(&sc, &["-o", s(&p("full.exr")), "--film", s(&p("full.film"))]));
-
-    // A partial film made by a cancelled library render (deterministic, unlike a signal).
-    let scene = parse_scene(&sc, &scene_text()).unwrap();
+/// Write at `path` the partial film (30 or so of its work units) of `render(scene, ...)`'s render, made by
+/// a cancelled library render (deterministic, unlike a signal); returns its header.
+fn write_partial_film(sc: &Path, path: &Path) -> FilmHeader {
+    let scene = parse_scene(sc, &scene_text()).unwrap();
     let cancel = AtomicBool::new(false);
     let stop = |done: usize, _: usize| {
         if done >= 30 {
@@ -242,7 +237,47 @@ fn cli_resume_of_an_interrupted_render_is_bit_identical() {
         // (Unknown: this test's own executable is not the strata the commands below run.)
         build: 0,
     };
-    strata::film::file::write_film(&p("part.film"), &header, &film).unwrap();
+    strata::film::file::write_film(path, &header, &film).unwrap();
+    header
+}
+
+/// Running an interrupted command again finds the partial film its interrupt wrote under a numbered
+/// name (`g.2.film`, where `g.film` was taken): refused, naming it and `--resume` (it was not: the
+/// rerun started from 0, and an interrupt of it wrote `g.3.film`).
+#[test]
+fn cli_rerun_finds_the_partial_film_under_its_numbered_name() {
+    let d = dir("numbered");
+    let sc = write_scene(&d);
+    let p = |n: &str| d.join(n);
+    std::fs::write(p("g.film"), b"someone else's file").unwrap();
+    write_partial_film(&sc, &p("g.2.film"));
+    let film = bytes(&p("g.2.film"));
+    let o = render(&sc, &["-o", s(&p("g.exr"))]);
+    let name = p("g.2.film").display().to_string();
+    refused(&o, &[&format!("{name}: a partial film of this same render"), &format!("continue it with --resume {name}")]);
+    assert!(!p("g.exr").exists() && !p("g.3.film").exists());
+    // Two of them: the one holding more work is offered, the other named.
+    std::fs::write(p("g.7.film"), &film).unwrap();
+    let mut less = decode(&film).unwrap();
+    let first = less.header.completed.iter().position(|&c| c).unwrap();
+    less.header.completed[first] = false;
+    strata::film::file::write_film(&p("g.2.film"), &less.header, &Film::new(W, H)).unwrap();
+    let o = render(&sc, &["-o", s(&p("g.exr"))]);
+    let seven = p("g.7.film").display().to_string();
+    refused(&o, &[&format!("--resume {seven}"), &format!("more partial films of this render: {name}")]);
+    assert!(bytes(&p("g.7.film")) == film && bytes(&p("g.film")) == b"someone else's file");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn cli_resume_of_an_interrupted_render_is_bit_identical() {
+    let d = dir("resume");
+    let sc = write_scene(&d);
+    let p = |n: &str| d.join(n);
+    ok(render(&sc, &["-o", s(&p("full.exr")), "--film", s(&p("full.film"))]));
+
+    // A partial film made by a cancelled library render (deterministic, unlike a signal).
+    let header = write_partial_film(&sc, &p("part.film"));
     // Its samples are neither missing nor complete, and the status says which.
     let st = ok(strata().args(["merge", "--status", s(&p("part.film"))]).output().unwrap());
     let out = String::from_utf8_lossy(&st.stdout);

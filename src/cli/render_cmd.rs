@@ -160,6 +160,36 @@ fn interrupt_film_path(out: &Path) -> PathBuf {
     (2u32..).map(|n| out.with_extension(format!("{n}.film"))).find(|p| !p.exists()).expect("a free name")
 }
 
+/// The films an interrupt of a render writing `out` may have left (see [`interrupt_film_path`]): `out`
+/// with the extension `.film`, and `out` with `.N.film` (N a number), those that exist, in that order.
+fn interrupt_films(out: &Path) -> Vec<PathBuf> {
+    let first = out.with_extension("film");
+    let mut found: Vec<(u64, PathBuf)> = Vec::new();
+    if first.exists() {
+        found.push((1, first));
+    }
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for e in entries.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let n = name
+                .strip_prefix(&format!("{stem}."))
+                .and_then(|r| r.strip_suffix(".film"))
+                .filter(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+                .and_then(|n| n.parse::<u64>().ok());
+            if let Some(n) = n {
+                found.push((n, out.with_file_name(&name)));
+            }
+        }
+    }
+    found.sort();
+    found.into_iter().map(|(_, p)| p).collect()
+}
+
 /// Write a film that could not be written at `path` (its directory removed, a full disk) where it can
 /// be: under its file name in the working directory, else in the temporary directory, at the first free
 /// name (`x.film`, `x.2.film`, ...: never replacing a file). Returns where it went, or None and why each
@@ -308,10 +338,16 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     let mut mixed = false;
     let n_units = header.completed.len();
     // A partial film of this very render where --film would write (or beside the image, where an earlier
-    // interrupt left it): refused, so that running the command again does not throw its work away.
+    // interrupt left it: `OUT.film`, or `OUT.2.film`, ... where that name was taken): refused, so that
+    // running the command again does not throw its work away.
     if a.resume.is_none() {
-        let here = film_path.clone().unwrap_or_else(|| out.with_extension("film"));
-        if let Ok(saved) = read_film(&here) {
+        let candidates = match &a.film {
+            Some(f) => vec![f.clone()],
+            None => interrupt_films(&out),
+        };
+        let mut partial = Vec::new();
+        for here in candidates {
+            let Ok(saved) = read_film(&here) else { continue };
             // (Where --film names it, a film of another render: refused if partial, else replaced with a
             // warning; read once for both checks.)
             if a.film.is_some() {
@@ -320,16 +356,21 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
                 }
             }
             if !saved.header.is_complete() && resume_mismatch(&saved.header, &header).is_none() {
-                return Err(Failure::input(format!(
-                    "{}: a partial film of this same render ({} of {} work units) is there{}: continue it with --resume {}, \
-                     or remove it to start again",
-                    here.display(),
-                    saved.header.units_done(),
-                    saved.header.completed.len(),
-                    if a.film.is_some() { ", which --film would replace" } else { "" },
-                    here.display()
-                )));
+                partial.push((here, saved.header.units_done(), saved.header.completed.len()));
             }
+        }
+        // The one holding the most work is the one to continue; the others are named too.
+        partial.sort_by_key(|&(_, done, _)| std::cmp::Reverse(done));
+        if let Some((here, done, total)) = partial.first() {
+            let others: Vec<String> = partial[1..].iter().map(|(p, d, t)| format!("{} ({d} of {t})", p.display())).collect();
+            return Err(Failure::input(format!(
+                "{}: a partial film of this same render ({done} of {total} work units) is there{}: continue it with --resume {}, \
+                 or remove it to start again{}",
+                here.display(),
+                if a.film.is_some() { ", which --film would replace" } else { "" },
+                here.display(),
+                if others.is_empty() { String::new() } else { format!(" (more partial films of this render: {})", others.join(", ")) }
+            )));
         }
     }
     if let Some(f) = a.film.as_deref().filter(|&f| a.resume.as_deref().is_some_and(|r| r != f)) {
