@@ -12,6 +12,8 @@ use std::fmt::Write as _;
 use std::io::Write as _;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::Arc;
 
 #[derive(Args, Debug, Clone)]
 pub struct MergeArgs {
@@ -166,9 +168,40 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
         }
         None => None,
     };
+    // From here on a signal no longer quits at once (it said "nothing was written" after the image was):
+    // the output being written is finished, and the merge stops after it, saying what was written.
+    let film_path = film_out.as_ref().map(|(fp, _)| fp.to_path_buf());
+    let writing = Arc::new(Writing::new(&out, film_path.as_deref()));
+    {
+        let w = writing.clone();
+        super::on_signal(move || {
+            if let Some(m) = w.signal() {
+                errln!("{m}");
+            }
+            if w.quitting() {
+                std::process::exit(130);
+            }
+        });
+    }
+    if !writing.begin(IMAGE) {
+        // A signal has just quit (its handler ends the process).
+        loop {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+    }
     write_image_with(&out, merged.width, merged.height, &merged.to_rgb(), Some(&provenance)).map_err(Failure::runtime)?;
     if let Some((fp, h)) = film_out {
+        if writing.stopped() {
+            errln!("{}", writing.stopped_message(false));
+            return Ok(130);
+        }
+        writing.begin(FILM);
         write_film(fp, &h, &merged).map_err(Failure::runtime)?;
+    }
+    writing.begin(DONE);
+    if writing.stopped() {
+        errln!("{}", writing.stopped_message(true));
+        return Ok(130);
     }
     let ranges: Vec<String> = films.iter().map(|(_, f)| range_text(&f.header.samples)).collect();
     outln!(
@@ -187,6 +220,82 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
         errln!("warning: {p}: the image holds samples {start}..{end} of {spp} only, not the full render");
     }
     Ok(0)
+}
+
+/// Stages of a merge towards signals ([`Writing`]).
+const CHECKING: u8 = 0;
+const IMAGE: u8 = 1;
+const FILM: u8 = 2;
+const DONE: u8 = 3;
+const QUIT: u8 = 4;
+
+/// What a signal does to a merge: while the films are read and checked, nothing has been written, and
+/// the merge quits at once saying so; once it writes (the image, then the merged film), the output being
+/// written is finished (its temporary file renamed into place) and the merge stops after it, exit 130,
+/// saying which outputs were written and which not. Once everything is written a signal changes nothing.
+struct Writing {
+    stage: AtomicU8,
+    stopped: AtomicBool,
+    out: String,
+    film: Option<String>,
+}
+
+impl Writing {
+    fn new(out: &Path, film: Option<&Path>) -> Writing {
+        let film = film.map(|f| f.display().to_string());
+        Writing { stage: AtomicU8::new(CHECKING), stopped: AtomicBool::new(false), out: out.display().to_string(), film }
+    }
+
+    /// Enter `stage`; false where a signal has quit first (before anything was written).
+    fn begin(&self, stage: u8) -> bool {
+        let mut now = self.stage.load(Ordering::SeqCst);
+        loop {
+            if now == QUIT {
+                return false;
+            }
+            match self.stage.compare_exchange(now, stage, Ordering::SeqCst, Ordering::SeqCst) {
+                Ok(_) => return true,
+                Err(s) => now = s,
+            }
+        }
+    }
+
+    /// A signal arrived: what to say (the first time), and the stage moves to QUIT before any write.
+    fn signal(&self) -> Option<String> {
+        if self.stage.compare_exchange(CHECKING, QUIT, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
+            return Some("interrupted: nothing was written".into());
+        }
+        let stage = self.stage.load(Ordering::SeqCst);
+        if stage == DONE || stage == QUIT || self.stopped.swap(true, Ordering::SeqCst) {
+            return None;
+        }
+        Some(match (stage, &self.film) {
+            (IMAGE, Some(f)) => format!("interrupted: finishing {}, then stopping (the merged film {f} will not be written)", self.out),
+            (IMAGE, None) => format!("interrupted: finishing {}, please wait", self.out),
+            (_, f) => {
+                format!("interrupted: finishing the merged film {} ({} is written), please wait", f.as_deref().unwrap_or("?"), self.out)
+            }
+        })
+    }
+
+    fn quitting(&self) -> bool {
+        self.stage.load(Ordering::SeqCst) == QUIT
+    }
+
+    fn stopped(&self) -> bool {
+        self.stopped.load(Ordering::SeqCst)
+    }
+
+    /// The last line of a merge stopped by a signal, after the image (`all`: after the film too).
+    fn stopped_message(&self, all: bool) -> String {
+        match (&self.film, all) {
+            (Some(f), false) => {
+                format!("interrupted: wrote {} (the merged image, complete); the merged film {f} was not written", self.out)
+            }
+            (Some(f), true) => format!("interrupted: wrote {} and {f}: the merge is complete", self.out),
+            (None, _) => format!("interrupted: wrote {}: the merge is complete", self.out),
+        }
+    }
 }
 
 fn range_text(r: &Range<u32>) -> String {
@@ -334,7 +443,41 @@ fn overlap_lines(films: &[(PathBuf, FilmHeader)]) -> Vec<String> {
 
 #[cfg(test)]
 mod tests {
-    use super::missing_ranges;
+    use super::*;
+
+    /// A signal while the films are checked quits, nothing written; one while the image is written lets
+    /// it finish and stops before the film, and the last line names the image as written (a user trial:
+    /// "interrupted: nothing was written" after the image, and once the film, had been written).
+    #[test]
+    fn an_interrupted_merge_says_what_it_wrote() {
+        let w = Writing::new(Path::new("m.exr"), Some(Path::new("m.film")));
+        assert_eq!(w.signal().as_deref(), Some("interrupted: nothing was written"));
+        assert!(w.quitting() && !w.begin(IMAGE));
+
+        let w = Writing::new(Path::new("m.exr"), Some(Path::new("m.film")));
+        assert!(w.begin(IMAGE));
+        let m = w.signal().unwrap();
+        assert!(!w.quitting() && w.stopped(), "{m}");
+        assert!(m.contains("finishing m.exr") && m.contains("m.film will not be written") && !m.contains("nothing"), "{m}");
+        assert_eq!(w.signal(), None, "said twice");
+        assert_eq!(
+            w.stopped_message(false),
+            "interrupted: wrote m.exr (the merged image, complete); the merged film m.film was not written"
+        );
+
+        let w = Writing::new(Path::new("m.exr"), Some(Path::new("m.film")));
+        assert!(w.begin(IMAGE) && w.begin(FILM));
+        let m = w.signal().unwrap();
+        assert!(m.contains("finishing the merged film m.film (m.exr is written)"), "{m}");
+        assert!(w.begin(DONE) && w.stopped());
+        assert_eq!(w.stopped_message(true), "interrupted: wrote m.exr and m.film: the merge is complete");
+
+        // Once all is written, a signal changes nothing.
+        let w = Writing::new(Path::new("m.exr"), None);
+        assert!(w.begin(IMAGE) && w.begin(DONE));
+        assert_eq!(w.signal(), None);
+        assert!(!w.stopped() && !w.quitting());
+    }
 
     #[test]
     fn missing_ranges_are_the_complement() {
