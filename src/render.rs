@@ -144,7 +144,7 @@ pub fn check_render_size(width: u32, height: u32, samples: &Range<u32>) -> Resul
     let n = width as u64 * height as u64 * samples.len() as u64;
     if n > MAX_RENDER_SAMPLES {
         return Err(format!(
-            "{width} x {height} pixels x {} samples = {n:.3e} samples; the limit per render is 2^38 = {MAX_RENDER_SAMPLES:.3e} \
+            "{width} x {height} pixels x {} samples = {n} samples; the limit per render is 2^38 = {MAX_RENDER_SAMPLES} \
              (render sample ranges separately and merge them)",
             samples.len()
         ));

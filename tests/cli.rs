@@ -65,6 +65,28 @@ fn bad_flags_are_input_errors() {
     }
 }
 
+/// Errors that state a limit state it as it is: the bound of --checkpoint-every (it said "a positive
+/// number of seconds" of 1e9 s), and the samples of a render against 2^38 as exact integers (`2.749e11
+/// samples; the limit is 2.749e11` looked like no excess).
+#[test]
+fn limits_are_stated_exactly() {
+    let o = tmp("limits.png");
+    let run = |extra: &[&str]| {
+        let out = strata().args(["render", "scenes/shapes/sphere.toml", "-o", o.to_str().unwrap()]).args(extra).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{extra:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let film = tmp("limits.film");
+    let err = run(&["--film", film.to_str().unwrap(), "--checkpoint-every", "1000000000"]);
+    assert!(err.contains("--checkpoint-every 1000000000: expected a number of seconds above 0 and below 1000000000"), "{err}");
+    let err = run(&["--size", "4096x4096", "--spp", "16385"]);
+    assert!(
+        err.contains("4096 x 4096 pixels x 16385 samples = 274894684160 samples; the limit per render is 2^38 = 274877906944"),
+        "{err}"
+    );
+    assert!(!o.exists() && !film.exists());
+}
+
 /// A negative count reaches the flag's own parser, which names it (clap had read `-1` as an unknown
 /// flag and suggested `-- -1`).
 #[test]

@@ -312,7 +312,11 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     let checkpoint_every = match a.checkpoint_every {
         None => None,
         Some(s) if s.is_finite() && s > 0.0 && s < 1e9 => Some(Duration::from_secs_f64(s)),
-        Some(s) => return Err(Failure::input(format!("--checkpoint-every {s}: expected a positive number of seconds"))),
+        Some(s) => {
+            return Err(Failure::input(format!(
+                "--checkpoint-every {s}: expected a number of seconds above 0 and below 1000000000 (31.7 years)"
+            )))
+        }
     };
     if checkpoint_every.is_some() && film_path.is_none() {
         return Err(Failure::input("--checkpoint-every needs --film PATH (where the checkpoints go) or --resume FILM"));
