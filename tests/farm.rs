@@ -269,6 +269,30 @@ fn cli_rerun_finds_the_partial_film_under_its_numbered_name() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// No command replaces a partial film of its own render: `--resume A --film B` and `merge ... --film B`
+/// refuse a partial B (they replaced it without a word), naming how to continue it; nothing is written.
+#[test]
+fn cli_film_never_replaces_a_partial_film_of_its_render() {
+    let d = dir("partial-b");
+    let sc = write_scene(&d);
+    let p = |n: &str| d.join(n);
+    write_partial_film(&sc, &p("a.film"));
+    std::fs::copy(p("a.film"), p("b.film")).unwrap();
+    let b = bytes(&p("b.film"));
+    let name = p("b.film").display().to_string();
+    let o = render(&sc, &["-o", s(&p("r.exr")), "--resume", s(&p("a.film")), "--film", s(&p("b.film"))]);
+    refused(
+        &o,
+        &[&format!("{name}: a partial film of this same render"), "which --film would replace", &format!("--resume {name} instead")],
+    );
+    ok(render(&sc, &["-o", s(&p("x.exr")), "--film", s(&p("x.film")), "--samples", "0..3"]));
+    ok(render(&sc, &["-o", s(&p("y.exr")), "--film", s(&p("y.film")), "--samples", "3..6"]));
+    let o = strata().args(["merge", s(&p("x.film")), s(&p("y.film")), "-o", s(&p("m.exr")), "--film", s(&p("b.film"))]).output().unwrap();
+    refused(&o, &[&format!("{name}: a partial film of this same render"), &format!("--resume {name}`")]);
+    assert!(bytes(&p("b.film")) == b && !p("r.exr").exists() && !p("m.exr").exists());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 #[test]
 fn cli_resume_of_an_interrupted_render_is_bit_identical() {
     let d = dir("resume");

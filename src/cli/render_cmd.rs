@@ -228,13 +228,22 @@ fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
 /// What `flag` writing a film of the render `this` at `path` would replace: a partial film of another
 /// render (or of another sample range or tile of the same scene) is refused, since it is work in
 /// progress (a trial's 6% of a `final` render went so without a word); a complete one is replaced, with
-/// a warning (returned). Nothing there, a film of this very render, or a file that is no film: `Ok(None)`
-/// (a partial film of this same render is `render`'s to refuse, offering `--resume`).
-pub(super) fn check_film_replaced(path: &Path, flag: &str, this: &FilmHeader) -> Result<Option<String>, Failure> {
-    match read_film(path) {
-        Ok(saved) => check_film_header_replaced(path, &saved.header, flag, this),
-        Err(_) => Ok(None),
+/// a warning (returned). A partial film of this same render is refused too, with `advice` (how to
+/// continue it): no command replaces a partial film (`--resume A --film B` and `merge ... --film B`
+/// replaced a partial B of their render without a word). Nothing there, a complete film of this very
+/// render, or a file that is no film: `Ok(None)`.
+pub(super) fn check_film_replaced(path: &Path, flag: &str, this: &FilmHeader, advice: &str) -> Result<Option<String>, Failure> {
+    let Ok(saved) = read_film(path) else { return Ok(None) };
+    if !saved.header.is_complete() && resume_mismatch(&saved.header, this).is_none() {
+        return Err(Failure::input(format!(
+            "{}: a partial film of this same render ({} of {} work units) is there, which {flag} would replace: {advice}, \
+             name another film, or remove it first",
+            path.display(),
+            saved.header.units_done(),
+            saved.header.completed.len()
+        )));
     }
+    check_film_header_replaced(path, &saved.header, flag, this)
 }
 
 /// [`check_film_replaced`] for a film already read (`saved`, the header of the film at `path`).
@@ -378,7 +387,8 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         }
     }
     if let Some(f) = a.film.as_deref().filter(|&f| a.resume.as_deref().is_some_and(|r| r != f)) {
-        if let Some(w) = check_film_replaced(f, "--film", &header)? {
+        let advice = format!("continue it with --resume {} instead", f.display());
+        if let Some(w) = check_film_replaced(f, "--film", &header, &advice)? {
             errln!("warning: {w}");
         }
     }
