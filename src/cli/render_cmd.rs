@@ -1,4 +1,4 @@
-//! `strata render`, including sample ranges, film files, checkpoints and resume (see `docs/farm.md`).
+//! `strata render`, including sample ranges, film files, checkpoints and resume (see the README, "Rendering on many machines").
 
 use super::{Failure, Progress};
 use crate::film::file::{build_id, check_film_writable, other_builds_warning, read_film, write_film, FilmHeader};
