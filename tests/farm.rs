@@ -301,7 +301,12 @@ fn cli_resume_of_an_interrupted_render_is_bit_identical() {
     ok(render(&sc, &["-o", s(&p("full.exr")), "--film", s(&p("full.film"))]));
 
     // A partial film made by a cancelled library render (deterministic, unlike a signal).
-    let header = write_partial_film(&sc, &p("part.film"));
+    let mut header = write_partial_film(&sc, &p("part.film"));
+    // Stamped as the strata binary stamps it (a film of unknown build resumes into one of unknown build,
+    // which would differ from full.film in its build field alone).
+    header.build = decode(&bytes(&p("full.film"))).unwrap().header.build;
+    let partial = decode(&bytes(&p("part.film"))).unwrap();
+    strata::film::file::write_film(&p("part.film"), &header, &partial.film).unwrap();
     // Its samples are neither missing nor complete, and the status says which.
     let st = ok(strata().args(["merge", "--status", s(&p("part.film"))]).output().unwrap());
     let out = String::from_utf8_lossy(&st.stdout);
@@ -617,6 +622,22 @@ fn cli_films_of_other_builds_are_warned_of() {
     assert!(err.contains("b.film was rendered by another build of strata than this one"), "{err}");
     // The film it writes back holds samples of two builds: it records none.
     assert_eq!(strata::film::file::read_film(&p("b.film")).unwrap().header.build, 0);
+    // A film of unknown build (0: version 1, or of several builds) is not taken as this build's: merged
+    // with one of this build, or resumed, the film written records none, and a note says why (a user
+    // trial found them stamped with this build).
+    ok(render(&sc, &["-o", s(&p("c.exr")), "--film", s(&p("c.film")), "--samples", "3..6"]));
+    let mut u = strata::film::file::read_film(&p("a.film")).unwrap();
+    u.header.build = 0;
+    strata::film::file::write_film(&p("u.film"), &u.header, &u.film).unwrap();
+    let merged =
+        ok(strata().args(["merge", s(&p("u.film")), s(&p("c.film")), "-o", s(&p("uc.exr")), "--film", s(&p("uc.film"))]).output().unwrap());
+    let err = String::from_utf8_lossy(&merged.stderr);
+    assert!(err.contains("u.film records no build") && !err.contains("another build"), "{err}");
+    assert_eq!(strata::film::file::read_film(&p("uc.film")).unwrap().header.build, 0);
+    let resumed = ok(render(&sc, &["-o", s(&p("u.exr")), "--resume", s(&p("u.film")), "--samples", "0..3"]));
+    let err = String::from_utf8_lossy(&resumed.stderr);
+    assert!(err.contains("u.film records no build"), "{err}");
+    assert_eq!(strata::film::file::read_film(&p("u.film")).unwrap().header.build, 0);
     // A copy of this build whose file is replaced (as a rebuild replaces it) or deleted while it renders
     // still stamps its film with its own build, which it reads when it writes the film (a user trial:
     // such films were stamped 0, unknown, when the stamp was read from the file at the path).

@@ -142,12 +142,22 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     // Films of several builds merge (their samples are exact either way), with a warning; the merged film
     // records a build only where all of them share it.
     let builds: Vec<(String, u64)> = films.iter().map(|(p, f)| (p.display().to_string(), f.header.build)).collect();
-    // (Films of unknown build, 0, are taken as the others'.)
     let (name0, build0) = builds.iter().find(|b| b.1 != 0).cloned().unwrap_or_default();
     let warning = other_builds_warning(&builds, build0, &name0);
-    let build = if warning.is_some() { 0 } else { build0 };
+    // Films of unknown build (0: version 1, or already of several builds) are not taken as the others'
+    // build: the merged film records none (a user trial found it claiming theirs).
+    let unknown: Vec<&str> = builds.iter().filter(|b| b.1 == 0).map(|b| b.0.as_str()).collect();
+    let build = if warning.is_some() || !unknown.is_empty() { 0 } else { build0 };
     if let Some(w) = warning {
         errln!("{w}");
+    }
+    if build0 != 0 && !unknown.is_empty() {
+        errln!(
+            "note: {} {} no build (from before builds were recorded, or of several builds' samples): the merged film records \
+             none either (build 0, unknown)",
+            unknown.join(", "),
+            if unknown.len() == 1 { "records" } else { "record" }
+        );
     }
     let range = first.samples.start..films.iter().map(|(_, f)| f.header.samples.end).max().unwrap();
     let mut merged = films[0].1.film.clone();

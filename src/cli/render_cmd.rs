@@ -402,8 +402,17 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         if let Some(w) = other_builds_warning(&[(r.display().to_string(), saved.header.build)], this, "this one") {
             errln!("{w}");
         }
-        // (A film of unknown build, 0, is taken as this one's.)
-        mixed = saved.header.units_done() > 0 && saved.header.build != 0 && saved.header.build != this;
+        // A film of unknown build (0: a version-1 film, before builds were recorded, or one already of
+        // several builds' samples) makes the result one of unknown build too (it was stamped with this
+        // build's, which a user trial found claiming samples it never rendered).
+        if saved.header.units_done() > 0 && saved.header.build == 0 {
+            errln!(
+                "note: {} records no build (a film from before builds were recorded, or of several builds' samples): the film \
+                 this render writes records none either (build 0, unknown)",
+                r.display()
+            );
+        }
+        mixed = saved.header.units_done() > 0 && saved.header.build != this;
         header.completed = saved.header.completed;
         film = saved.film;
     }
