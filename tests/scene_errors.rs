@@ -562,6 +562,39 @@ fn a_csg_solid_whose_scale_swallows_its_detail_is_warned_about() {
     }
 }
 
+/// A leaf's thickness is measured in its own frame, not on its world-axis bounds: a fin 1e-4 thick in a
+/// solid 100 from the origin (tolerance 1e-3) is warned of unturned, turned 1 or 30 degrees about y (a
+/// trial's turned fins were not: their bounds are up to 0.5 thick), and as a sheared box (turned, then
+/// scaled along x by a parent); the same fin 0.02 thick is warned of in none of these placements.
+#[test]
+fn a_turned_thin_leaf_is_warned_about() {
+    let fin = |w: f64, turn: &str, parent: &str| {
+        format!(
+            "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nmaterial = \"m\"\ntransform = {{ {parent}translate = [100, 0, 0] }}\n\
+             children = [ {{ type = \"box\", min = [-0.5, 0, -0.5], max = [0.5, 0.2, 0.5] }}, \
+             {{ type = \"box\", min = [{}, 0.2, -0.5], max = [{}, 0.9, 0.5], transform = {{ rotate = [0, {turn}, 0] }} }} ]\n",
+            -w / 2.0,
+            w / 2.0
+        )
+    };
+    for (turn, parent, want) in
+        [("0", "", 1e-4), ("1", "", 1e-4), ("30", "", 1e-4), ("30", "scale = [2, 1, 1], ", 1e-4 / (0.25f64 * 0.75 + 0.25).sqrt())]
+    {
+        for (w, warned) in [(1e-4, true), (0.02, false)] {
+            let extra = fin(w, turn, parent);
+            let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
+            let found: Vec<_> = s.warnings.iter().filter(|m| m.contains("its detail may be lost")).collect();
+            assert_eq!(found.len(), usize::from(warned), "fin {w} turned {turn} ({parent}): {:?}", s.warnings);
+            if warned {
+                // (The sheared fin: its faces 1e-4 / |(cos 30 / 2, 0, sin 30)| apart.)
+                let said: f64 = found[0].split("only ").nth(1).and_then(|r| r.split(' ').next()).unwrap().parse().unwrap();
+                assert!((said / (want * w / 1e-4) - 1.0).abs() < 1e-3, "said {said}, want {want}: {}", found[0]);
+                assert!(found[0].starts_with(&format!("e.toml:{}:", line_of(&extra, "type = \"csg\"") - 1)), "{}", found[0]);
+            }
+        }
+    }
+}
+
 /// A checker finer than an f32 coordinate can resolve over the scene's extent (the pattern is its
 /// colour `a` alone there: a fuzzed scale of 1e-30 rendered a plain floor) is warned about at its scale;
 /// the shipped scale of a checker floor is not.

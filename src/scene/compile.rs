@@ -1589,16 +1589,15 @@ impl Compiler<'_> {
                 )
             });
         }
-        let thinnest = self
-            .csg
-            .solid_leaves(solid)
-            .filter_map(|k| self.csg.leaf(k).bounds())
-            .map(|(lo, hi)| (hi - lo).min_element())
-            .fold(f32::INFINITY, f32::min);
-        if thinnest < 10.0 * tol {
-            // (A leaf thinner than an f32 step where it lies has bounds of no extent: a trial's leaf of 2e-9
-            // at y = 0.5 was said to be `0e0` thick.)
-            let thick = if thinnest > 0.0 { format!("only {thinnest:e} thick") } else { "thinner than f32 resolves where it lies".into() };
+        // Each leaf's thickness in its own frame (`Leaf::thickness`): the world-axis bounds of a fin turned
+        // 30 degrees are 0.5 thick, and a trial's fin 1e-4 thick at 100 was warned of only unturned.
+        let thinnest = self.csg.solid_leaves(solid).filter_map(|k| self.csg.leaf(k).thickness()).fold(f64::INFINITY, f64::min);
+        if thinnest < 10.0 * tol as f64 {
+            // (A leaf thinner than an f32 step where it lies: a trial's leaf of 2e-9 at y = 0.5 was said to be
+            // `0e0` thick by its bounds.)
+            let step = f64::from(scale) * f64::from(f32::EPSILON);
+            let thick =
+                if thinnest > step { format!("only {thinnest:.4e} thick") } else { "thinner than f32 resolves where it lies".into() };
             self.warn_each(WarnKind::LostDetail, def.span(), field, || {
                 format!(
                     "this CSG solid reaches {scale:e} from the origin, so surfaces closer than its coincidence tolerance \
