@@ -471,8 +471,10 @@ fn a_csg_solid_emptied_by_its_hole_is_warned_about() {
         }
     }
     // A box with walls 0.005 thick, open on top: kept unwarned at the origin; at x = 1000 its walls are
-    // thinner than the tolerance (1e-2), merge away for the probe, and the warning names the tolerance
-    // as a cause beside a hole as large as its part (a user trial found it named the hole alone).
+    // thinner than the tolerance (1e-2) and merge away where rays cross them squarely, but show to the
+    // oblique probe rays (and to oblique camera rays): not empty, a thin part, warned of with the
+    // tolerance its rays can use (before the probe's rays were turned, axis-parallel rays lost every
+    // wall and it was said to look empty).
     for (x, warned) in [(0.0, false), (1000.0, true)] {
         let extra = solid(&format!(
             "{{ type = \"box\", min = [{}, -1, -1], max = [{}, 1, 1] }}, {{ type = \"box\", min = [{}, -0.995, -0.995], max = [{}, 1.5, 0.995] }}",
@@ -484,7 +486,12 @@ fn a_csg_solid_emptied_by_its_hole_is_warned_about() {
         let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
         assert_eq!(s.warnings.len(), usize::from(warned), "x = {x}: {:?}", s.warnings);
         if warned {
-            assert!(s.warnings[0].contains("coincidence tolerance, 1.00e-2, 1e-5 of its farthest coordinate 1.00e3"), "{:?}", s.warnings);
+            assert!(
+                s.warnings[0].contains("has a part only 5.00e-3 thick")
+                    && s.warnings[0].contains("(1.00e-2: 1e-5 of its farthest coordinate, 1.00e3, plus its bounds' diagonal"),
+                "{:?}",
+                s.warnings
+            );
         }
     }
 }
@@ -493,21 +500,35 @@ fn a_csg_solid_emptied_by_its_hole_is_warned_about() {
 /// at every scale from 1e-5 to 1e5, as empty (left out) or looking empty (kept): a trial found no word
 /// at 1e-5, 0.1 and 1e4, where rays lying in the shared face found it inside by the rounding of the
 /// faces. Boxes that overlap by a tenth of their size are not warned of at any scale.
+///
+/// Turned (the solid's `rotate`: 30, 45, 60 and 90 degrees about z, 17.3 about z, 30 about y then x), at
+/// scales 1e-3, 1 and 1e3: a trial's two unit boxes sharing a face, both turned 30 degrees about z, had
+/// the shared face on the exact diagonal of their bounds, where the probe's axis-parallel rays lay in it
+/// and found it inside by rounding: no warning (45 and 90 degrees warned).
 #[test]
 fn a_face_sharing_intersection_is_warned_of_at_every_scale() {
-    for scale in [1e-5, 1e-4, 1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5] {
+    let turns = ["0, 0, 0", "0, 0, 30", "0, 0, 45", "0, 0, 60", "0, 0, 90", "0, 0, 17.3", "30, 30, 0"];
+    let all = [1e-5, 1e-4, 1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e4, 1e5];
+    let cases = all.iter().map(|&x| (x, turns[0])).chain(turns[1..].iter().flat_map(|&t| [1e-3, 1.0, 1e3].map(|x| (x, t))));
+    for (scale, turn) in cases {
         for (b_min, empty) in [(0.5, true), (0.4, false)] {
             let v = |x: f64| x * scale;
             let extra = format!(
-                "[[shapes]]\ntype = \"csg\"\nop = \"intersection\"\nmaterial = \"m\"\nchildren = [ \
+                "[[shapes]]\ntype = \"csg\"\nop = \"intersection\"\nmaterial = \"m\"\ntransform = {{ rotate = [{turn}] }}\nchildren = [ \
                  {{ type = \"box\", min = [{}, {}, {}], max = [{}, {}, {}] }}, {{ type = \"box\", min = [{}, {}, {}], max = [{}, {}, {}] }} ]\n",
                 v(-0.5), v(-0.5), v(-0.5), v(0.5), v(0.5), v(0.5), v(b_min), v(-0.5), v(-0.5), v(1.5), v(0.5), v(0.5)
             );
             let s = parse_scene(Path::new("f.toml"), &format!("{BASE}{extra}")).unwrap();
             let said = s.warnings.iter().any(|w| w.contains("this CSG solid is empty") || w.contains("this CSG solid looks empty"));
-            assert_eq!(said, empty, "scale {scale}, second box from {b_min}: {:?}", s.warnings);
+            assert_eq!(said, empty, "scale {scale}, turned [{turn}], second box from {b_min}: {:?}", s.warnings);
         }
     }
+    // The trial's scene: unit boxes from the origin, sharing the face y = 1, each turned 30 degrees.
+    let extra = "[[shapes]]\ntype = \"csg\"\nop = \"intersection\"\nmaterial = \"m\"\nchildren = [ \
+                 { type = \"box\", min = [0, 0, 0], max = [1, 1, 1], transform = { rotate = [0, 0, 30] } }, \
+                 { type = \"box\", min = [0, 1, 0], max = [1, 2, 1], transform = { rotate = [0, 0, 30] } } ]\n";
+    let s = parse_scene(Path::new("f.toml"), &format!("{BASE}{extra}")).unwrap();
+    assert!(s.warnings.iter().any(|w| w.contains("this CSG solid looks empty")), "{:?}", s.warnings);
 }
 
 /// Nesting beyond the TOML reader's own limit (about 80 levels of `[[shapes.children...]]` headers) is

@@ -258,13 +258,12 @@ pub fn probe_rays(lo: DVec3, hi: DVec3, n: u32) -> impl Iterator<Item = (DVec3, 
     })
 }
 
-/// Whether any of `3 n^2` axis-parallel rays through the solid's bounds (an `n x n` grid of cells across
-/// each pair of axes, each ray at [`OFFSET`] within its cell) finds an inside interval longer than `1e-6` of
-/// the bounds' largest extent and than the solid's coincidence tolerance (crossings closer than that are
-/// one for the render, so such an interval renders as nothing: a trial's intersection of two boxes sharing
-/// a face was said to look empty at some scales and not at others, by the rounding of their faces).
-/// `false` means the solid is very likely empty (a hole larger than its part, `A - A`), or thinner than
-/// the grid's spacing everywhere. Solids with unbounded or empty bounds are reported as not empty (the
+/// Whether any of the `3 n^2` [`probe_rays`] through the solid's bounds finds an inside interval longer
+/// than `1e-6` of the bounds' largest extent and than the solid's coincidence tolerance (crossings closer
+/// than that are one for the render, so such an interval renders as nothing: a trial's intersection of two
+/// boxes sharing a face was said to look empty at some scales and not at others, by the rounding of their
+/// faces). `false` means the solid is very likely empty (a hole larger than its part, `A - A`), or thinner
+/// than the grid's spacing everywhere. Solids with unbounded or empty bounds are reported as not empty (the
 /// bounds already decide those). Most solids answer at their first ray.
 pub fn probe_finds_volume(csg: &Csg, solid: u32, n: u32) -> bool {
     let (lo, hi) = csg.bounds(solid);
@@ -275,21 +274,11 @@ pub fn probe_finds_volume(csg: &Csg, solid: u32, n: u32) -> bool {
     let ext = hi - lo;
     let min_len = (1e-6 * ext.max_element()).max(super::merge::COINCIDENT_EPS as f64 * csg.scale(solid) as f64);
     let mut out = Vec::new();
-    for axis in 0..3 {
-        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-        let mut d = DVec3::ZERO;
-        d[axis] = 1.0;
-        for i in 0..n {
-            for j in 0..n {
-                // (On the bounds' mid-plane: the intervals cover all t.)
-                let mut o = (lo + hi) * 0.5;
-                o[u] = lo[u] + ext[u] * (i as f64 + OFFSET) / n as f64;
-                o[v] = lo[v] + ext[v] * (j as f64 + OFFSET) / n as f64;
-                intervals_f64(csg, solid, o, d, &mut out);
-                if out.iter().any(|&(a, b)| b - a > min_len) {
-                    return true;
-                }
-            }
+    for (o, d) in probe_rays(lo, hi, n) {
+        intervals_f64(csg, solid, o, d, &mut out);
+        // (`d` is a unit vector: lengths in `t` are world lengths.)
+        if out.iter().any(|&(a, b)| b - a > min_len) {
+            return true;
         }
     }
     false
