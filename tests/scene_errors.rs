@@ -682,6 +682,63 @@ fn thin_parts_the_operations_leave_are_warned_of() {
     }
 }
 
+/// Messages a trial found inexact: `children = []` is said to be empty (at the list), not missing;
+/// `hole = false` is accepted on any shape (harmless: a top-level box, a top-level solid, a `csg`'s
+/// child, a named solid's definition), while `hole = true` there is still an error that names it; a
+/// solid that looks empty is not said to be unmet by the probe's rays (the camera may see parts of it).
+#[test]
+fn empty_children_false_holes_and_empty_looking_solids_read_as_what_they_are() {
+    for kind in ["csg\"\nop = \"difference", "group"] {
+        let extra = format!("[[shapes]]\ntype = \"{kind}\"\nmaterial = \"m\"\nchildren = [ ]\n");
+        let (line, field, msg) = fail(&extra);
+        assert_eq!((line, field.as_str()), (line_of(&extra, "children = [ ]"), "shapes[0].children"), "{msg}");
+        assert!(msg.starts_with("is empty:") && !msg.contains("missing"), "{msg}");
+        let (_, _, msg) = fail(&extra.replace("children = [ ]\n", ""));
+        assert!(msg.contains("missing required field"), "{msg}");
+    }
+    let boxed = "type = \"box\"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\nmaterial = \"m\"\n";
+    let kid = "{ type = \"sphere\", center = [0, 0, 0], radius = 0.5, hole = HOLE }";
+    let csg = format!("[[shapes]]\ntype = \"csg\"\nop = \"union\"\nmaterial = \"m\"\nchildren = [ {kid}, {kid} ]\n");
+    let named = "[solids.b]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.5\nhole = HOLE\n[[shapes]]\nuse = \"b\"\nmaterial = \"m\"\n";
+    let cases = [
+        (format!("[[shapes]]\n{boxed}hole = HOLE\n"), "shapes[0].hole", "only children of a `group` can be holes"),
+        (
+            format!(
+                "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nmaterial = \"m\"\nhole = HOLE\nchildren = [ {} ]\n",
+                kid.replace("HOLE", "false")
+            ),
+            "shapes[0].hole",
+            "only children of a `group` can be holes",
+        ),
+        (csg, "shapes[0].children[0].hole", "`hole = true` only applies to children of a `group`"),
+        (named.to_string(), "solids.b.hole", "a named solid is not a hole by itself"),
+    ];
+    for (extra, field, says) in cases {
+        let ok = extra.replace("HOLE", "false");
+        let s = parse_scene(Path::new("ok.toml"), &format!("{BASE}{ok}")).unwrap_or_else(|e| panic!("{ok}: {e}"));
+        assert!(s.warnings.is_empty() && !s.prims.is_empty(), "{ok}: {:?}", s.warnings);
+        let bad = extra.replacen("HOLE", "true", 1).replace("HOLE", "false");
+        let (line, got, msg) = fail(&bad);
+        assert_eq!((got.as_str(), line), (field, line_of(&bad, "hole = true")), "{msg}");
+        assert!(msg.contains(says), "{msg}");
+    }
+    // A group's child may still say `hole = false`.
+    let group = format!("[[shapes]]\ntype = \"group\"\nmaterial = \"m\"\nchildren = [ {} ]\n", kid.replace("HOLE", "false"));
+    parse_scene(Path::new("ok.toml"), &format!("{BASE}{group}")).unwrap();
+    let extra = "[[shapes]]\ntype = \"csg\"\nop = \"difference\"\nmaterial = \"m\"\nchildren = [ { type = \"sphere\", center = [0, 0, 0], \
+                 radius = 1 }, { type = \"sphere\", center = [0, 0, 0], radius = 1.5 } ]\n";
+    let s = parse_scene(Path::new("e.toml"), &format!("{BASE}{extra}")).unwrap();
+    assert!(
+        s.warnings.len() == 1
+            && s.warnings[0].contains(
+                "looks empty: 1728 probe rays across its bounds found no stretch inside it longer than its coincidence tolerance"
+            )
+            && !s.warnings[0].contains("met it"),
+        "{:?}",
+        s.warnings
+    );
+}
+
 /// A checker finer than an f32 coordinate can resolve over the scene's extent (the pattern is its
 /// colour `a` alone there: a fuzzed scale of 1e-30 rendered a plain floor) is warned about at its scale;
 /// the shipped scale of a checker floor is not.

@@ -1475,7 +1475,7 @@ impl Compiler<'_> {
     /// What a named solid's definition may not hold, whether or not it is used: `hole` (a hole is a
     /// place in a group, marked where the solid is used).
     fn solid_definition(&self, name: &str, def: &S<ShapeDef>) -> R<()> {
-        match &def.get_ref().hole {
+        match def.get_ref().hole.as_ref().filter(|h| *h.get_ref()) {
             Some(h) => Err(self.err(
                 h.span(),
                 format!("solids.{name}.hole"),
@@ -1511,8 +1511,9 @@ impl Compiler<'_> {
             Some(m) => self.vec3(m, Sub(at, "motion"))?,
             None => Vec3::ZERO,
         };
-        if let Some(h) = &s.hole {
-            return Err(self.err(h.span(), Sub(at, "hole"), "only children of a `group` can be holes"));
+        // (`hole = false` is harmless anywhere, and accepted: a trial's was refused at the top level.)
+        if let Some(h) = s.hole.as_ref().filter(|h| *h.get_ref()) {
+            return Err(self.err(h.span(), Sub(at, "hole"), "only children of a `group` can be holes (`hole = true`)"));
         }
         let kind = match (&s.kind, &s.use_solid) {
             (Some(k), None) => k.get_ref().as_str(),
@@ -1585,10 +1586,11 @@ impl Compiler<'_> {
             let rays = 3 * EMPTY_PROBE_GRID * EMPTY_PROBE_GRID;
             self.warn_each(WarnKind::LooksEmpty, def.span(), field, || {
                 format!(
-                    "this CSG solid looks empty: none of {rays} rays across its bounds met it (is a hole as large as its \
-                         part? or are its walls thinner than its coincidence tolerance, {tol:.2e}, 1e-5 of its farthest \
-                         coordinate {scale:.2e}? such walls merge away, in part or whole: move the scene nearer the \
-                         origin); it is kept"
+                    "this CSG solid looks empty: {rays} probe rays across its bounds found no stretch inside it longer \
+                         than its coincidence tolerance, {tol:.2e} (1e-5 of its farthest coordinate {scale:.2e}), and shorter \
+                         ones render as nothing (is a hole as large as its part? or are its walls thinner than that \
+                         tolerance? such walls merge away where rays cross them, in part or whole, though the camera may \
+                         still see some: move the scene nearer the origin); it is kept"
                 )
             });
         }
@@ -1967,7 +1969,14 @@ impl Compiler<'_> {
             }
             "csg" | "group" => {
                 self.check_fields(def, field, kind, &["op", "children", "motion", "hole"])?;
-                let children = s.children.as_ref().map(|c| c.get_ref()).filter(|c| !c.is_empty()).ok_or_else(|| self.err(sp.clone(), f("children"), "missing required field (a non-empty list of solids)"))?;
+                let children = match &s.children {
+                    None => return Err(self.err(sp.clone(), f("children"), "missing required field (a non-empty list of solids)")),
+                    // (A trial's `children = []` was called missing.)
+                    Some(c) if c.get_ref().is_empty() => {
+                        return Err(self.err(c.span(), f("children"), format!("is empty: a `{kind}` needs at least one solid in `children`")))
+                    }
+                    Some(c) => c.get_ref(),
+                };
                 if kind == "group" {
                     if let Some(op) = &s.op {
                         return Err(self.err(op.span(), f("op"), "a `group` has no op: it is the union of its children minus those marked `hole = true`"));
@@ -2003,8 +2012,12 @@ impl Compiler<'_> {
                     };
                     let (mut kids, mut culprits) = (Vec::with_capacity(children.len()), Vec::with_capacity(children.len()));
                     for (i, c) in children.iter().enumerate() {
-                        if let Some(h) = &c.get_ref().hole {
-                            return Err(self.err(h.span(), format!("{field}.children[{i}].hole"), "`hole` only applies to children of a `group`"));
+                        if let Some(h) = c.get_ref().hole.as_ref().filter(|h| *h.get_ref()) {
+                            return Err(self.err(
+                                h.span(),
+                                format!("{field}.children[{i}].hole"),
+                                "`hole = true` only applies to children of a `group` (a `csg` subtracts by `op = \"difference\"`)",
+                            ));
                         }
                         kids.push(self.csg_tree(c, &format!("{field}.children[{i}]"), t, material, depth + 1, uses)?);
                         culprits.push(self.unbounded_by.take());

@@ -176,25 +176,14 @@ impl ShapeDef {
         macro_rules! check {
             ($($f:ident),*) => { $( if let Some(x) = &self.$f { if !allowed.contains(&stringify!($f)) { return Some((stringify!($f), x.span())); } } )* };
         }
-        check!(
-            center,
-            radius,
-            point,
-            normal,
-            min,
-            max,
-            origin,
-            u,
-            v,
-            height,
-            radius_top,
-            major_radius,
-            minor_radius,
-            motion,
-            op,
-            hole,
-            children
-        );
+        check!(center, radius, point, normal, min, max, origin, u, v, height, radius_top, major_radius, minor_radius, motion, op);
+        // (`hole = false` is harmless on any shape: only `hole = true` is checked.)
+        if let Some(x) = self.hole.as_ref().filter(|h| *h.get_ref()) {
+            if !allowed.contains(&"hole") {
+                return Some(("hole", x.span()));
+            }
+        }
+        check!(children);
         None
     }
 }
