@@ -61,21 +61,42 @@ pub fn sample_disk_concentric_x8(u: [f32x8; 2]) -> [f32x8; 2] {
 /// Sine and cosine of `x` in `[-pi / 4, pi / 4]`: their Taylor polynomials to degrees 9 and 10, whose
 /// truncation errors there (`(pi / 4)^11 / 11!` and `(pi / 4)^12 / 12!`, below 2e-9) are far below an
 /// f32 ulp; evaluated by Horner's rule in `x^2` with fused multiply-adds. [`sin_cos_quarter`] is the
-/// same arithmetic on one lane (bit for bit).
+/// same arithmetic on one lane (bit for bit: one generic body).
 #[inline(always)]
 pub fn sin_cos_quarter_x8(x: f32x8) -> (f32x8, f32x8) {
-    let x2 = x * x;
-    let k = |i: usize, c: &[f64]| f32x8::splat(c[i] as f32);
-    let sin_p = x2.mul_add(k(0, &SIN_TAYLOR), k(1, &SIN_TAYLOR));
-    let sin_p = x2.mul_add(sin_p, k(2, &SIN_TAYLOR));
-    let sin_p = x2.mul_add(sin_p, k(3, &SIN_TAYLOR));
-    let s = (x * x2).mul_add(sin_p, x);
-    let cos_p = x2.mul_add(k(0, &COS_TAYLOR), k(1, &COS_TAYLOR));
-    let cos_p = x2.mul_add(cos_p, k(2, &COS_TAYLOR));
-    let cos_p = x2.mul_add(cos_p, k(3, &COS_TAYLOR));
-    let cos_p = x2.mul_add(cos_p, k(4, &COS_TAYLOR));
-    let c = x2.mul_add(cos_p, f32x8::ONE);
-    (s, c)
+    sin_cos_quarter_in(x)
+}
+
+/// One lane of [`sin_cos_quarter_x8`], the same operations (so the same bits).
+#[inline(always)]
+pub fn sin_cos_quarter(x: f32) -> (f32, f32) {
+    sin_cos_quarter_in(x)
+}
+
+/// What the quarter-range polynomial needs of a lane type: f32 and f32x8 alike.
+trait Fma: Copy + std::ops::Mul<Output = Self> {
+    fn k(c: f64) -> Self;
+    fn fma(self, m: Self, a: Self) -> Self;
+}
+impl Fma for f32 {
+    #[inline(always)]
+    fn k(c: f64) -> Self {
+        c as f32
+    }
+    #[inline(always)]
+    fn fma(self, m: Self, a: Self) -> Self {
+        self.mul_add(m, a)
+    }
+}
+impl Fma for f32x8 {
+    #[inline(always)]
+    fn k(c: f64) -> Self {
+        f32x8::splat(c as f32)
+    }
+    #[inline(always)]
+    fn fma(self, m: Self, a: Self) -> Self {
+        self.mul_add(m, a)
+    }
 }
 
 /// The Taylor coefficients of `sin x / x - 1` and `cos x - 1` in powers of `x^2`, highest first (from
@@ -83,21 +104,13 @@ pub fn sin_cos_quarter_x8(x: f32x8) -> (f32x8, f32x8) {
 const SIN_TAYLOR: [f64; 4] = [1.0 / 362_880.0, -1.0 / 5_040.0, 1.0 / 120.0, -1.0 / 6.0];
 const COS_TAYLOR: [f64; 5] = [-1.0 / 3_628_800.0, 1.0 / 40_320.0, -1.0 / 720.0, 1.0 / 24.0, -0.5];
 
-/// One lane of [`sin_cos_quarter_x8`], the same operations (so the same bits).
 #[inline(always)]
-pub fn sin_cos_quarter(x: f32) -> (f32, f32) {
+fn sin_cos_quarter_in<T: Fma>(x: T) -> (T, T) {
     let x2 = x * x;
-    let k = |i: usize, c: &[f64]| c[i] as f32;
-    let sin_p = x2.mul_add(k(0, &SIN_TAYLOR), k(1, &SIN_TAYLOR));
-    let sin_p = x2.mul_add(sin_p, k(2, &SIN_TAYLOR));
-    let sin_p = x2.mul_add(sin_p, k(3, &SIN_TAYLOR));
-    let s = (x * x2).mul_add(sin_p, x);
-    let cos_p = x2.mul_add(k(0, &COS_TAYLOR), k(1, &COS_TAYLOR));
-    let cos_p = x2.mul_add(cos_p, k(2, &COS_TAYLOR));
-    let cos_p = x2.mul_add(cos_p, k(3, &COS_TAYLOR));
-    let cos_p = x2.mul_add(cos_p, k(4, &COS_TAYLOR));
-    let c = x2.mul_add(cos_p, 1.0);
-    (s, c)
+    let sin_p = SIN_TAYLOR[1..].iter().fold(T::k(SIN_TAYLOR[0]), |p, &c| x2.fma(p, T::k(c)));
+    let s = (x * x2).fma(sin_p, x);
+    let cos_p = COS_TAYLOR[1..].iter().fold(T::k(COS_TAYLOR[0]), |p, &c| x2.fma(p, T::k(c)));
+    (s, x2.fma(cos_p, T::k(1.0)))
 }
 
 /// `sin(2 pi u)` and `cos(2 pi u)` for `u` in `[0, 1]` (an angle in turns, as samplers give it), without
