@@ -153,11 +153,10 @@ pub fn parse_samples(text: &str, spp: u32) -> Result<Range<u32>, Failure> {
 /// (`out.film`), or where that is taken by a file already, the first free `out.2.film`, `out.3.film`, ...
 /// (an interrupt never replaces a film it did not write: a trial lost 30% of another render's film so).
 fn interrupt_film_path(out: &Path) -> PathBuf {
-    let first = out.with_extension("film");
-    if !first.exists() {
-        return first;
-    }
-    (2u32..).map(|n| out.with_extension(format!("{n}.film"))).find(|p| !p.exists()).expect("a free name")
+    std::iter::once(out.with_extension("film"))
+        .chain((2u32..).map(|n| out.with_extension(format!("{n}.film"))))
+        .find(|p| !p.exists())
+        .expect("a free name")
 }
 
 /// The films an interrupt of a render writing `out` may have left (see [`interrupt_film_path`]): `out`
@@ -195,13 +194,11 @@ fn interrupt_films(out: &Path) -> Vec<PathBuf> {
 /// name (`x.film`, `x.2.film`, ...: never replacing a file). Returns where it went, or None and why each
 /// place failed.
 fn write_film_elsewhere(path: &Path, header: &FilmHeader, film: &Film) -> (Option<PathBuf>, Vec<String>) {
-    let stem = path.file_stem().map_or_else(|| "render".into(), |s| s.to_string_lossy().into_owned());
+    let file = path.file_name().unwrap_or("render.film".as_ref());
     let mut tried = Vec::new();
     for dir in [std::env::current_dir().ok(), Some(std::env::temp_dir())].into_iter().flatten() {
-        let name = std::iter::once(dir.join(format!("{stem}.film")))
-            .chain((2u32..).map(|n| dir.join(format!("{stem}.{n}.film"))))
-            .find(|p| !p.exists())
-            .expect("a free name");
+        // (The free name as an interrupt picks it: `x.film`, `x.2.film`, ...)
+        let name = interrupt_film_path(&dir.join(file));
         match write_film(&name, header, film) {
             Ok(()) => return (Some(name), tried),
             Err(e) => tried.push(e),
