@@ -450,7 +450,7 @@ fn cli_merge_refuses_mismatched_films_and_writes_nothing() {
         ("b.film", ["missing: samples 0..2 of spp 6 are in no film (before", "b.film 2..6)"]),
     ] {
         let o = strata().args(["merge", s(&p(film)), "-o", s(&p("new.exr")), "--film", s(&p("new.film"))]).output().unwrap();
-        refused(&o, &[needles[0], needles[1], "not be the full render", "--allow-gaps"]);
+        refused(&o, &[needles[0], needles[1], "not be the full render", "use --allow-gaps to merge anyway;"]);
         assert!(!p("new.exr").exists() && !p("new.film").exists(), "{film}: a refused merge wrote output");
     }
     // --allow-gaps merges such a range alone, with a warning, and (complete and contiguous) into the film

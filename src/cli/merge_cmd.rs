@@ -122,7 +122,7 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
             String::new()
         };
         return Err(Failure::input(format!(
-            "cannot merge: {}: the image would not be the full render (give every part's film, or use --allow-gaps to merge              anyway{alone})",
+            "cannot merge: {}: the image would not be the full render (give every part's film, or use --allow-gaps to merge anyway{alone})",
             all.iter().map(|p| p.as_str()).collect::<Vec<_>>().join("; ")
         )));
     }
