@@ -390,15 +390,17 @@ fn combined_with(field: &str) -> &'static [&'static str] {
     }
 }
 
-/// Byte span of `key = ...` at the start of a line (for validation errors on plain fields).
+/// Byte span of `key = ...` at the start of a line, the key bare, `"quoted"` or `'literal'` (for
+/// validation errors on plain fields; a quoted key was reported at 1:1).
 fn find_key(text: &str, key: &str) -> Option<std::ops::Range<usize>> {
     let mut offset = 0;
     for line in text.split_inclusive('\n') {
         let t = line.trim_start();
-        if let Some(rest) = t.strip_prefix(key) {
+        for q in ["", "\"", "'"] {
+            let Some(rest) = t.strip_prefix(q).and_then(|r| r.strip_prefix(key)).and_then(|r| r.strip_prefix(q)) else { continue };
             if rest.trim_start().starts_with('=') {
                 let start = offset + (line.len() - t.len());
-                return Some(start..start + key.len());
+                return Some(start..start + key.len() + 2 * q.len());
             }
         }
         offset += line.len();
@@ -409,6 +411,15 @@ fn find_key(text: &str, key: &str) -> Option<std::ops::Range<usize>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quoted_keys_are_found_at_their_line() {
+        let text = "name = \"x\"\n# spp = 1\n\"spp\" = 0\n'max_depth' = 3\nspp_x = 1\n";
+        assert_eq!(find_key(text, "spp").map(|r| &text[r]), Some("\"spp\""));
+        assert_eq!(find_key(text, "max_depth").map(|r| &text[r]), Some("'max_depth'"));
+        assert_eq!(find_key("spp_x = 1\n  spp= 2\n", "spp"), Some(12..15));
+        assert_eq!(find_key("\"spp' = 1\n", "spp"), None);
+    }
 
     #[test]
     fn every_builtin_profile_parses_and_is_named_after_itself() {
