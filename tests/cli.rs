@@ -97,6 +97,26 @@ fn negative_counts_are_named_as_bad_values() {
         assert_eq!(out.status.code(), Some(2), "{cmd} {flag}: {err}");
         assert!(err.contains(&format!("invalid value '-1' for '{flag}")) && !err.contains("tip:"), "{cmd} {flag}: {err}");
     }
+    // Each number flag's message says what is wrong and the flag's real range: clap's own said "-1 is not
+    // in 0..=4294967295" of --tile (1..=1024) and --max-depth (0..=1024), "invalid digit found in
+    // string" of --seed -1 and 1.5, and --tile 0 was told without the value.
+    for (cmd, flag, value, says) in [
+        ("render", "--tile", "-1", "tile side in pixels: `-1` is negative (a whole number in 1..=1024)"),
+        ("render", "--tile", "0", "tile side in pixels: `0` is not in 1..=1024"),
+        ("render", "--max-depth", "-1", "bounces: `-1` is negative (a whole number in 0..=1024)"),
+        ("render", "--max-depth", "1025", "bounces: `1025` is not in 0..=1024"),
+        ("render", "--seed", "-1", "seed: `-1` is negative (a whole number in 0..=18446744073709551615)"),
+        ("render", "--seed", "1.5", "seed: `1.5` is not a whole number"),
+        ("render", "--seed", "18446744073709551616", "seed: `18446744073709551616` is too large (at most 18446744073709551615)"),
+        ("render", "--threads", "1025", "threads: `1025` is not in 0..=1024"),
+        ("study", "--threads", "x", "threads: `x` is not a number (a whole number in 0..=1024)"),
+        ("study", "--seeds", "0", "seeds: `0` is not in 1..=1000"),
+    ] {
+        let out = strata().args([cmd, "scenes/shapes/sphere.toml", flag, value]).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{cmd} {flag} {value}: {err}");
+        assert!(err.contains(&format!("invalid value '{value}' for '{flag}")) && err.contains(says), "{cmd} {flag} {value}: {err}");
+    }
     // Text flags reach their own parsers, which name the flag.
     for (cmd, flag, value) in [("study", "--spp", "-1"), ("render", "--size", "-3x4"), ("study", "--size", "-3x4")] {
         let out = strata().args([cmd, "scenes/shapes/sphere.toml", flag, value]).output().unwrap();
@@ -683,6 +703,9 @@ fn an_image_that_cannot_be_written_leaves_the_film_and_stats() {
     let out = tmp("from_kept.png");
     let m = strata().args(["merge", film.to_str().unwrap(), "--allow-gaps", "-o", out.to_str().unwrap()]).output().unwrap();
     assert!(m.status.success() && out.exists(), "{}", String::from_utf8_lossy(&m.stderr));
+    // Its summary gives the partial film's share of work units (it read `samples 0..N of spp N`).
+    let (said, done) = (String::from_utf8_lossy(&m.stdout), v["work_units"]["done"].as_u64().unwrap());
+    assert!(said.contains(&format!(" ({done} of {} work units)", v["work_units"]["total"])), "{said}");
     // A film being resumed keeps any name (older versions wrote `.exr` films): refused here only as a
     // film of another render.
     let renamed = tmp("kept_as.exr");

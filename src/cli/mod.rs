@@ -38,6 +38,36 @@ pub fn count_parser(what: &'static str, max: u32) -> impl Fn(&str) -> Result<u32
     move |v: &str| crate::scene::profile::parse_count(v, max).map_err(|e| format!("{what}: {e}"))
 }
 
+/// A clap value parser for a whole number in `lo..=hi` (`what` names it in errors), in the words of
+/// [`count_parser`] for negative, fractional and non-numeric values and with the value in a range error
+/// (clap's own said "-1 is not in 0..=4294967295" of a flag limited to 1..=1024, and "invalid digit found
+/// in string" of `--seed -1`).
+pub fn range_parser<T: TryFrom<u64> + Clone + Send + Sync + 'static>(
+    what: &'static str,
+    lo: u64,
+    hi: u64,
+) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static {
+    move |v: &str| {
+        let t = v.trim();
+        let n = t.parse::<u64>().map_err(|_| match t.parse::<f64>() {
+            Ok(x) if !x.is_finite() => format!("{what}: `{v}` is not a whole number in {lo}..={hi}"),
+            Ok(x) if x < 0.0 => format!("{what}: `{v}` is negative (a whole number in {lo}..={hi})"),
+            Ok(x) if x.fract() != 0.0 => format!("{what}: `{v}` is not a whole number (in {lo}..={hi})"),
+            Ok(_) if t.bytes().all(|b| b.is_ascii_digit()) => format!("{what}: `{v}` is too large (at most {hi})"),
+            Ok(x) if x > hi as f64 => format!("{what}: `{v}` is too large (at most {hi})"),
+            Ok(x) => format!("{what}: `{v}`: write it in digits (`{}`)", x as u64),
+            Err(_) => format!("{what}: `{v}` is not a number (a whole number in {lo}..={hi})"),
+        })?;
+        if !(lo..=hi).contains(&n) {
+            return Err(format!("{what}: `{v}` is not in {lo}..={hi}"));
+        }
+        T::try_from(n).map_err(|_| format!("{what}: `{v}` is too large (at most {hi})"))
+    }
+}
+
+/// The most worker threads `--threads` takes.
+pub const MAX_THREADS: u64 = 1024;
+
 /// An error with its exit code.
 pub struct Failure {
     pub code: u8,

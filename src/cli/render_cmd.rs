@@ -36,7 +36,7 @@ pub struct RenderArgs {
     #[arg(long, allow_negative_numbers = true, value_parser = super::count_parser("light samples", crate::scene::MAX_LIGHT_SAMPLES))]
     pub light_samples: Option<u32>,
     /// Maximum bounces (overrides the profile).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::range_parser::<u32>("bounces", 0, crate::scene::MAX_DEPTH as u64))]
     pub max_depth: Option<u32>,
     /// Image size WxH instead of the scene's (e.g. 160x100 for a quick look; the camera keeps its fov).
     #[arg(long, allow_hyphen_values = true, value_name = "WxH")]
@@ -45,13 +45,13 @@ pub struct RenderArgs {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// Worker threads (default: all cores).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_parser = super::range_parser::<usize>("threads", 0, super::MAX_THREADS))]
     pub threads: usize,
     /// Random seed: same seed, same image.
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = super::range_parser::<u64>("seed", 0, u64::MAX))]
     pub seed: u64,
     /// Tile side in pixels (does not change the image).
-    #[arg(long, allow_negative_numbers = true, default_value_t = crate::render::TILE)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = crate::render::TILE, value_parser = super::range_parser::<u32>("tile side in pixels", 1, 1024))]
     pub tile: u32,
     /// Write the render summary as JSON.
     #[arg(long)]
@@ -268,14 +268,8 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     // once, not after the setup of a large scene.
     let size = a.size.as_deref().map(parse_size).transpose()?;
     let profile = resolve_profile(&a)?;
-    if a.threads > 1024 {
-        return Err(Failure::input("--threads must be at most 1024"));
-    }
     if let Some(w) = oversubscribed(a.threads, std::thread::available_parallelism().map_or(0, |n| n.get())) {
         errln!("warning: {w}");
-    }
-    if a.tile == 0 || a.tile > 1024 {
-        return Err(Failure::input("--tile must be in 1..=1024"));
     }
     let samples = match &a.samples {
         Some(t) => parse_samples(t, profile.spp)?,

@@ -75,7 +75,7 @@ pub struct StudyArgs {
     #[arg(long, default_value = "all")]
     pub integrals: String,
     /// Independent seeds (1..=K) per strategy and count; the error is averaged over them.
-    #[arg(long, allow_negative_numbers = true, default_value_t = 4)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 4, value_parser = super::range_parser::<u32>("seeds", 1, 1000))]
     pub seeds: u32,
     /// Reference: a linear EXR of the scene's size, or `analytic` (Lambert plane under one quad light).
     #[arg(long, value_name = "FILE.exr|analytic", conflicts_with = "reference_spp")]
@@ -90,7 +90,7 @@ pub struct StudyArgs {
     #[arg(long)]
     pub sheet: bool,
     /// Worker threads (default: all cores).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_parser = super::range_parser::<usize>("threads", 0, super::MAX_THREADS))]
     pub threads: usize,
     /// Image size WxH instead of the scene's (the camera keeps its fov), as `render --size`.
     #[arg(long, allow_hyphen_values = true, value_name = "WxH")]
@@ -182,12 +182,6 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     };
     let mut counts = parse_list("--spp", &a.spp, |c| parse_count(c, max, what))?;
     counts.sort_unstable();
-    if a.seeds == 0 || a.seeds > 1000 {
-        return Err(Failure::input(format!("--seeds must be in 1..=1000, got {}", a.seeds)));
-    }
-    if a.threads > 1024 {
-        return Err(Failure::input("--threads must be at most 1024"));
-    }
     if a.light_samples_from_spp && (!integrals.contains(Integral::Light) || light_only(&integrals)) {
         return Err(Failure::input(format!(
             "--light-samples-from-spp needs `light` among several studied integrals (--integrals {}): {}",
