@@ -214,7 +214,16 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
         errln!("{}", writing.stopped_message(true));
         return Ok(130);
     }
-    let ranges: Vec<String> = films.iter().map(|(_, f)| range_text(&f.header.samples)).collect();
+    // (A partial film's range with its share of work units: `samples 0..1024` of one interrupted film
+    // read as the whole render, the warning below aside.)
+    let ranges: Vec<String> = films
+        .iter()
+        .map(|(_, f)| {
+            let h = &f.header;
+            let part = if h.is_complete() { String::new() } else { format!(" ({} of {} work units)", h.units_done(), h.completed.len()) };
+            format!("{}{part}", range_text(&h.samples))
+        })
+        .collect();
     outln!(
         "merged {} films: samples {} of spp {} ({} samples in all); wrote {}{}",
         films.len(),
