@@ -522,6 +522,20 @@ fn absorb(scene: &Scene, r: &mut RayItem, t: f32) {
     r.throughput *= medium::absorption(scene, r.media, t * r.d.length());
 }
 
+/// [`absorb`] for lane `l` of a chunk (ray `i`, in a medium of `stack`, `t` along it), into the lane's
+/// throughput rows `thr`: only the ray's direction is read (not the whole ray), and the rows are left
+/// alone where the medium is clear (transmittance 1, as in every glass without absorption).
+#[inline(always)]
+fn absorb_lane(scene: &Scene, rays: &RayQueue, i: usize, stack: MediumStack, t: f32, thr: &mut [[f32; LANES]; 3], l: usize) {
+    let d = Vec3::new(rays.dx[i], rays.dy[i], rays.dz[i]);
+    let k = medium::absorption(scene, stack, t * d.length());
+    if k != Vec3::ONE {
+        for (row, c) in thr.iter_mut().zip(k.to_array()) {
+            row[l] *= c;
+        }
+    }
+}
+
 /// Beer-Lambert over the stretch a child ray skips at its spawn: its origin `o` is off the surface point
 /// `p` by the spawn offset (256 ULPs of the coordinates), into the medium it travels in (`media`), and
 /// [`absorb`] counts its segment from `o`. Without this, each segment inside an absorbing medium was
@@ -699,12 +713,7 @@ impl<'a> Ctx<'a> {
         }
         for (l, &i) in idx.iter().enumerate() {
             if media[l] != MediumStack::default() {
-                // Inside a medium: Beer-Lambert along the segment just travelled.
-                let mut r = rays.get(i as usize);
-                absorb(scene, &mut r, rt[l]);
-                for (t, c) in thr.iter_mut().zip(r.throughput.to_array()) {
-                    t[l] = c;
-                }
+                absorb_lane(scene, rays, i as usize, media[l], rt[l], &mut thr, l);
             }
         }
         let v = |a: &[f32; LANES]| f32x8::from(*a);
@@ -888,12 +897,7 @@ impl<'a> Ctx<'a> {
         for (l, &i) in idx.iter().enumerate() {
             let (material, bit) = (geo.material[l], 1 << l);
             if media[l] != MediumStack::default() {
-                // Inside a medium: Beer-Lambert along the segment just travelled.
-                let mut r = rays.get(i as usize);
-                absorb(scene, &mut r, t[l]);
-                for (t, c) in thr.iter_mut().zip(r.throughput.to_array()) {
-                    t[l] = c;
-                }
+                absorb_lane(scene, rays, i as usize, media[l], t[l], &mut thr, l);
             }
             let deeper = (depth[l] as u32) < profile.max_depth;
             match &scene.materials[material as usize] {
@@ -1120,12 +1124,7 @@ impl<'a> Ctx<'a> {
         let mut live = 0u32;
         for (l, &i) in idx.iter().enumerate() {
             if media[l] != MediumStack::default() {
-                // Inside a medium: Beer-Lambert along the segment just travelled.
-                let mut r = rays.get(i as usize);
-                absorb(scene, &mut r, t[l]);
-                for (row, c) in thr.iter_mut().zip(r.throughput.to_array()) {
-                    row[l] = c;
-                }
+                absorb_lane(scene, rays, i as usize, media[l], t[l], &mut thr, l);
             }
             let Material::Glossy { tint: k, alpha: a } = &scene.materials[geo.material[l] as usize] else {
                 unreachable!("glossy_x8 is given glossy hits only")
