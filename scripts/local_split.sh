@@ -92,6 +92,36 @@ echo "rendering $PARTS parts of $SPP spp, $JOBS at a time, $THREADS threads each
 # foreground command is done, but `wait` returns on a signal.)
 interrupted=0
 trap 'interrupted=1; : > "$stop"' INT
+# SIGTERM or SIGHUP (a scheduler's stop, `kill`, a closed session) reach this script alone, not the
+# terminal's group: the script used to die of it while xargs went on, the running parts to their end
+# and the waiting ones after them. Now it stops as on Ctrl-C: the stop file, and an interrupt to every
+# process below the runner (the parts write their films; the shells and xargs ignore it, as on Ctrl-C).
+children() { # the pids whose parent is $1 (from /proc, else pgrep)
+    if [ ! -d /proc/self ]; then
+        pgrep -P "$1" 2> /dev/null
+        return 0
+    fi
+    local f line ppid pid
+    for f in /proc/[0-9]*/stat; do
+        { read -r line < "$f"; } 2> /dev/null || continue
+        read -r _ ppid _ <<< "${line##*) }"
+        if [ "$ppid" = "$1" ]; then pid=${f#/proc/}; echo "${pid%/stat}"; fi
+    done
+}
+descendants() {
+    local c
+    for c in $(children "$1"); do
+        echo "$c"
+        descendants "$c"
+    done
+}
+on_stop() {
+    interrupted=1
+    : > "$stop"
+    local pid
+    for pid in $(descendants "$runner"); do kill -INT "$pid" 2> /dev/null || true; done
+}
+trap on_stop TERM HUP
 if [ "${PARALLEL:-0}" = 1 ]; then
     (trap '' INT; exec parallel --jobs "$JOBS") < "$cmds" &
 else

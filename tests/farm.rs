@@ -521,12 +521,22 @@ fn local_split_script_matches_one_render() {
 /// Ctrl-C (a SIGINT to the script's whole process group, as a terminal sends it) while the first of 3
 /// parts runs one at a time (`JOBS=1`): that part writes its film, and no other part starts (xargs used
 /// to start the next parts after the interrupt and render them to the end). The signal is sent once
-/// part 0's log shows its first progress line, with 90% of its work left.
+/// part 0's log shows its first progress line, with 90% of its work left. The same for a SIGTERM to the
+/// script alone (a scheduler's stop, `kill`), which reaches no part: the script used to die of it while
+/// xargs went on, part 0 to its end and the others after it.
 #[cfg(unix)]
 #[test]
 fn local_split_interrupt_starts_no_further_part() {
+    split_interrupted_by(&["-INT", "--"], true, "split-int");
+    split_interrupted_by(&["-TERM"], false, "split-term");
+}
+
+/// [`local_split_interrupt_starts_no_further_part`] with `kill ARGS PID` (`-PID`, the process group,
+/// where `group`).
+#[cfg(unix)]
+fn split_interrupted_by(args: &[&str], group: bool, name: &str) {
     use std::os::unix::process::CommandExt;
-    let d = dir("split-int");
+    let d = dir(name);
     let sc = d.join("slow.toml");
     // Part 0 (samples 0..256 at 160 x 100, 1,120 work units) takes about a second on one thread.
     std::fs::write(&sc, scene_text().replace(&format!("width = {W}"), "width = 160").replace(&format!("height = {H}"), "height = 100"))
@@ -549,11 +559,12 @@ fn local_split_interrupt_starts_no_further_part() {
         assert!(t0.elapsed() < Duration::from_secs(60), "part 0 shows no progress");
         std::thread::sleep(Duration::from_millis(5));
     }
-    let kill = Command::new("kill").args(["-INT", "--", &format!("-{}", child.id())]).status().unwrap();
+    let target = if group { format!("-{}", child.id()) } else { child.id().to_string() };
+    let kill = Command::new("kill").args(args).arg(&target).status().unwrap();
     assert!(kill.success());
     let o = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
     assert!(err.contains("part 0 (samples 0..256) interrupted: its film is kept"), "{err}");
     for (i, r) in [(1, "256..512"), (2, "512..768")] {
         assert!(err.contains(&format!("part {i} (samples {r}) not started: interrupted")), "{err}");
