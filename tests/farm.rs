@@ -176,6 +176,30 @@ fn refused(o: &Output, needles: &[&str]) {
     }
 }
 
+/// A render refuses to replace a complete film of itself (`--film`, also beside `--resume`): a finished
+/// command run again and stopped with Ctrl-C replaced the complete film, and the image, with a partial
+/// one. The film is left as it was; `merge --film` still replaces one (a merge gives the same film).
+#[test]
+fn cli_a_complete_film_of_the_same_render_is_not_replaced() {
+    let d = dir("complete");
+    let sc = write_scene(&d);
+    let p = |n: &str| d.join(n);
+    ok(render(&sc, &["-o", s(&p("a.exr")), "--film", s(&p("a.film"))]));
+    let (film, image) = (bytes(&p("a.film")), bytes(&p("a.exr")));
+    let o = render(&sc, &["-o", s(&p("a.exr")), "--film", s(&p("a.film"))]);
+    let needle = format!("{}: a complete film of this same render is there, which --film would replace", p("a.film").display());
+    refused(&o, &[&needle, &format!("strata merge {} -o IMAGE", p("a.film").display())]);
+    ok(render(&sc, &["-o", s(&p("b.exr")), "--film", s(&p("b.film")), "--samples", "0..3"]));
+    refused(&render(&sc, &["-o", s(&p("a.exr")), "--resume", s(&p("b.film")), "--film", s(&p("a.film"))]), &[&needle]);
+    assert!(bytes(&p("a.film")) == film && bytes(&p("a.exr")) == image);
+    // Another render's complete film is still replaced, with a warning.
+    let o = ok(render(&sc, &["-o", s(&p("a.exr")), "--film", s(&p("a.film")), "--seed", "8"]));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--film replaces a complete film of another render"));
+    ok(strata().args(["merge", s(&p("a.film")), "-o", s(&p("m.exr")), "--film", s(&p("m.film"))]).output().unwrap());
+    ok(strata().args(["merge", s(&p("a.film")), "-o", s(&p("m.exr")), "--film", s(&p("m.film"))]).output().unwrap());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 #[test]
 fn cli_merge_of_ranges_is_bit_identical_to_one_render() {
     let d = dir("merge");
@@ -657,6 +681,8 @@ fn cli_films_of_other_builds_are_warned_of() {
         let exe = p("strata-copy");
         std::fs::copy(env!("CARGO_BIN_EXE_strata"), &exe).unwrap();
         let (film, image) = (p("c.film"), p("c.exr"));
+        // (A render refuses to replace a complete film of itself, which the first round leaves.)
+        let _ = std::fs::remove_file(&film);
         let mut cmd = Command::new(&exe);
         let args = ["render", s(&sc), "-q", "--spp", "6", "-o", s(&image), "--film", s(&film)];
         cmd.current_dir(env!("CARGO_MANIFEST_DIR")).args(args).stderr(std::process::Stdio::piped());

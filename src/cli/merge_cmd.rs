@@ -172,7 +172,7 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
             let completed = vec![true; unit_count(first.width, first.height, first.tile, range.clone())];
             let h = FilmHeader { samples: range.clone(), completed, build, ..first.clone() };
             let advice = format!("finish it with `strata render ... --resume {}`", fp.display());
-            if let Some(w) = super::render_cmd::check_film_replaced(fp, "--film", &h, &advice)? {
+            if let Some(w) = super::render_cmd::check_film_replaced(fp, "--film", &h, &advice, false)? {
                 errln!("warning: {w}");
             }
             Some((fp, h))

@@ -228,9 +228,19 @@ fn resume_mismatch(film: &FilmHeader, this: &FilmHeader) -> Option<String> {
 /// a warning (returned). A partial film of this same render is refused too, with `advice` (how to
 /// continue it): no command replaces a partial film (`--resume A --film B` and `merge ... --film B`
 /// replaced a partial B of their render without a word). Nothing there, a complete film of this very
-/// render, or a file that is no film: `Ok(None)`.
-pub(super) fn check_film_replaced(path: &Path, flag: &str, this: &FilmHeader, advice: &str) -> Result<Option<String>, Failure> {
+/// render, or a file that is no film: `Ok(None)`; but a render (`render`) refuses a complete film of
+/// this very render too ([`refuse_complete_same`]).
+pub(super) fn check_film_replaced(
+    path: &Path,
+    flag: &str,
+    this: &FilmHeader,
+    advice: &str,
+    render: bool,
+) -> Result<Option<String>, Failure> {
     let Ok(saved) = read_film(path) else { return Ok(None) };
+    if render {
+        refuse_complete_same(path, &saved.header, this)?;
+    }
     if !saved.header.is_complete() && resume_mismatch(&saved.header, this).is_none() {
         return Err(Failure::input(format!(
             "{}: a partial film of this same render ({} of {} work units) is there, which {flag} would replace: {advice}, \
@@ -241,6 +251,22 @@ pub(super) fn check_film_replaced(path: &Path, flag: &str, this: &FilmHeader, ad
         )));
     }
     check_film_header_replaced(path, &saved.header, flag, this)
+}
+
+/// A complete film of this very render where a render's --film would write: refused. Rendering it again
+/// gives the same film, and an interrupt or a checkpoint on the way replaced the complete film with a
+/// partial one (a finished command run again by mistake and stopped with Ctrl-C lost the render, its
+/// image too). `merge --film` replaces it (a merge is not interrupted half way, and gives the same film).
+fn refuse_complete_same(path: &Path, saved: &FilmHeader, this: &FilmHeader) -> Result<(), Failure> {
+    if saved.is_complete() && resume_mismatch(saved, this).is_none() {
+        return Err(Failure::input(format!(
+            "{}: a complete film of this same render is there, which --film would replace: its image is `strata merge {} -o IMAGE`; \
+             remove it or name another film to render again",
+            path.display(),
+            path.display()
+        )));
+    }
+    Ok(())
 }
 
 /// [`check_film_replaced`] for a film already read (`saved`, the header of the film at `path`).
@@ -355,6 +381,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             // (Where --film names it, a film of another render: refused if partial, else replaced with a
             // warning; read once for both checks.)
             if a.film.is_some() {
+                refuse_complete_same(&here, &saved.header, &header)?;
                 if let Some(w) = check_film_header_replaced(&here, &saved.header, "--film", &header)? {
                     errln!("warning: {w}");
                 }
@@ -379,7 +406,7 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
     if let Some(f) = a.film.as_deref().filter(|&f| a.resume.as_deref().is_some_and(|r| r != f)) {
         let advice = format!("continue it with --resume {} instead", f.display());
-        if let Some(w) = check_film_replaced(f, "--film", &header, &advice)? {
+        if let Some(w) = check_film_replaced(f, "--film", &header, &advice, true)? {
             errln!("warning: {w}");
         }
     }
