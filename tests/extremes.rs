@@ -1,7 +1,8 @@
 //! The extremes matrix (issue 7): every case renders a small image with fixed seeds, asserts its
 //! expectation against a reference no one can tune (the same scene at unit scale, an analytic mask,
 //! an energy bound) and zero non-finite samples (checked for every render in `support::render_scene`).
-//! The measured numbers are in `docs/robustness.md`. `EXTREMES_DUMP=dir` writes the compared images.
+//! The measured numbers are in the README's section "Numerical robustness". `EXTREMES_DUMP=dir` writes
+//! the compared images.
 //!
 //! - `scale`: scene scale 1e-4 .. 1e5, translation far from the origin
 //! - `acne`: ground spheres of radius 1e4 and 1e5, a plane seen from 1e5 away
