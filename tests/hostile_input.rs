@@ -288,7 +288,8 @@ fn seeds_are_valid() {
     }
 }
 
-/// 400 seeded mutations of each seed (about 3,600 files).
+/// 400 seeded mutations of each seed (the base scene and every `.toml` of `scenes/` and `scenes/shapes/`:
+/// 23 seeds, 9,200 files, when this was written).
 #[test]
 fn mutated_scenes_never_panic_and_errors_are_located() {
     let dir = tmp_dir();
