@@ -301,6 +301,11 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         Some(t) => parse_samples(t, profile.spp)?,
         None => 0..profile.spp,
     };
+    // With --size the render's samples are known without the scene: too many is told at once (it was
+    // told after the parse, 1.5 s and 563 MB into a 16 MB scene).
+    if let Some((w, h)) = size {
+        check_render_size(w, h, &samples).map_err(Failure::input)?;
+    }
     let out = a.output.clone().unwrap_or_else(|| default_output(&a.scene, "png"));
     check_writable(&out).map_err(Failure::input)?;
     if let Some(j) = &a.stats_json {
@@ -360,6 +365,9 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
     for w in sampling_warnings(&scene, &profile) {
         errln!("warning: {w}");
+    }
+    if let Some(n) = every_light_note(&scene, &profile) {
+        errln!("note: {n}");
     }
     check_render_size(scene.width, scene.height, &samples).map_err(Failure::input)?;
 
@@ -787,6 +795,24 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
         }
     }
     out
+}
+
+/// Lights past which `light_selection = all` (the default) is noted: each shading point sends a shadow
+/// ray to every light, so a render's cost grows with their number, where one picked light per point
+/// does not (a trial's 10,000 lamps at 160 x 120, 1 spp: 10.9 s with `all`, 0.05 s with `power` or
+/// `tree`, and nothing said).
+pub const MANY_LIGHTS: usize = 64;
+
+/// The note for [`MANY_LIGHTS`]: `None` below it or with another selection.
+pub fn every_light_note(scene: &Scene, p: &Profile) -> Option<String> {
+    (p.light_selection == LightSelection::All && scene.lights.len() > MANY_LIGHTS).then(|| {
+        format!(
+            "light_selection `all` (the default) with {} lights: every shading point sends {} shadow rays, one per light and light \
+             sample; `--set light_selection=tree` samples one light per point, picked by its importance (README, \"Many lights\")",
+            scene.lights.len(),
+            scene.lights.iter().map(|l| crate::light::samples_for(l, p.light_samples) as u64).sum::<u64>()
+        )
+    })
 }
 
 /// More worker threads than the machine runs at once: the image is the same (any thread count gives the
