@@ -354,7 +354,10 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
     }
 
     let setup = Instant::now();
-    let scene = load_scene_sized(&a.scene, size).map_err(Failure::input)?;
+    let notice = super::SetupNotice::start("setting up the scene (reading, parsing, checks, BVH)", a.quiet);
+    let scene = load_scene_sized(&a.scene, size).map_err(Failure::input);
+    drop(notice);
+    let scene = scene?;
     // Reading, parsing, the BVHs and the light buffers: not in the render's time, so said apart.
     let setup_seconds = setup.elapsed().as_secs_f64();
     for w in &scene.warnings {
