@@ -1451,3 +1451,63 @@ fn a_profile_without_a_name_is_named_after_its_file() {
         assert_eq!(p.name, want, "{name:?}");
     }
 }
+
+/// CSG leaves are counted as `use`s expand, before any is built, and a scene of more than
+/// `MAX_CSG_LEAVES` is an error at the shape (or unused solid) that passes it: a trial's seven levels of
+/// named solids, each a union of ten uses of the one before, made 10^7 leaves and aborted out of memory
+/// after 25 s. Counts saturate (thirty levels are 10^30), and a shape within the limit can pass it with
+/// the shapes before it.
+#[test]
+fn named_solids_that_expand_past_the_leaf_limit_are_errors() {
+    let levels = |n: usize, uses: usize, placed: &str| {
+        let mut s = "[solids.l0]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.1\nmaterial = \"m\"\n".to_string();
+        for i in 1..=n {
+            let kids: Vec<String> = (0..uses)
+                .map(|j| format!("{{ use = \"l{}\", transform = {{ translate = [{}, 0, 0] }} }}", i - 1, j as f32 * 0.01))
+                .collect();
+            s += &format!("[solids.l{i}]\ntype = \"csg\"\nop = \"union\"\nchildren = [{}]\n", kids.join(", "));
+        }
+        s + placed
+    };
+    let limit = strata::scene::MAX_CSG_LEAVES;
+    // 4^10 = 1,048,576 leaves: just past the limit (without the count, built in ~5 s and accepted).
+    let cases = [
+        (levels(10, 4, "[[shapes]]\nuse = \"l10\"\n"), "shapes[0].use", "use = \"l10\"", "expands to 1048576 CSG leaves;"),
+        (levels(7, 10, "[[shapes]]\nuse = \"l7\"\n"), "shapes[0].use", "use = \"l7\"", "expands to 10000000 CSG leaves;"),
+        (levels(30, 10, "[[shapes]]\nuse = \"l30\"\n"), "shapes[0].use", "use = \"l30\"", "expands to more than 18446744073709551615"),
+        // Inline, the shape is named; unused, the solid.
+        (
+            levels(7, 10, "[[shapes]]\ntype = \"csg\"\nop = \"union\"\nchildren = [{ use = \"l7\" }]\n"),
+            "shapes[0]",
+            "[[shapes]]",
+            "expands to 10000000 CSG leaves;",
+        ),
+        // (`big` is checked before the unused solids of fewer leaves, which would each be built first.)
+        (
+            levels(
+                6,
+                10,
+                &format!(
+                    "[solids.big]\ntype = \"csg\"\nop = \"union\"\nchildren = [{}]\n[[shapes]]\nuse = \"l1\"\n",
+                    ["{ use = \"l6\" }"; 10].join(", ")
+                ),
+            ),
+            "solids.big",
+            "[solids.big]",
+            "expands to 10000000 CSG leaves;",
+        ),
+    ];
+    for (extra, field, needle, says) in &cases {
+        let (line, got, msg) = fail(extra);
+        assert_eq!((got.as_str(), line), (*field, line_of(extra, needle)), "{msg}");
+        assert!(msg.contains(says) && msg.contains(&format!("the limit is {limit}")), "{msg}");
+    }
+    // One sphere, then 10^6 leaves: the second shape passes the limit with the one before it.
+    let extra = levels(6, 10, "[[shapes]]\nuse = \"l0\"\n[[shapes]]\nuse = \"l6\"\n");
+    let (line, got, msg) = fail(&extra);
+    assert_eq!((got.as_str(), line), ("shapes[1].use", line_of(&extra, "use = \"l6\"")), "{msg}");
+    assert!(msg.contains("expands to 1000000 CSG leaves, which with the 1 of the shapes before it make more than the limit"), "{msg}");
+    // Within the limit: 10^4 leaves are built.
+    let s = parse_scene(Path::new("ok.toml"), &format!("{BASE}{}", levels(4, 10, "[[shapes]]\nuse = \"l4\"\n"))).unwrap();
+    assert_eq!(s.csg.leaf_count(), 10_000);
+}

@@ -174,14 +174,26 @@ pub fn rebase_shift_f64((lo, hi): (Vec3, Vec3), o: DVec3, d: DVec3) -> f64 {
 /// crossing. An unknown solid id, and a direction that is not a ray's (zero or not finite), give no
 /// intervals.
 pub fn intervals_f64(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f64, f64)>) {
+    intervals_f64_within(csg, solid, o, d, out, &mut { u64::MAX });
+}
+
+/// [`intervals_f64`], taking its leaf tests and program instructions from `budget`: `false` (and the
+/// intervals found by then) where it runs out. The whole program runs at each group of crossings, so a
+/// ray through n leaves costs ~n^2 (one of 8,000 leaves took 0.7 ms a ray).
+fn intervals_f64_within(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f64, f64)>, budget: &mut u64) -> bool {
     out.clear();
     let Some(s) = csg.solids.get(solid as usize) else {
-        return;
+        return true;
     };
     if !(d.length_squared() > 0.0 && d.is_finite() && o.is_finite()) {
-        return;
+        return true;
     }
     let leaves = &csg.leaves[s.leaf_start as usize..(s.leaf_start + s.leaf_count) as usize];
+    let prog = csg.program(s);
+    if *budget < leaves.len() as u64 {
+        return false;
+    }
+    *budget -= leaves.len() as u64;
     let mut evs: Vec<(f64, usize)> = Vec::with_capacity(4 * leaves.len());
     for (k, leaf) in leaves.iter().enumerate() {
         let c = leaf_f64(leaf, o, d);
@@ -199,10 +211,13 @@ pub fn intervals_f64(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f
     let o2 = o + d * shift;
     let base = eps * if shift > 0.0 { o2.abs().max_element() } else { o2.length() }.max(s.scale as f64) / d.length();
     let mut state = vec![false; leaves.len()];
-    let prog = csg.program(s);
     let (mut inside, mut entry) = (false, 0.0);
     let mut i = 0;
     while i < evs.len() {
+        if *budget < prog.len() as u64 {
+            return false;
+        }
+        *budget -= prog.len() as u64;
         let t0 = evs[i].0;
         let end = t0 + (base + eps * (t0 - shift).abs().min(1e300));
         // (At least the group's first crossing, whatever `end` is: the loop always moves on.)
@@ -223,6 +238,7 @@ pub fn intervals_f64(csg: &Csg, solid: u32, o: DVec3, d: DVec3, out: &mut Vec<(f
             inside = now;
         }
     }
+    true
 }
 
 /// Where in its cell each probe ray passes: not the centre (a user trial's plate of 24 x 24 touching
@@ -264,24 +280,28 @@ pub fn probe_rays(lo: DVec3, hi: DVec3, n: u32) -> impl Iterator<Item = (DVec3, 
 /// boxes sharing a face was said to look empty at some scales and not at others, by the rounding of their
 /// faces). `false` means the solid is very likely empty (a hole larger than its part, `A - A`), or thinner
 /// than the grid's spacing everywhere. Solids with unbounded or empty bounds are reported as not empty (the
-/// bounds already decide those). Most solids answer at their first ray.
-pub fn probe_finds_volume(csg: &Csg, solid: u32, n: u32) -> bool {
+/// bounds already decide those). Most solids answer at their first ray. The rays take their leaf tests and
+/// program instructions from `budget`; where it runs out before they find volume, `None`: not known.
+pub fn probe_finds_volume(csg: &Csg, solid: u32, n: u32, budget: &mut u64) -> Option<bool> {
     let (lo, hi) = csg.bounds(solid);
     let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
     if !(lo.is_finite() && hi.is_finite() && lo.cmple(hi).all()) {
-        return true;
+        return Some(true);
     }
     let ext = hi - lo;
     let min_len = (1e-6 * ext.max_element()).max(super::merge::COINCIDENT_EPS as f64 * csg.scale(solid) as f64);
     let mut out = Vec::new();
     for (o, d) in probe_rays(lo, hi, n) {
-        intervals_f64(csg, solid, o, d, &mut out);
+        let whole = intervals_f64_within(csg, solid, o, d, &mut out, budget);
         // (`d` is a unit vector: lengths in `t` are world lengths.)
         if out.iter().any(|&(a, b)| b - a > min_len) {
-            return true;
+            return Some(true);
+        }
+        if !whole {
+            return None;
         }
     }
-    false
+    Some(false)
 }
 
 /// A thin part of a CSG solid found by [`thinnest_part`]: its thickness (world units) and a point in it.
@@ -310,6 +330,10 @@ struct NodeWalker<'a> {
     entry: Vec<(bool, usize)>,
     changed: Vec<usize>,
     stack: Vec<bool>,
+    /// Leaf tests and program instructions the walks took so far, and how many they may take: a walk
+    /// stops where `work` reaches `budget`.
+    work: u64,
+    budget: u64,
 }
 
 /// One inside interval of an operation node along a walked ray: `(t0, t1)`, the crossings (indices into
@@ -359,6 +383,8 @@ impl<'a> NodeWalker<'a> {
             entry: vec![(false, 0); prog.len()],
             changed: Vec::new(),
             stack: Vec::new(),
+            work: 0,
+            budget: u64::MAX,
         })
     }
 
@@ -367,6 +393,7 @@ impl<'a> NodeWalker<'a> {
     fn walk(&mut self, o: DVec3, d: DVec3, near: f64, mut visit: impl FnMut(&Self, NodeSpan)) {
         use super::program::Instr;
         self.evs.clear();
+        self.work += self.leaves.len() as u64;
         for (k, leaf) in self.leaves.iter().enumerate() {
             if let Some((lo, hi)) = self.bounds[k] {
                 // (Widened: the bounds are f32, the crossings f64.)
@@ -403,6 +430,12 @@ impl<'a> NodeWalker<'a> {
                 i += 1;
             }
             let group = g0..i;
+            // (The whole program runs at each group of crossings: a ray through n leaves costs ~n^2, and
+            // one solid of 1e5 overlapping leaves took 21 s of its setup here before this was counted.)
+            if self.work >= self.budget {
+                return;
+            }
+            self.work += self.prog.len() as u64;
             self.stack.clear();
             let mut changed = std::mem::take(&mut self.changed);
             changed.clear();
@@ -471,19 +504,31 @@ impl<'a> NodeWalker<'a> {
 /// knife edge (a lens's rim), two touching holes and a rounding sliver at an edge are not taken for
 /// walls. Crossings within `fine` (world units) of each other are one (faces meant to be flush).
 /// Single leaves are not looked at (their thickness is `Leaf::thickness`). `None`: no such part found.
-pub fn thinnest_part(csg: &Csg, solid: u32, n: u32, limit: f64, fine: f64) -> Option<ThinPart> {
+/// The walks take their leaf tests and program instructions from `budget`, and stop where it runs out
+/// (with what they found by then).
+pub fn thinnest_part(csg: &Csg, solid: u32, n: u32, limit: f64, fine: f64, budget: &mut u64) -> Option<ThinPart> {
+    let mut w = NodeWalker::new(csg, solid, fine)?;
+    w.budget = *budget;
+    let found = thinnest_part_within(&mut w, csg, solid, n, limit);
+    *budget = budget.saturating_sub(w.work);
+    found
+}
+
+fn thinnest_part_within(w: &mut NodeWalker, csg: &Csg, solid: u32, n: u32, limit: f64) -> Option<ThinPart> {
     let (lo, hi) = csg.bounds(solid);
     let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-    if !(lo.is_finite() && hi.is_finite() && lo.cmple(hi).all() && limit > fine) {
+    if !(lo.is_finite() && hi.is_finite() && lo.cmple(hi).all() && limit > w.fine) {
         return None;
     }
-    let mut w = NodeWalker::new(csg, solid, fine)?;
     if !w.prog.iter().any(|i| matches!(i, super::program::Instr::Op(_))) {
         return None;
     }
     let side = 0.01 * (hi - lo).length();
     let mut candidates = Vec::new();
     for (o, d) in probe_rays(lo, hi, n) {
+        if w.work >= w.budget {
+            return None;
+        }
         w.walk(o, d, 5.0 * limit, |w, s| {
             let len = s.t1 - s.t0;
             if !s.shows || len * 0.2 >= limit {
@@ -505,6 +550,9 @@ pub fn thinnest_part(csg: &Csg, solid: u32, n: u32, limit: f64, fine: f64) -> Op
         let mut thickness = f64::NAN;
         let mut thin_everywhere = true;
         for (k, off) in [DVec3::ZERO, u, -u, v, -v].into_iter().enumerate() {
+            if w.work >= w.budget {
+                return best;
+            }
             let q = p + off * side;
             // The node's interval nearest `q` along the normal, within `side` of it.
             let mut nearest: Option<(f64, f64)> = None;

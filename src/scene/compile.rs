@@ -27,6 +27,14 @@ pub const MAX_PRIORITY: i64 = 1_000_000;
 
 /// Deepest CSG nesting (and chain of named-solid references) accepted.
 pub const MAX_CSG_DEPTH: usize = 64;
+
+/// The most CSG leaves a scene may hold, counted as its `use`s expand, before any is built: a trial's
+/// seven levels of named solids, each a union of ten uses of the one before, made 10^7 leaves and
+/// aborted out of memory (a 3 GB allocation) after 25 s. Measured, one thread (AMD EPYC, 2 cores): one
+/// solid of 10^6 sphere leaves (a 100^3 grid of uses of uses, or 10^6 overlapping ones) sets up in
+/// 5.0-5.1 s with 0.8 GB at its peak and renders 32 x 24 in 0.04-0.3 s; 2 x 10^6 took 8.0 s and 1.6 GB,
+/// 10^5 0.8 s.
+pub const MAX_CSG_LEAVES: u64 = 1_000_000;
 /// Rays per side of the grid on each axis with which a CSG solid is probed for volume (an empty one is
 /// warned about): `3 n^2` rays at most, one for most solids.
 const EMPTY_PROBE_GRID: u32 = 24;
@@ -77,8 +85,10 @@ pub fn parse_scene_sized(path: &Path, text: &str, size: Option<(u32, u32)>) -> R
         counted: Vec::new(),
         checkers: Default::default(),
         prim_at: Vec::new(),
+        leaf_counts: BTreeMap::new(),
         lone_differences: BTreeSet::new(),
         thin_probe_budget: THIN_PROBE_BUDGET,
+        empty_probe_budget: EMPTY_PROBE_BUDGET,
         leaf_sites: Vec::new(),
         material_from: None,
     };
@@ -115,10 +125,13 @@ struct Compiler<'a> {
     checkers: std::cell::RefCell<Vec<(Range<usize>, String, f32)>>,
     /// Where each prim was given (its definition's span and field), by prim id: for warnings that name a prim.
     prim_at: Vec<(Range<usize>, PrimField)>,
+    /// Per named solid, the CSG leaves its definition expands to (`csg_leaves`); `None` while counting it.
+    leaf_counts: BTreeMap<String, Option<u64>>,
     /// Where differences of one operand were warned of (a named solid's, once for all its uses).
     lone_differences: BTreeSet<usize>,
-    /// What is left of [`THIN_PROBE_BUDGET`].
+    /// What is left of [`THIN_PROBE_BUDGET`] and [`EMPTY_PROBE_BUDGET`].
     thin_probe_budget: u64,
+    empty_probe_budget: u64,
     /// The leaves `csg_tree` made since the last top-level solid began: each one's material, where that
     /// material was given (span and field: the leaf's own, an enclosing node's or a `use`'s) and the
     /// leaf's world bounds (`None`: a half-space): to name the leaves of a glass solid of several glasses.
@@ -379,6 +392,10 @@ impl Compiler<'_> {
         for (name, def) in &file.solids {
             if !self.used_solids.contains(name) {
                 self.solid_definition(name, def)?;
+                let leaves = self.csg_leaves(def, 1);
+                if leaves > MAX_CSG_LEAVES {
+                    return Err(self.err(def.span(), format!("solids.{name}"), too_many_leaves(leaves, 0)));
+                }
                 self.lenient_material = true;
                 self.material_from = None;
                 self.csg_tree(def, &format!("solids.{name}"), Affine3A::IDENTITY, None, 1, &mut vec![name.clone()])?;
@@ -1544,6 +1561,15 @@ impl Compiler<'_> {
             None => None,
         };
         // Everything else is a CSG solid (a single cylinder, cone or torus is a one-leaf solid).
+        let leaves = self.csg_leaves(def, 0);
+        let before = self.csg.leaf_count() as u64;
+        if leaves.saturating_add(before) > MAX_CSG_LEAVES {
+            let (span, at) = match &s.use_solid {
+                Some(u) => (u.span(), format!("{field}.use")),
+                None => (def.span(), field.clone()),
+            };
+            return Err(self.err(span, at, too_many_leaves(leaves, before)));
+        }
         let mut stack = Vec::new();
         self.leaf_sites.clear();
         self.material_from = s.material.as_ref().map(|m| (m.span(), format!("{field}.material")));
@@ -1580,8 +1606,11 @@ impl Compiler<'_> {
         // lying in the face found it inside or not by the rounding of the faces, so it was said to look
         // empty at some scales and not at others.)
         let flat = (hi - lo).min_element() <= tol;
+        // (A probe that runs out of the scene's `EMPTY_PROBE_BUDGET` before it finds volume says nothing.)
         let looks_empty = !self.counted_at_least(WarnKind::LooksEmpty, MAX_EMPTY_PROBED)
-            && (flat || !crate::csg::reference::probe_finds_volume(&self.csg, solid, EMPTY_PROBE_GRID));
+            && (flat
+                || crate::csg::reference::probe_finds_volume(&self.csg, solid, EMPTY_PROBE_GRID, &mut self.empty_probe_budget)
+                    == Some(false));
         if looks_empty {
             // Kept (the probe can miss a solid thinner than its spacing), but most likely a mistake; or its
             // walls are thinner than the tolerance (a thin shell far from the origin), which merges them
@@ -1623,10 +1652,10 @@ impl Compiler<'_> {
             let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
             let diag = (hi - lo).length();
             let reach = f64::from(crate::csg::merge::COINCIDENT_EPS) * (f64::from(scale) + diag);
-            let cost = (self.csg.solid_leaves(solid).len() as u64 + 4) * u64::from(3 * THIN_PROBE_GRID * THIN_PROBE_GRID);
-            self.thin_probe_budget = self.thin_probe_budget.saturating_sub(cost);
             let fine = 0.05 * f64::from(tol);
-            if let Some(part) = crate::csg::reference::thinnest_part(&self.csg, solid, THIN_PROBE_GRID, 2.0 * reach, fine) {
+            let found =
+                crate::csg::reference::thinnest_part(&self.csg, solid, THIN_PROBE_GRID, 2.0 * reach, fine, &mut self.thin_probe_budget);
+            if let Some(part) = found {
                 let (t, p) = (part.thickness, part.at);
                 self.warn_each(WarnKind::LostDetail, def.span(), field, || {
                     format!(
@@ -1802,6 +1831,32 @@ impl Compiler<'_> {
             Op::Intersection if culprits.iter().any(Option::is_none) => None,
             Op::Intersection => Some((span, field.to_string(), "this intersection of unbounded solids only".to_string())),
         };
+    }
+
+    /// How many CSG leaves `def` makes once its `use`s expand, counted before any is built (each named
+    /// solid once, in `leaf_counts`; saturating: ten levels of ten uses each are 10^10). `depth` is
+    /// `csg_tree`'s: a cycle, a missing solid or nesting past [`MAX_CSG_DEPTH`] counts 0 there, since
+    /// `csg_tree` stops with its error where it meets them, before it builds the leaves past them.
+    fn csg_leaves(&mut self, def: &S<ShapeDef>, depth: usize) -> u64 {
+        if depth > MAX_CSG_DEPTH {
+            return 0;
+        }
+        let s = def.get_ref();
+        if let Some(u) = &s.use_solid {
+            let name = u.get_ref();
+            if let Some(n) = self.leaf_counts.get(name) {
+                return n.unwrap_or(0);
+            }
+            let Some(target) = self.file.solids.get(name) else { return 0 };
+            self.leaf_counts.insert(name.clone(), None);
+            let n = self.csg_leaves(target, depth + 1);
+            self.leaf_counts.insert(name.clone(), Some(n));
+            return n;
+        }
+        match (s.kind.as_ref().map(|k| k.get_ref().as_str()), &s.children) {
+            (Some("csg" | "group"), Some(c)) => c.get_ref().iter().fold(0, |n: u64, c| n.saturating_add(self.csg_leaves(c, depth + 1))),
+            _ => 1,
+        }
     }
 
     /// Build a CSG tree; `parent` is the parent's transform, `material` the inherited override. Sets
@@ -2191,12 +2246,19 @@ const SHOWN_PER_KIND: usize = 8;
 /// Rays per side of the grid on each axis with which a CSG solid is probed for thin parts (`3 n^2` rays).
 const THIN_PROBE_GRID: u32 = 8;
 
-/// Leaf crossings (and program runs) the thin-part probes of one scene may take in all, about 0.1 s;
-/// solids after it runs out are not probed.
+/// Leaf tests and program instructions the thin-part probes of one scene may take in all, 0.05-0.3 s
+/// (bench_csg's 208 solids take 172,000 of them, 20 ms); the probe stops where it runs out. (It was
+/// charged an estimate, leaves x rays, which left out that the program runs at each group of crossings:
+/// a solid of 10^5 overlapping spheres took 21 s.)
 const THIN_PROBE_BUDGET: u64 = 1 << 22;
 
 /// Solids found to look empty after which the others are not probed (the probe of one costs ~0.4 ms).
 const MAX_EMPTY_PROBED: usize = 64;
+
+/// Leaf tests and program instructions the probes for solids that look empty may take in one scene
+/// (~0.1 s; 64 empty solids of three leaves take 2.6 M, bench_csg's 208 solids 47,000); a probe that
+/// runs out says nothing (a solid of 8,000 leaves that looks empty was probed in 1.1 s, and is no longer).
+const EMPTY_PROBE_BUDGET: u64 = 1 << 24;
 
 /// The kinds of warning that any number of shapes may earn ([`Compiler::warn_each`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -2266,6 +2328,19 @@ fn mark_passable(materials: &mut [Material], used: &[bool]) {
 
 /// A number for a message: as written for ordinary magnitudes (`10`, `0.5`), in exponent form for
 /// others (`1e30`, not its 31 digits).
+/// The error of a solid of `leaves` CSG leaves in a scene that holds `before` already.
+fn too_many_leaves(leaves: u64, before: u64) -> String {
+    let n = if leaves == u64::MAX { format!("more than {}", u64::MAX) } else { leaves.to_string() };
+    if leaves > MAX_CSG_LEAVES {
+        format!("expands to {n} CSG leaves; the limit is {MAX_CSG_LEAVES} in a scene (count each `use` as a copy of its solid)")
+    } else {
+        format!(
+            "expands to {n} CSG leaves, which with the {before} of the shapes before it make more than the limit of \
+             {MAX_CSG_LEAVES} in a scene (count each `use` as a copy of its solid)"
+        )
+    }
+}
+
 fn plain_number(x: f32) -> String {
     if x == 0.0 || (1e-3..1e6).contains(&x.abs()) {
         format!("{x}")

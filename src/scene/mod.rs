@@ -9,7 +9,7 @@ pub mod leaf_spheres;
 pub mod profile;
 pub mod sections;
 
-pub use compile::{load_scene, load_scene_sized, parse_scene, parse_scene_sized};
+pub use compile::{load_scene, load_scene_sized, parse_scene, parse_scene_sized, MAX_CSG_LEAVES};
 pub use error::InputError;
 pub use profile::{Branching, LightSelection, Profile, MAX_DEPTH, MAX_LIGHT_SAMPLES, MAX_SPP};
 
