@@ -356,10 +356,14 @@ fn holes_of_named_solids_are_marked_where_they_are_used() {
 }
 
 /// Named solids no shape uses are checked as a use would check them: a bad radius, a missing
-/// material name, a reference to no solid, an open shape; a missing material alone is not an error
-/// (a use may give one).
+/// material name, a reference to no solid, an open shape, and (placed on its own: a user trial found
+/// these silent unused) a union with a half-space, two glasses that meet, a reach past 1e15, each with
+/// the error a `[[shapes]]` use gives (at the same line, or for the reach, at the use, whose transform
+/// places it); a missing material alone is not an error (a
+/// use may give one), nor does a leaf without one count as a glass.
 #[test]
 fn unused_named_solids_are_checked_too() {
+    let glass2 = "[materials.g]\ntype = \"dielectric\"\nior = 1.5\n[materials.h]\ntype = \"dielectric\"\nior = 1.33\n";
     let cases = [
         ("[solids.u]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = -1\nmaterial = \"m\"\n", "solids.u.radius", "radius = -1"),
         ("[solids.u]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"nope\"\n", "solids.u.material", "\"nope\""),
@@ -367,8 +371,43 @@ fn unused_named_solids_are_checked_too() {
         ("[solids.u]\ntype = \"quad\"\norigin = [0, 0, 0]\nu = [1, 0, 0]\nv = [0, 1, 0]\nmaterial = \"m\"\n", "solids.u.type", "quad"),
     ];
     fails_at(&cases);
+    let placed = [
+        (
+            "[solids.u]\ntype = \"csg\"\nop = \"union\"\nmaterial = \"m\"\nchildren = [\n{ type = \"halfspace\", point = [0, 0, 0], normal = [0, 1, 0] },\n{ type = \"sphere\", center = [0, 1, 0], radius = 1 }]\n".to_string(),
+            ("solids.u.children[0]", "halfspace"),
+            ("solids.u.children[0]", "halfspace"),
+            "unbounded",
+        ),
+        (
+            format!("{glass2}[solids.u]\ntype = \"csg\"\nop = \"union\"\nchildren = [\n{{ type = \"sphere\", center = [0, 1, 0], radius = 1, material = \"g\" }},\n{{ type = \"sphere\", center = [0.5, 1, 0], radius = 0.6, material = \"h\" }}]\n"),
+            ("solids.u.children[1].material", "\"h\""),
+            ("solids.u.children[1].material", "\"h\""),
+            "joins the glasses `g`",
+        ),
+        (
+            "[solids.u]\ntype = \"sphere\"\ncenter = [9e14, 1, 0]\nradius = 2e14\nmaterial = \"m\"\n".to_string(),
+            ("solids.u", "[solids.u]"),
+            ("shapes[0]", "[[shapes]]"),
+            "1e15",
+        ),
+    ];
+    for (def, (field, needle), (used_field, used_needle), says) in &placed {
+        let (line, got, msg) = fail(def);
+        assert_eq!((got.as_str(), line), (*field, line_of(def, needle)), "{msg}");
+        assert!(msg.contains(says) && msg.contains("no shape uses `solids.u`"), "{msg}");
+        // Used, the same error at the same place.
+        let used = format!("{def}[[shapes]]\nuse = \"u\"\n");
+        let (line, got, msg) = fail(&used);
+        assert_eq!((got.as_str(), line), (*used_field, line_of(&used, used_needle)), "{msg}");
+        assert!(msg.contains(says), "{msg}");
+    }
     let no_material = "[solids.u]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\n";
     parse_scene(Path::new("ok.toml"), &format!("{BASE}{no_material}")).expect("a solid that takes its material where it is used");
+    let one_glass = format!(
+        "{glass2}[solids.u]\ntype = \"csg\"\nop = \"union\"\nchildren = [{{ type = \"sphere\", center = [0, 1, 0], radius = 1 }}, \
+         {{ type = \"sphere\", center = [0.5, 1, 0], radius = 0.6, material = \"h\" }}]\n"
+    );
+    parse_scene(Path::new("ok.toml"), &format!("{BASE}{one_glass}")).expect("a leaf without a material is not a glass");
 }
 
 /// `children` on a shape that takes none is refused even when the list is empty; absorption on a

@@ -398,8 +398,11 @@ impl Compiler<'_> {
                 }
                 self.lenient_material = true;
                 self.material_from = None;
-                self.csg_tree(def, &format!("solids.{name}"), Affine3A::IDENTITY, None, 1, &mut vec![name.clone()])?;
+                self.leaf_sites.clear();
+                let field = format!("solids.{name}");
+                let tree = self.csg_tree(def, &field, Affine3A::IDENTITY, None, 1, &mut vec![name.clone()]);
                 self.lenient_material = false;
+                self.placed_alone(&tree?, def, &field)?;
             }
         }
         for (i, def) in file.lights.iter().enumerate() {
@@ -1575,17 +1578,7 @@ impl Compiler<'_> {
         self.material_from = s.material.as_ref().map(|m| (m.span(), format!("{field}.material")));
         let tree = self.csg_tree(def, field, Affine3A::IDENTITY, material, 0, &mut stack)?;
         let _ = t; // the transform was applied inside csg_tree (it reads the def's own transform)
-        let solid = self.csg.add_solid(&tree).map_err(|e| match (e, self.unbounded_by.take()) {
-            (csg::program::CsgError::Unbounded, Some((span, at, what))) => self.err(
-                span,
-                at,
-                format!(
-                    "{what} makes the CSG solid `{field}` unbounded: a half-space must be intersected with a bounded solid \
-                     or subtracted from one (it cannot be a union operand, nor the solid a difference subtracts from)"
-                ),
-            ),
-            _ => self.err(def.span(), field, format!("{e}")),
-        })?;
+        let solid = self.add_solid(&tree, def, field)?;
         let (lo, hi) = self.csg.bounds(solid);
         if !lo.cmple(hi).all() {
             // An empty solid (e.g. a disjoint intersection) contributes nothing.
@@ -1674,6 +1667,43 @@ impl Compiler<'_> {
         self.prims.push(Prim { shape, material: material.unwrap_or(0), motion, is_light: false });
         self.prim_at.push((def.span(), PrimField::Path(field.to_string())));
         Ok(())
+    }
+
+    /// Compile a solid's tree (just built by `csg_tree`, which set `unbounded_by`) into `csg`; an
+    /// unbounded one is an error at the child that makes it so.
+    fn add_solid(&mut self, tree: &CsgTree, def: &S<ShapeDef>, field: &str) -> R<u32> {
+        self.csg.add_solid(tree).map_err(|e| match (e, self.unbounded_by.take()) {
+            (csg::program::CsgError::Unbounded, Some((span, at, what))) => self.err(
+                span,
+                at,
+                format!(
+                    "{what} makes the CSG solid `{field}` unbounded: a half-space must be intersected with a bounded solid \
+                     or subtracted from one (it cannot be a union operand, nor the solid a difference subtracts from)"
+                ),
+            ),
+            _ => self.err(def.span(), field, format!("{e}")),
+        })
+    }
+
+    /// An unused named solid's tree held to what placing it (`[[shapes]]` with `use`) would hold it to:
+    /// bounded, one medium where its parts meet, within [`MAX_MAGNITUDE`] of the origin. Compiled on its
+    /// own, and left out of the scene. (Until a user trial these were checked only once used: a union of
+    /// a half-space and a sphere, two glasses that meet, a sphere reaching 1.1e15 were silent unused.)
+    fn placed_alone(&mut self, tree: &CsgTree, def: &S<ShapeDef>, field: &str) -> R<()> {
+        let scene = std::mem::take(&mut self.csg);
+        let checked = self.add_solid(tree, def, field).and_then(|solid| {
+            let (lo, hi) = self.csg.bounds(solid);
+            if !lo.cmple(hi).all() {
+                return Ok(());
+            }
+            self.one_medium(field)?;
+            self.within_range(&Shape::Csg { solid }, Vec3::ZERO, def, field)
+        });
+        self.csg = scene;
+        checked.map_err(|mut e| {
+            e.message += &format!(" (no shape uses `{field}`: it is checked as if placed on its own)");
+            e
+        })
     }
 
     /// The name a material was defined under (`#id` for one made by a light).
@@ -2110,7 +2140,8 @@ impl Compiler<'_> {
                 ))
             }
         };
-        if let CsgTree::Leaf(l) = &tree {
+        // (Not a leaf of an unused solid that has no material: the 0 it was given stands for a use's.)
+        if let (CsgTree::Leaf(l), Some(_)) = (&tree, material) {
             let (span, field) = self.material_from.clone().unwrap_or((sp, f("material")));
             self.leaf_sites.push(LeafSite { material: l.material, span, field, bounds: l.bounds() });
         }
