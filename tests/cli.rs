@@ -912,7 +912,8 @@ fn identical_samples_are_warned_about() {
 
 /// A zero-length shutter in a scene with motion is warned about (every time sample is one instant; the
 /// image at that instant is checked in tests/distribution), the default `[0, 0]` (no `shutter` given)
-/// and one sample per pixel included; an open shutter is not.
+/// and one sample per pixel included; an open shutter is not. The warning names `camera.shutter` at its
+/// line, or at the `[camera]` header where the file gives none (a user trial's had no file or line).
 #[test]
 fn a_zero_length_shutter_with_motion_is_warned_about() {
     let scene = tmp("shutter.toml");
@@ -934,6 +935,9 @@ fn a_zero_length_shutter_with_motion_is_warned_about() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(0), "{err}");
         assert_eq!(err.contains("has zero length") && err.contains("no motion blur"), warned, "{shutter}: {err}");
+        let line = if shutter.is_empty() { 4 } else { 8 };
+        let at = format!("warning: {}:{line}:", scene.display());
+        assert_eq!(err.lines().any(|l| l.starts_with(&at) && l.contains("field `camera.shutter`: shutter")), warned, "{shutter}: {err}");
     }
     // A shutter 1 long at 1e6, where f32 times are 0.0625 apart: 16 instants, motion blur in 16 steps (a
     // user trial); at 1e3 (6e-5 apart: 16,384 instants) nothing to say.
@@ -957,6 +961,7 @@ fn a_zero_length_shutter_with_motion_is_warned_about() {
             assert_eq!(o.status.code(), Some(0), "{err}");
             // (Not where time is held at one instant: no blur to come out in steps.)
             let said = err.contains("f32 times there are 0.0625 apart, so it holds only 17 distinct instants");
+            assert_eq!(err.contains(&format!("warning: {}:8:11: field `camera.shutter`: shutter", scene.display())), said, "{err}");
             assert_eq!(said, warned && sampled, "{shutter} {time}: {err}");
         }
     }

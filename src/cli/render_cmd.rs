@@ -696,18 +696,24 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
     let [t0, t1] = scene.camera.shutter;
     if scene.motion_at_one_instant() {
         let default = if t0 == 0.0 { " (the default: give camera.shutter, e.g. [0, 1])" } else { "" };
-        out.push(format!(
-            "shutter [{t0}, {t1}] has zero length{default}: every time sample is the instant {t0}, so shapes with `motion` show no \
-             motion blur"
+        out.push(scene.located(
+            "camera.shutter",
+            format!(
+                "shutter [{t0}, {t1}] has zero length{default}: every time sample is the instant {t0}, so shapes with `motion` show \
+                 no motion blur"
+            ),
         ));
     } else if let Some(n) =
         shutter_instants(t0, t1).filter(|&n| n < SHUTTER_MIN_INSTANTS && scene.features.motion && p.time_strategy != Strategy::Center)
     {
         let ulp = (t1 - t0) / (n - 1) as f32;
-        out.push(format!(
-            "shutter [{t0}, {t1}] lies far from time 0 for its length: f32 times there are {ulp} apart, so it holds only {n} distinct \
-             instants and motion blur comes out in {n} steps; give times near 0 (a moving shape is at its `center` at time 0: \
-             shift the centres by `motion` times the same amount)"
+        out.push(scene.located(
+            "camera.shutter",
+            format!(
+                "shutter [{t0}, {t1}] lies far from time 0 for its length: f32 times there are {ulp} apart, so it holds only {n} \
+                 distinct instants and motion blur comes out in {n} steps; give times near 0 (a moving shape is at its `center` at \
+                 time 0: shift the centres by `motion` times the same amount)"
+            ),
         ));
     }
     if !scene.has_light() {

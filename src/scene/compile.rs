@@ -521,7 +521,13 @@ impl Compiler<'_> {
         }
         self.coincident_emitters();
         self.tell_counted();
+        let cam = file.camera.get_ref();
+        let sites = vec![
+            self.err(cam.shutter.as_ref().map_or(file.camera.span(), |s| s.span()), "camera.shutter", ""),
+            self.err(img.background.as_ref().map_or(file.image.span(), |b| b.span()), "image.background", ""),
+        ];
         Ok(Scene {
+            sites,
             camera_media,
             width,
             height,
@@ -956,7 +962,7 @@ impl Compiler<'_> {
                 .push(format!("the camera is inside {most} nested media; a ray keeps {depth}: camera rays start in the {depth} innermost"));
         }
         for n in notes {
-            self.warn(def.span(), "camera.position", n);
+            self.warn(def.get_ref().position.span(), "camera.position", n);
         }
         found
     }
@@ -1081,7 +1087,7 @@ impl Compiler<'_> {
             let name = self.material_name(material);
             camera.position = to;
             self.warn(
-                def.span(),
+                def.get_ref().position.span(),
                 "camera.position",
                 format!(
                     "the camera lies on the surface of a `{name}` solid: moved {:.1e} off it (to [{}, {}, {}]) so that \

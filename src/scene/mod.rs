@@ -330,6 +330,10 @@ pub struct Scene {
     pub hash: u64,
     /// Per prim, the light it is the surface of (area lights), else [`NOT_A_LIGHT`].
     pub light_of_prim: Vec<u32>,
+    /// Where the fields that the render's own warnings name were given (`camera.shutter`,
+    /// `image.background`; where the file leaves one out, its table's header), each an `InputError` with
+    /// no message yet: see [`Scene::located`].
+    pub sites: Vec<InputError>,
 }
 
 impl Scene {
@@ -347,6 +351,16 @@ impl Scene {
     pub fn motion_at_one_instant(&self) -> bool {
         let [t0, t1] = self.camera.shutter;
         !(t1 > t0) && self.prims.iter().any(|p| p.motion != Vec3::ZERO)
+    }
+
+    /// A warning about `field` (one of [`Scene::sites`]), located as an error there would be:
+    /// `file:line:col: field `camera.shutter`: message` (a user trial's zero-length shutter was warned of
+    /// with no file or line); the bare message for a field not recorded.
+    pub fn located(&self, field: &str, message: String) -> String {
+        match self.sites.iter().find(|e| e.field == field) {
+            Some(site) => InputError { message, ..site.clone() }.to_string(),
+            None => message,
+        }
     }
 
     /// Whether some medium holds the camera for part of the shutter only, so that camera rays' media

@@ -279,7 +279,9 @@ fn a_moving_ball_entered_near_the_origin_is_entered_once() {
     }
 }
 
-/// Where the camera's medium cannot hold for every camera ray, the scene says so, naming the camera.
+/// Where the camera's medium cannot hold for every camera ray, the scene says so, naming the camera at
+/// the line of its `position` (a user trial's warnings cited the `[camera]` header instead); a camera on
+/// a glass surface too.
 #[test]
 fn a_camera_medium_that_does_not_hold_is_warned_of() {
     let glass = "[materials.g]\ntype = \"dielectric\"\nior = 1.5\n";
@@ -290,10 +292,16 @@ fn a_camera_medium_that_does_not_hold_is_warned_of() {
     let cases = [
         (cam("aperture = 0.2\nfocus_distance = 3\n") + &ball(0.1, ""), "lens aperture crosses"),
         (cam("") + &(1..=5).map(|i| ball(i as f64, "")).collect::<String>(), "inside 5 nested media"),
+        (cam("") + &ball(1.0, "").replace("[0, 0, 0]", "[0, 0, -1]"), "lies on the surface of a `g` solid"),
     ];
     for (text, needle) in cases {
         let s = scene(&text);
-        assert!(s.warnings.iter().any(|w| w.contains("camera.position") && w.contains(needle)), "{needle}: {:?}", s.warnings);
+        let at = format!("test.toml:{}:", text.lines().position(|l| l.starts_with("position")).unwrap() + 1);
+        assert!(
+            s.warnings.iter().any(|w| w.starts_with(&at) && w.contains("field `camera.position`") && w.contains(needle)),
+            "{needle} (at {at}): {:?}",
+            s.warnings
+        );
     }
     // A glass solid with an opaque leaf (a painted hole) is one medium, its glass: the camera inside it
     // starts there, unwarned; in its hole, in none.
