@@ -1578,3 +1578,33 @@ fn a_solid_of_many_leaves_of_one_glass_sets_up_in_linear_time() {
     assert_eq!(s.csg.leaf_count(), 200_000);
     assert!(took < 5.0, "set up in {took} s");
 }
+
+/// A focus distance too small for f32 at the camera is named at its own line, not blamed on the aperture
+/// (a user trial's `focus_distance = 1e-30` with an aperture of 0.1 rendered black, warned of as an
+/// aperture 3.9e23 pixels wide): below the rounding of the lens points (here 5 x 2^-23 = 6e-7) the point
+/// in focus is lost, an error; where the position's rounding is more than a quarter of a pixel at the
+/// focus distance, a warning; the default focus distance (to `look_at`) is named by `look_at`.
+#[test]
+fn a_focus_distance_too_small_for_f32_is_named() {
+    let with = |camera: &str| BASE.replace("fov = 40", &format!("fov = 40\n{camera}"));
+    let line = |text: &str, key: &str| text.lines().position(|l| l.starts_with(key)).unwrap() + 1;
+    for (camera, field, key) in [
+        ("aperture = 0.1\nfocus_distance = 1e-30", "camera.focus_distance", "focus_distance"),
+        ("aperture = 0.1\nfocus_distance = 5e-7", "camera.focus_distance", "focus_distance"),
+        ("aperture = 0.1", "camera.look_at", "look_at"),
+    ] {
+        let text = with(camera);
+        let text = if key == "look_at" { text.replace("look_at = [0, 0, 0]", "look_at = [0, 1, 4.9999995]") } else { text };
+        let e = parse_scene(Path::new("c.toml"), &text).unwrap_err();
+        assert_eq!((e.field.as_str(), e.line), (field, line(&text, key)), "{camera}: {e}");
+        assert!(e.message.contains("too small for f32 at this camera"), "{e}");
+    }
+    for (camera, warned) in [("aperture = 0.1\nfocus_distance = 1e-5", true), ("aperture = 0.1\nfocus_distance = 1e-3", false)] {
+        let text = with(camera);
+        let s = parse_scene(Path::new("c.toml"), &text).unwrap();
+        let at = format!("c.toml:{}:", line(&text, "focus_distance"));
+        let said = s.warnings.iter().any(|w| w.starts_with(&at) && w.contains("`camera.focus_distance`") && w.contains("1.97 of a pixel"));
+        assert_eq!(said, warned, "{camera}: {:?}", s.warnings);
+        assert!(!s.warnings.iter().any(|w| w.contains("camera.aperture")), "{camera}: {:?}", s.warnings);
+    }
+}

@@ -345,11 +345,57 @@ impl Compiler<'_> {
             None => Vec3::ZERO,
         };
         let mut camera = self.camera(&file.camera, width, height)?;
-        if let Some(a) = &file.camera.get_ref().aperture {
+        let pixel = 2.0 * camera.half_h * camera.focus_distance / height as f32;
+        // The camera's position is rounded as the lens points are (below): focus points `position + d f` to
+        // ULPs of its coordinates. Where those are a fraction of a pixel at the focus distance, the plane in
+        // focus is blurred (warned of, at the focus distance, where the position rounds more coarsely than
+        // the aperture); where the focus distance is below the rounding of the lens points themselves, the
+        // focus point is lost in it and every camera ray's direction is rounding's (a user trial's
+        // focus_distance of 1e-30 rendered black, warned of as an aperture 3.9e23 pixels wide).
+        let (at, focus_field) = match &file.camera.get_ref().focus_distance {
+            Some(f) => (f.span(), "camera.focus_distance"),
+            None => (file.camera.get_ref().look_at.span(), "camera.look_at"),
+        };
+        let reach = camera.position.abs().max_element();
+        let lens_step = (reach + camera.lens_radius) * f32::EPSILON;
+        let position_blur = reach * f32::EPSILON / pixel;
+        let default = if focus_field == "camera.look_at" { " (the default focus distance: the distance to look_at)" } else { "" };
+        if camera.lens_radius > 0.0 && !(camera.focus_distance > lens_step) {
+            return Err(self.err(
+                at,
+                focus_field,
+                format!(
+                    "a focus distance of {:e}{default} is too small for f32 at this camera: its lens points (position {}, aperture \
+                     {:e}) are rounded to ~{lens_step:.1e}, which loses the point in focus, so every camera ray's direction would be \
+                     rounding's; focus farther than ~{:.1e} (a quarter of a pixel there is the rounding), or move the camera nearer \
+                     the origin",
+                    camera.focus_distance,
+                    plain_vec(camera.position),
+                    camera.lens_radius,
+                    4.0 * lens_step * height as f32 / (2.0 * camera.half_h)
+                ),
+            ));
+        }
+        if camera.lens_radius > 0.0 && position_blur > 0.25 && reach >= camera.lens_radius {
+            self.warn(
+                at,
+                focus_field,
+                format!(
+                    "a focus distance of {:e}{default} is too small for f32 at the camera's position {}: points there are rounded to \
+                     ~{:.1e}, {position_blur:.2} of a pixel at the focus distance, so the plane in focus is blurred by that much \
+                     (focus farther than ~{:.1e}, or move the camera nearer the origin)",
+                    camera.focus_distance,
+                    plain_vec(camera.position),
+                    reach * f32::EPSILON,
+                    4.0 * reach * f32::EPSILON * height as f32 / (2.0 * camera.half_h)
+                ),
+            );
+        }
+        if let Some(a) = file.camera.get_ref().aperture.as_ref().filter(|_| !(position_blur > 0.25 && reach >= camera.lens_radius)) {
             // Lens points are rounded to ULPs of the aperture: past a fraction of a pixel at the focus
             // distance, the plane in focus is no longer sharp (a user trial: an edge pixel 0.39 off at an
-            // aperture of 1e6, focused at 10).
-            let pixel = 2.0 * camera.half_h * camera.focus_distance / height as f32;
+            // aperture of 1e6, focused at 10). (Not said where the position rounds as coarsely: that is
+            // the focus distance's warning.)
             let blur = camera.lens_radius * f32::EPSILON / pixel;
             if blur > 0.25 {
                 self.warn(
@@ -2383,6 +2429,11 @@ fn too_many_leaves(leaves: u64, before: u64) -> String {
              {MAX_CSG_LEAVES} in a scene (count each `use` as a copy of its solid)"
         )
     }
+}
+
+/// `[x, y, z]` with each number as [`plain_number`] writes it.
+fn plain_vec(v: Vec3) -> String {
+    format!("[{}, {}, {}]", plain_number(v.x), plain_number(v.y), plain_number(v.z))
 }
 
 fn plain_number(x: f32) -> String {
