@@ -597,4 +597,20 @@ fn emissive_shapes_that_light_nothing_are_warned_of() {
     assert!(!dark(&format!("{plain}{}{light}", floor("m"))));
     assert!(!dark(&format!("{base}{}{lamp}", floor("m"))));
     assert!(!dark(&format!("{}{}", plain.replace("height = 6\n", "height = 6\nbackground = [0.1, 0.1, 0.1]\n"), floor("m"))));
+    // Lit by its background alone (a trial's sphere and floor under a white background rendered black
+    // without a word): warned of at `image.background`'s line; not with bounces, a light, or no Lambert.
+    let sky = |shapes: &str, more: &str, dd: &str| {
+        let text = format!("{}{shapes}{more}", plain.replace("height = 6\n", "height = 6\nbackground = [1, 1, 1]\n"));
+        let scene = strata::scene::parse_scene(std::path::Path::new("b.toml"), &text).unwrap();
+        let mut p = strata::scene::Profile::builtin("preview");
+        p.set("diffuse_depth", dd).unwrap();
+        let said = |w: &String| w.contains("the background lights surfaces only through the paths that reach it");
+        let w: Vec<String> = strata::cli::render_cmd::sampling_warnings(&scene, &p).into_iter().filter(said).collect();
+        assert!(w.iter().all(|w| w.starts_with("b.toml:4:14: field `image.background`: ")), "{w:?}");
+        !w.is_empty()
+    };
+    assert!(sky(&floor("m"), "", "0"));
+    assert!(!sky(&floor("m"), "", "2"));
+    assert!(!sky(&floor("m"), light, "0"));
+    assert!(!sky(&floor("k"), "[materials.k]\ntype = \"mirror\"\n", "0"));
 }

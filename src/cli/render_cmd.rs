@@ -731,7 +731,22 @@ pub fn sampling_warnings(scene: &Scene, p: &Profile) -> Vec<String> {
         let emits = glowing
             && (scene.leaf_kind.contains(&MaterialKind::Emissive)
                 || scene.prim_kind.iter().zip(&scene.light_of_prim).any(|(&k, &l)| k == MaterialKind::Emissive && l == NOT_A_LIGHT));
-        if emits && kinds().any(|&k| k == MaterialKind::Lambert) {
+        let lambert = kinds().any(|&k| k == MaterialKind::Lambert);
+        // (The background too reaches a Lambert surface only by a bounce: a trial's sphere and floor under
+        // a white background and no lights rendered black without a word.)
+        if scene.background != Vec3::ZERO && lambert {
+            out.push(
+                scene.located(
+                    "image.background",
+                    "the background lights surfaces only through the paths that reach it (diffuse bounces, mirrors, glass, glossy \
+                 lobes), not as a light sampled at shading points: with no [[lights]] and diffuse_depth 0 (this profile's) the \
+                 Lambert surfaces receive no light at all (give diffuse_depth > 0, e.g. --set diffuse_depth=4, or add a \
+                 [[lights]] entry)"
+                        .to_string(),
+                ),
+            );
+        }
+        if emits && lambert {
             out.push(
                 "emissive surfaces light others only through the paths that reach them (diffuse bounces, mirrors, glass, glossy \
                  lobes), not as lights sampled at shading points: with diffuse_depth 0 (this profile's) the Lambert surfaces \
