@@ -1608,3 +1608,27 @@ fn a_focus_distance_too_small_for_f32_is_named() {
         assert!(!s.warnings.iter().any(|w| w.contains("camera.aperture")), "{camera}: {:?}", s.warnings);
     }
 }
+
+/// A light of intensity or radiance [0, 0, 0] gives no light: warned of at its field's line (a user
+/// trial's were silent); a light that gives some is not.
+#[test]
+fn lights_that_give_no_light_are_warned_of() {
+    let point = |i: &str| format!("[[lights]]\ntype = \"point\"\nposition = [0, 4, 0]\nintensity = {i}\n");
+    let quad = |r: &str| format!("[[lights]]\ntype = \"quad\"\norigin = [-1, 3, -1]\nu = [2, 0, 0]\nv = [0, 0, 2]\nradiance = {r}\n");
+    for (extra, field, key) in [
+        (point("[0, 0, 0]") + &quad("[1, 1, 1]"), Some("lights[0].intensity"), "intensity"),
+        (point("[5, 5, 5]") + &quad("[0, 0, 0]"), Some("lights[1].radiance"), "radiance"),
+        (point("[5, 0, 0]") + &quad("[0, 0, 1]"), None, ""),
+    ] {
+        let text = format!("{BASE}{extra}");
+        let s = parse_scene(Path::new("l.toml"), &text).unwrap();
+        let w: Vec<&String> = s.warnings.iter().filter(|w| w.contains("gives no light")).collect();
+        match field {
+            Some(field) => {
+                let at = format!("l.toml:{}:", line_of(&extra, &format!("{key} = [0, 0, 0]")));
+                assert!(w.len() == 1 && w[0].starts_with(&at) && w[0].contains(&format!("`{field}`")), "{at} {field}: {w:?}");
+            }
+            None => assert!(w.is_empty(), "{w:?}"),
+        }
+    }
+}

@@ -2201,6 +2201,17 @@ impl Compiler<'_> {
         Ok(tree)
     }
 
+    /// Warn of a light that gives none (valid, and sampled at every shading point all the same: a user
+    /// trial's lights of intensity and radiance [0, 0, 0] were silent).
+    fn dark_light(&mut self, power: Vec3, span: Range<usize>, field: &str, what: &'static str) {
+        if power == Vec3::ZERO {
+            let area = if what == "radiance" { " (its surface is still seen, black, and casts shadows)" } else { "" };
+            self.warn_each(WarnKind::DarkLight, span, Sub(field, what), || {
+                format!("a light of {what} [0, 0, 0] gives no light{area}: give it a {what} > 0, or remove it")
+            });
+        }
+    }
+
     fn light(&mut self, def: &S<LightDef>, field: &str) -> R<()> {
         let l = def.get_ref();
         let sp = def.span();
@@ -2238,11 +2249,15 @@ impl Compiler<'_> {
         }
         if kind == "point" {
             let position = self.vec3(self.req(&l.position, sp.clone(), &f("position"))?, &f("position"))?;
-            let intensity = self.color(self.req(&l.intensity, sp.clone(), &f("intensity"))?, &f("intensity"), None)?;
+            let given = self.req(&l.intensity, sp.clone(), &f("intensity"))?;
+            let intensity = self.color(given, &f("intensity"), None)?;
+            self.dark_light(intensity, given.span(), field, "intensity");
             self.lights.push(Light::Point { position, intensity });
             return Ok(());
         }
-        let radiance = self.color(self.req(&l.radiance, sp.clone(), &f("radiance"))?, &f("radiance"), None)?;
+        let given = self.req(&l.radiance, sp.clone(), &f("radiance"))?;
+        let radiance = self.color(given, &f("radiance"), None)?;
+        self.dark_light(radiance, given.span(), field, "radiance");
         let material = self.materials.len() as u32;
         self.materials.push(Material::Emissive { radiance });
         let (light, shape) = match kind {
@@ -2358,6 +2373,7 @@ enum WarnKind {
     LooksEmpty,
     LostDetail,
     LoneDifference,
+    DarkLight,
 }
 
 impl WarnKind {
@@ -2373,6 +2389,7 @@ impl WarnKind {
             WarnKind::LooksEmpty => "CSG solids that look empty, as above".into(),
             WarnKind::LostDetail => "CSG solids whose detail may be lost to their coincidence tolerance, as above".into(),
             WarnKind::LoneDifference => "differences of one operand, as above".into(),
+            WarnKind::DarkLight => "lights that give no light, as above".into(),
         }
     }
 }
