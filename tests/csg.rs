@@ -773,14 +773,11 @@ fn probes_stop_where_their_budget_runs_out() {
     let mut csg = Csg::new();
     let many = csg.add_solid(&node(Op::Union, balls.clone())).unwrap();
     let many_empty = csg.add_solid(&node(Op::Difference, vec![node(Op::Union, balls), cover.clone()])).unwrap();
-    let t0 = std::time::Instant::now();
     let mut budget = 1 << 20;
     thinnest_part(&csg, many, 8, 0.1, 1e-7, &mut budget);
     assert_eq!(budget, 0, "the thin-part probe stops where its budget runs out");
     let mut budget = 1 << 20;
     assert_eq!(probe_finds_volume(&csg, many_empty, 24, &mut budget), None, "not known: the budget ran out");
-    let took = t0.elapsed().as_secs_f64();
-    assert!(took < 2.0, "the probes took {took} s");
     let few = csg.add_solid(&node(Op::Union, vec![ball(0.0), ball(0.05)])).unwrap();
     let few_empty = csg.add_solid(&node(Op::Difference, vec![ball(0.0), cover])).unwrap();
     for (s, volume) in [(few, true), (few_empty, false)] {

@@ -1737,20 +1737,29 @@ impl Compiler<'_> {
         })
     }
 
-    /// An unused named solid's tree held to what placing it (`[[shapes]]` with `use`) would hold it to:
-    /// bounded, one medium where its parts meet, within [`MAX_MAGNITUDE`] of the origin. Compiled on its
-    /// own, and left out of the scene. (Until a user trial these were checked only once used: a union of
-    /// a half-space and a sphere, two glasses that meet, a sphere reaching 1.1e15 were silent unused.)
+    /// An unused named solid's tree held to what placing it (`[[shapes]]` with `use`) would hold it to
+    /// wherever it is placed: one medium where its parts meet, within [`MAX_MAGNITUDE`] of the origin.
+    /// Compiled on its own, and left out of the scene. (Until a user trial these were checked only once
+    /// used: two glasses that meet, a sphere reaching 1.1e15 were silent unused.) An unbounded solid is
+    /// no error here: it is a fine operand of an intersection or the part a difference subtracts (a
+    /// named half-space is meant for that), so an unused one is left alone.
     fn placed_alone(&mut self, tree: &CsgTree, def: &S<ShapeDef>, field: &str) -> R<()> {
         let scene = std::mem::take(&mut self.csg);
-        let checked = self.add_solid(tree, def, field).and_then(|solid| {
-            let (lo, hi) = self.csg.bounds(solid);
-            if !lo.cmple(hi).all() {
-                return Ok(());
+        let checked = match self.csg.add_solid(tree) {
+            Err(csg::program::CsgError::Unbounded) => {
+                self.unbounded_by = None;
+                Ok(())
             }
-            self.one_medium(field)?;
-            self.within_range(&Shape::Csg { solid }, Vec3::ZERO, def, field)
-        });
+            Err(e) => Err(self.err(def.span(), field, format!("{e}"))),
+            Ok(solid) => {
+                let (lo, hi) = self.csg.bounds(solid);
+                if !lo.cmple(hi).all() {
+                    Ok(())
+                } else {
+                    self.one_medium(field).and_then(|()| self.within_range(&Shape::Csg { solid }, Vec3::ZERO, def, field))
+                }
+            }
+        };
         self.csg = scene;
         checked.map_err(|mut e| {
             e.message += &format!(" (no shape uses `{field}`: it is checked as if placed on its own)");
