@@ -556,6 +556,7 @@ impl Compiler<'_> {
                 &unbounded,
                 &bvh,
                 extent,
+                super::glass_neighbours::OWN_TREE_GLASS,
             )
         } else {
             Default::default()

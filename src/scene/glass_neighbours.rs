@@ -18,7 +18,7 @@ use crate::geometry::OFFSET_ULPS;
 /// purpose: the scene's tree walks every glass prim near each glass prim too, and a heap of glass
 /// overlapping itself made that quadratic (a trial's 100,000 coincident glass boxes: 53 s of setup, 97%
 /// in this walk). Below it the scene's tree is queried (no second build).
-const OWN_TREE_GLASS: usize = 64;
+pub const OWN_TREE_GLASS: usize = 64;
 
 /// Per prim, the opaque prims a dielectric surface of it may lie on (compressed rows; empty in a scene
 /// where no glass surface can touch an opaque one).
@@ -54,26 +54,10 @@ impl GlassNeighbours {
     /// The rule's tolerance along a ray is `COINCIDENT_EPS (|o|_inf + t |d|)`: with origin and hit
     /// within `extent`, at most `COINCIDENT_EPS (extent + 2 sqrt(3) extent)`; its reach across a
     /// surface twice the spawn offset, `2 OFFSET_ULPS ulp(extent)`. Bounds within 8 times their sum
-    /// (and 2^-20 of the prim's own size) of each other are neighbours.
+    /// (and 2^-20 of the prim's own size) of each other are neighbours. From `own_tree` glass prims on
+    /// ([`OWN_TREE_GLASS`]), a tree of the opaque prims alone is queried; the lists are the same.
     #[allow(clippy::too_many_arguments)]
     pub fn build(
-        prims: &[Prim],
-        csg: &Csg,
-        kind: &[MaterialKind],
-        leaf_kind: &[MaterialKind],
-        bounds: &[Aabb],
-        bounded: &[u32],
-        unbounded: &[u32],
-        bvh: &Bvh,
-        extent: f32,
-    ) -> Self {
-        Self::build_with(prims, csg, kind, leaf_kind, bounds, bounded, unbounded, bvh, extent, OWN_TREE_GLASS)
-    }
-
-    /// [`GlassNeighbours::build`], querying a tree of the opaque prims alone from `own_tree` glass prims
-    /// on (see [`OWN_TREE_GLASS`]); the lists are the same either way.
-    #[allow(clippy::too_many_arguments)]
-    fn build_with(
         prims: &[Prim],
         csg: &Csg,
         kind: &[MaterialKind],
@@ -218,18 +202,7 @@ mod tests {
         }
         let s = scene(&shapes);
         let build = |own| {
-            GlassNeighbours::build_with(
-                &s.prims,
-                &s.csg,
-                &s.prim_kind,
-                &s.leaf_kind,
-                &s.bounds,
-                &s.bounded,
-                &s.unbounded,
-                &s.bvh,
-                10.0,
-                own,
-            )
+            GlassNeighbours::build(&s.prims, &s.csg, &s.prim_kind, &s.leaf_kind, &s.bounds, &s.bounded, &s.unbounded, &s.bvh, 10.0, own)
         };
         let (scene_tree, own_tree) = (build(usize::MAX), build(0));
         assert!(scene_tree.list.len() > 200, "a test of few neighbours: {}", scene_tree.list.len());
