@@ -59,13 +59,14 @@ fn resume_after_cancel_and_from_checkpoints_is_bit_identical() {
     let n = work_units(W, H, TILE, 0..SPP).len();
     assert!(n >= 60, "{n} units: too few to interrupt in the middle");
 
-    // Checkpoints after every unit: each snapshot must hold exactly the units it flags.
+    // Checkpoints as often as they can be taken: each snapshot must hold exactly the units it flags.
     // Interrupt: the cancel flag goes up after 20 units and 4 checkpoints (in-flight units still
-    // finish). How many units pass between two snapshots depends on scheduling (a checkpoint is skipped
-    // while another is being written, and units got faster), so the test waits for the snapshots it
-    // checks instead of hoping for them. On a loaded machine a worker preempted while it writes a
-    // snapshot can leave the other to finish every unit before the flag goes up (seen once in CI, with
-    // another test's render beside it): such a run interrupted nothing and is made again, up to 5 times.
+    // finish). How many units pass between two snapshots depends on scheduling (the render's checkpoint
+    // thread copies the film between units and writes it while the workers go on; the next copy waits
+    // for that write), so the test waits for the snapshots it checks instead of hoping for them: until
+    // there are 4, each unit's progress call gives that thread a millisecond (these units take ~0.1 ms:
+    // the 96 of them could all finish before it was scheduled). On a loaded machine every unit can still
+    // finish before the flag goes up: such a run interrupted nothing and is made again, up to 5 times.
     let mut attempt = 0;
     let (snaps, part, completed, st) = loop {
         attempt += 1;
@@ -73,14 +74,17 @@ fn resume_after_cancel_and_from_checkpoints_is_bit_identical() {
         let keep = |f: &Film, c: &[bool]| snaps.lock().unwrap().push((f.clone(), c.to_vec()));
         let cancel = AtomicBool::new(false);
         let stop = |d: usize, _: usize| {
-            if d >= 20 && snaps.lock().unwrap().len() >= 4 {
+            let taken = snaps.lock().unwrap().len();
+            if d >= 20 && taken >= 4 {
                 cancel.store(true, Ordering::Relaxed);
+            } else if taken < 4 {
+                std::thread::sleep(Duration::from_millis(1));
             }
         };
         let mut j = job(&scene);
         j.cancel = Some(&cancel);
         j.progress = Some(&stop);
-        j.checkpoint = Some(Checkpoint { every: Duration::ZERO, write: &keep });
+        j.checkpoint = Some(Checkpoint { every: Duration::ZERO, write: &keep, failed: None, ended: None });
         let (part, completed, st) = render_resumable(&j, Film::new(W, H), vec![false; n]);
         if !st.completed || attempt == 5 {
             break (snaps.into_inner().unwrap(), part, completed, st);
@@ -708,5 +712,79 @@ fn cli_films_of_other_builds_are_warned_of() {
         assert_eq!(strata::film::file::read_film(&film).unwrap().header.build, build, "deleted: {delete}");
         let _ = std::fs::remove_file(&exe);
     }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// Memory for a film being resumed or merged that cannot be had is an error naming the film and the
+/// bytes it needs (exit 1), not an abort (a user trial's 8K resume and merge aborted, exit 134, after
+/// reading the whole file into memory). The film here is an 8192 x 4096 one (2 GiB in memory) whose
+/// header is real and whose pixels are a hole in a sparse file: the header is read first, and the
+/// memory is asked for before a pixel is read; the processes run with 1.5 GB of address space.
+#[cfg(target_os = "linux")]
+#[test]
+fn cli_a_film_too_large_for_memory_is_an_error_not_an_abort() {
+    use strata::film::file::{header_bytes, PIXEL_BYTES};
+    let d = dir("nomem");
+    let sc = write_scene(&d);
+    let scene = parse_scene(&sc, &scene_text()).unwrap();
+    let (w, h) = (8192u32, 4096u32);
+    let n = strata::render::unit_count(w, h, TILE, 0..SPP);
+    let fake = |path: &Path, complete: bool| {
+        let header = FilmHeader {
+            width: w,
+            height: h,
+            spp: SPP,
+            samples: 0..SPP,
+            tile: TILE,
+            scene_hash: scene.hash,
+            seed: 7,
+            profile: profile_record(&profile()),
+            completed: vec![complete; n],
+            build: 0,
+        };
+        let head = header_bytes(&header);
+        let f = std::fs::File::create(path).unwrap();
+        std::io::Write::write_all(&mut &f, &head).unwrap();
+        f.set_len((head.len() + w as usize * h as usize * PIXEL_BYTES + 8) as u64).unwrap();
+    };
+    let (part, whole) = (d.join("big.film"), d.join("whole.film"));
+    fake(&part, false);
+    fake(&whole, true);
+    let limited = |args: &[&str]| {
+        let mut c = Command::new("sh");
+        c.current_dir(env!("CARGO_MANIFEST_DIR"));
+        c.args(["-c", "ulimit -v 1500000 && exec \"$@\"", "sh", env!("CARGO_BIN_EXE_strata")]).args(args);
+        c.output().unwrap()
+    };
+    let need = (w as u64 * h as u64 * 64).to_string();
+    let o = limited(&[
+        "render",
+        s(&sc),
+        "-q",
+        "--profile",
+        "final",
+        "--spp",
+        "6",
+        "--light-samples",
+        "2",
+        "--seed",
+        "7",
+        "--tile",
+        "4",
+        "--size",
+        "8192x4096",
+        "-o",
+        s(&d.join("big.exr")),
+        "--resume",
+        s(&part),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "resume: {err}");
+    assert!(err.contains(&format!("--resume {}", part.display())) && err.contains(&need) && err.contains("not enough memory"), "{err}");
+    let o = limited(&["merge", s(&whole), "-o", s(&d.join("m.exr"))]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "merge: {err}");
+    assert!(err.contains(&whole.display().to_string()) && err.contains(&need) && err.contains("not enough memory"), "{err}");
+    assert!(!d.join("m.exr").exists() && !d.join("big.exr").exists());
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -4,8 +4,9 @@
 //! Every check runs before anything is written, so a refused merge leaves existing outputs untouched.
 
 use super::Failure;
-use crate::film::file::{check_film_writable, other_builds_warning, read_film, write_film, FilmFile, FilmHeader};
+use crate::film::file::{check_film_writable, other_builds_warning, read_film_header, verify_film, write_film, FilmHeader, FilmReader};
 use crate::film::output::{check_writable, write_image_with, Provenance};
+use crate::film::Film;
 use crate::render::unit_count;
 use clap::Args;
 use std::fmt::Write as _;
@@ -52,30 +53,32 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     }
     let inputs: Vec<(&str, &Path)> = a.films.iter().map(|f| ("an input film", f.as_path())).collect();
     super::check_distinct_files(&outputs, &inputs, &[])?;
+    // The headers first (a few KB each): every check of the films against each other is made before a
+    // pixel is read; the pixels are then read one film at a time into the running sum.
     let mut films = Vec::new();
     for p in &a.films {
-        films.push((p.clone(), read_film(p).map_err(Failure::input)?));
+        films.push((p.clone(), read_film_header(p).map_err(Failure::input)?));
     }
     check_same_render(&films).map_err(Failure::input)?;
-    films.sort_by_key(|(_, f)| (f.header.samples.start, f.header.samples.end));
+    films.sort_by_key(|(_, h)| (h.samples.start, h.samples.end));
     check_overlaps(&films).map_err(Failure::input)?;
 
     let mut problems = Vec::new();
-    for (p, f) in &films {
-        if !f.header.is_complete() {
+    for (p, h) in &films {
+        if !h.is_complete() {
             problems.push(format!(
                 "{} is incomplete ({} of {} work units of samples {}); finish it with `strata render ... --resume {}`",
                 p.display(),
-                f.header.units_done(),
-                f.header.completed.len(),
-                range_text(&f.header.samples),
+                h.units_done(),
+                h.completed.len(),
+                range_text(&h.samples),
                 p.display()
             ));
         }
     }
     for w in films.windows(2) {
-        let (pa, a_) = (&w[0].0, &w[0].1.header.samples);
-        let (pb, b_) = (&w[1].0, &w[1].1.header.samples);
+        let (pa, a_) = (&w[0].0, &w[0].1.samples);
+        let (pb, b_) = (&w[1].0, &w[1].1.samples);
         if a_.end < b_.start {
             problems.push(format!(
                 "gap: samples {}..{} are in no film (between {} {} and {} {})",
@@ -94,21 +97,21 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     // alone, and (its films complete and contiguous) into a film of that range, which merges later with
     // the rest.
     let (first_film, last_film) = (&films[0], &films[films.len() - 1]);
-    let spp = first_film.1.header.spp;
+    let spp = first_film.1.spp;
     let mut outside = Vec::new();
-    let (start, end) = (first_film.1.header.samples.start, last_film.1.header.samples.end);
+    let (start, end) = (first_film.1.samples.start, last_film.1.samples.end);
     if start > 0 {
         outside.push(format!(
             "missing: samples 0..{start} of spp {spp} are in no film (before {} {})",
             first_film.0.display(),
-            range_text(&first_film.1.header.samples)
+            range_text(&first_film.1.samples)
         ));
     }
     if end < spp {
         outside.push(format!(
             "missing: samples {end}..{spp} of spp {spp} are in no film (after {} {})",
             last_film.0.display(),
-            range_text(&last_film.1.header.samples)
+            range_text(&last_film.1.samples)
         ));
     }
     if !outside.is_empty() && !a.allow_gaps {
@@ -138,10 +141,10 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
         }
     }
 
-    let first = &films[0].1.header;
+    let first = &films[0].1;
     // Films of several builds merge (their samples are exact either way), with a warning; the merged film
     // records a build only where all of them share it.
-    let builds: Vec<(String, u64)> = films.iter().map(|(p, f)| (p.display().to_string(), f.header.build)).collect();
+    let builds: Vec<(String, u64)> = films.iter().map(|(p, h)| (p.display().to_string(), h.build)).collect();
     let (name0, build0) = builds.iter().find(|b| b.1 != 0).cloned().unwrap_or_default();
     let warning = other_builds_warning(&builds, build0, &name0);
     // Films of unknown build (0: version 1, or already of several builds) are not taken as the others'
@@ -159,10 +162,19 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
             if unknown.len() == 1 { "records" } else { "record" }
         );
     }
-    let range = first.samples.start..films.iter().map(|(_, f)| f.header.samples.end).max().unwrap();
-    let mut merged = films[0].1.film.clone();
-    for (_, f) in &films[1..] {
-        merged.merge(&f.film);
+    let range = first.samples.start..films.iter().map(|(_, h)| h.samples.end).max().unwrap();
+    // One film in memory, the sum (its memory taken fallibly: an error, not an abort, where it runs
+    // out); each film's pixels are added as they are read, and its checksum checked at its end.
+    let mut merged = Film::try_new(first.width, first.height).map_err(|e| {
+        let names: Vec<String> = films.iter().map(|(p, _)| p.display().to_string()).collect();
+        Failure::runtime(format!("cannot merge {}: the merged film: {e}", names.join(", ")))
+    })?;
+    for (p, h) in &films {
+        let reader = FilmReader::open(p).map_err(Failure::input)?;
+        if reader.header() != h {
+            return Err(Failure::input(format!("{}: the film changed while the merge read it: merge again", p.display())));
+        }
+        reader.merge_into(&mut merged).map_err(|e| Failure::input(format!("{}: {e}", p.display())))?;
     }
     // (With --allow-gaps the range is the span the films cover, marked incomplete.)
     let provenance = Provenance { samples: range.clone(), complete: problems.is_empty(), ..Provenance::of(first) };
@@ -218,8 +230,7 @@ pub fn run(a: MergeArgs) -> Result<u8, Failure> {
     // read as the whole render, the warning below aside.)
     let ranges: Vec<String> = films
         .iter()
-        .map(|(_, f)| {
-            let h = &f.header;
+        .map(|(_, h)| {
             let part = if h.is_complete() { String::new() } else { format!(" ({} of {} work units)", h.units_done(), h.completed.len()) };
             format!("{}{part}", range_text(&h.samples))
         })
@@ -323,10 +334,10 @@ fn range_text(r: &Range<u32>) -> String {
 }
 
 /// All films must come from one render: size, scene, seed, spp, profile.
-fn check_same_render(films: &[(PathBuf, FilmFile)]) -> Result<(), String> {
-    let (p0, f0) = &films[0];
-    for (p, f) in &films[1..] {
-        let d = f0.header.identity_differences(&f.header, (&p0.display().to_string(), &p.display().to_string()));
+fn check_same_render(films: &[(PathBuf, FilmHeader)]) -> Result<(), String> {
+    let (p0, h0) = &films[0];
+    for (p, h) in &films[1..] {
+        let d = h0.identity_differences(h, (&p0.display().to_string(), &p.display().to_string()));
         if !d.is_empty() {
             return Err(format!("cannot merge: {} and {} are from different renders: {}", p0.display(), p.display(), d.join("; ")));
         }
@@ -335,10 +346,10 @@ fn check_same_render(films: &[(PathBuf, FilmFile)]) -> Result<(), String> {
 }
 
 /// Films sorted by range start; any two that share a sample index are an error naming both.
-fn check_overlaps(films: &[(PathBuf, FilmFile)]) -> Result<(), String> {
+fn check_overlaps(films: &[(PathBuf, FilmHeader)]) -> Result<(), String> {
     for (i, (pa, a)) in films.iter().enumerate() {
         for (pb, b) in &films[i + 1..] {
-            let (ra, rb) = (&a.header.samples, &b.header.samples);
+            let (ra, rb) = (&a.samples, &b.samples);
             if rb.start < ra.end {
                 return Err(format!(
                     "cannot merge: overlap: {} {} and {} {} share samples {}..{}",
@@ -387,13 +398,13 @@ fn status(paths: &[PathBuf]) -> Result<u8, Failure> {
     let mut failed = false;
     let width = paths.iter().map(|p| p.display().to_string().len()).max().unwrap_or(0);
     for p in paths {
-        match read_film(p) {
+        // (Every check, the checksum's too, one film at a time, its pixels not kept.)
+        match verify_film(p) {
             Err(e) => {
                 failed = true;
                 say!("{:width$}  unreadable: {e}", p.display());
             }
-            Ok(f) => {
-                let h = f.header;
+            Ok(h) => {
                 if let Some((p0, h0)) = ok.first() {
                     let d = h0.identity_differences(&h, (&p0.display().to_string(), &p.display().to_string()));
                     if !d.is_empty() {

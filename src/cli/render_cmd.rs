@@ -1,7 +1,9 @@
 //! `strata render`, including sample ranges, film files, checkpoints and resume (see the README, "Rendering on many machines").
 
 use super::{Failure, Progress};
-use crate::film::file::{build_id, check_film_writable, other_builds_warning, read_film, write_film, FilmHeader};
+use crate::film::file::{
+    build_id, check_film_writable, other_builds_warning, verify_film, write_film, write_film_unless, FilmHeader, FilmReader,
+};
 use crate::film::output::{check_file_writable, check_writable, write_image_with, Provenance};
 use crate::film::Film;
 use crate::render::{check_render_size, render_resumable, Checkpoint, RenderJob, RenderStats};
@@ -237,20 +239,22 @@ pub(super) fn check_film_replaced(
     advice: &str,
     render: bool,
 ) -> Result<Option<String>, Failure> {
-    let Ok(saved) = read_film(path) else { return Ok(None) };
+    // (Read whole and checked, as a film to resume is, but only its header kept: a file that is no
+    // intact film is replaced.)
+    let Ok(saved) = verify_film(path) else { return Ok(None) };
     if render {
-        refuse_complete_same(path, &saved.header, this)?;
+        refuse_complete_same(path, &saved, this)?;
     }
-    if !saved.header.is_complete() && resume_mismatch(&saved.header, this).is_none() {
+    if !saved.is_complete() && resume_mismatch(&saved, this).is_none() {
         return Err(Failure::input(format!(
             "{}: a partial film of this same render ({} of {} work units) is there, which {flag} would replace: {advice}, \
              name another film, or remove it first",
             path.display(),
-            saved.header.units_done(),
-            saved.header.completed.len()
+            saved.units_done(),
+            saved.completed.len()
         )));
     }
-    check_film_header_replaced(path, &saved.header, flag, this)
+    check_film_header_replaced(path, &saved, flag, this)
 }
 
 /// A complete film of this very render where a render's --film would write: refused. Rendering it again
@@ -388,17 +392,17 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         };
         let mut partial = Vec::new();
         for here in candidates {
-            let Ok(saved) = read_film(&here) else { continue };
+            let Ok(saved) = verify_film(&here) else { continue };
             // (Where --film names it, a film of another render: refused if partial, else replaced with a
             // warning; read once for both checks.)
             if a.film.is_some() {
-                refuse_complete_same(&here, &saved.header, &header)?;
-                if let Some(w) = check_film_header_replaced(&here, &saved.header, "--film", &header)? {
+                refuse_complete_same(&here, &saved, &header)?;
+                if let Some(w) = check_film_header_replaced(&here, &saved, "--film", &header)? {
                     errln!("warning: {w}");
                 }
             }
-            if !saved.header.is_complete() && resume_mismatch(&saved.header, &header).is_none() {
-                partial.push((here, saved.header.units_done(), saved.header.completed.len()));
+            if !saved.is_complete() && resume_mismatch(&saved, &header).is_none() {
+                partial.push((here, saved.units_done(), saved.completed.len()));
             }
         }
         // The one holding the most work is the one to continue; the others are named too.
@@ -421,30 +425,39 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
             errln!("warning: {w}");
         }
     }
-    let mut film = Film::new(scene.width, scene.height);
+    // The film: the one resumed, read straight into it (its header checked first, before a pixel is
+    // read), else a new one; memory for either taken fallibly (an error, not an abort, where it runs out).
+    let no_memory = |what: String, e: String| Failure::runtime(format!("{what}: {e}"));
+    let mut resumed_film = None;
     if let Some(r) = &a.resume {
-        let saved = read_film(r).map_err(|e| Failure::input(format!("--resume {e}")))?;
-        if let Some(why) = resume_mismatch(&saved.header, &header) {
+        let reader = FilmReader::open(r).map_err(|e| Failure::input(format!("--resume {e}")))?;
+        if let Some(why) = resume_mismatch(reader.header(), &header) {
             return Err(Failure::input(format!("{}: cannot resume: the film is from a different render: {why}", r.display())));
         }
+        let mut f = Film::try_new(scene.width, scene.height).map_err(|e| no_memory(format!("--resume {}", r.display()), e))?;
+        let saved = reader.read_into(&mut f).map_err(|e| Failure::input(format!("--resume {}: {e}", r.display())))?;
+        resumed_film = Some(f);
         let this = build_id();
-        if let Some(w) = other_builds_warning(&[(r.display().to_string(), saved.header.build)], this, "this one") {
+        if let Some(w) = other_builds_warning(&[(r.display().to_string(), saved.build)], this, "this one") {
             errln!("{w}");
         }
         // A film of unknown build (0: a version-1 film, before builds were recorded, or one already of
         // several builds' samples) makes the result one of unknown build too (it was stamped with this
         // build's, which a user trial found claiming samples it never rendered).
-        if saved.header.units_done() > 0 && saved.header.build == 0 {
+        if saved.units_done() > 0 && saved.build == 0 {
             errln!(
                 "note: {} records no build (a film from before builds were recorded, or of several builds' samples): the film \
                  this render writes records none either (build 0, unknown)",
                 r.display()
             );
         }
-        mixed = saved.header.units_done() > 0 && saved.header.build != this;
-        header.completed = saved.header.completed;
-        film = saved.film;
+        mixed = saved.units_done() > 0 && saved.build != this;
+        header.completed = saved.completed;
     }
+    let film = match resumed_film {
+        Some(f) => f,
+        None => Film::try_new(scene.width, scene.height).map_err(|e| no_memory("the render's film".into(), e))?,
+    };
     let resumed_units = header.units_done();
     let start_completed = std::mem::take(&mut header.completed);
 
@@ -467,20 +480,43 @@ pub fn run(a: RenderArgs) -> Result<u8, Failure> {
         film_path.as_deref(),
         a.resume.as_deref(),
     );
+    // Checkpoints are written by a thread of the render's while the workers go on, one at a time: one
+    // that takes longer than the interval delays the next, which is said once. One still being written
+    // when the render stops is given up (the previous one stays): the film written next supersedes it.
+    let slow_warned = AtomicBool::new(false);
+    let render_ended = AtomicBool::new(false);
     let write_checkpoint = |f: &Film, completed: &[bool]| {
         let path = film_path.as_deref().expect("checkpoints need a film path");
-        match write_film(path, &header.stamped(completed.to_vec(), mixed), f) {
-            Ok(()) => checkpointed.store(true, Ordering::SeqCst),
+        let t = Instant::now();
+        match write_film_unless(path, &header.stamped(completed.to_vec(), mixed), f, &render_ended) {
+            Ok(true) => checkpointed.store(true, Ordering::SeqCst),
+            Ok(false) => return,
             Err(e) => progress.println(&format!("warning: checkpoint not written: {e}")),
         }
+        let (took, every) = (t.elapsed(), checkpoint_every.unwrap_or_default());
+        if took > every && !slow_warned.swap(true, Ordering::Relaxed) {
+            progress.println(&format!(
+                "warning: a checkpoint of {} took {:.1} s to write, longer than --checkpoint-every {}: checkpoints are written \
+                 one at a time, so the next comes when one is written (the render goes on meanwhile)",
+                path.display(),
+                took.as_secs_f64(),
+                every.as_secs_f64()
+            ));
+        }
     };
+    let checkpoint_failed = |e: String| progress.println(&format!("warning: checkpoint skipped: {e}"));
     let mut job = RenderJob::new(&scene, settings);
     job.threads = a.threads;
     job.tile = a.tile;
     job.samples = samples.clone();
     job.cancel = Some(&cancel);
     job.progress = Some(&report);
-    job.checkpoint = checkpoint_every.map(|every| Checkpoint { every, write: &write_checkpoint });
+    job.checkpoint = checkpoint_every.map(|every| Checkpoint {
+        every,
+        write: &write_checkpoint,
+        failed: Some(&checkpoint_failed),
+        ended: Some(&render_ended),
+    });
     let (film, completed, stats) = render_resumable(&job, film, start_completed);
     // From here on a signal no longer quits: the outputs are written (quickly, and all or nothing).
     // Unless a second signal has just started quitting: then wait for the handler to end the process.

@@ -37,11 +37,27 @@ impl<T: Pod> Cells<T> {
         Cells { store: Store::Vec(vec![T::zeroed(); len]), len }
     }
 
+    /// [`Cells::zeroed`], or `None` where the memory cannot be had (where `zeroed` aborts the process).
+    pub(super) fn try_zeroed(len: usize) -> Option<Self> {
+        let bytes = len.checked_mul(std::mem::size_of::<T>())?;
+        #[cfg(target_os = "linux")]
+        if bytes >= HUGE {
+            if let Some(store) = Self::map(bytes) {
+                return Some(Cells { store, len });
+            }
+        }
+        let _ = bytes;
+        let mut v = Vec::new();
+        v.try_reserve_exact(len).ok()?;
+        v.resize(len, T::zeroed());
+        Some(Cells { store: Store::Vec(v), len })
+    }
+
     #[cfg(target_os = "linux")]
     fn map(bytes: usize) -> Option<Store<T>> {
         // Room to start at a 2 MiB boundary and to advise whole huge pages.
-        let rounded = bytes.next_multiple_of(HUGE);
-        let map = memmap2::MmapMut::map_anon(rounded + HUGE).ok()?;
+        let rounded = bytes.checked_next_multiple_of(HUGE)?;
+        let map = memmap2::MmapMut::map_anon(rounded.checked_add(HUGE)?).ok()?;
         let offset = (map.as_ptr() as usize).next_multiple_of(HUGE) - map.as_ptr() as usize;
         // Only advice: without THP the pages are ordinary ones, as a Vec's.
         let _ = map.advise_range(memmap2::Advice::HugePage, offset, rounded);

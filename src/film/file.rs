@@ -36,14 +36,21 @@
 //! the header, the checksum and the header's own consistency, and says which failed. Writing is atomic
 //! (temporary file in the same directory, synced, renamed), so a checkpoint interrupted mid-write leaves
 //! the previous checkpoint intact.
+//!
+//! Both stream: a file is never held whole in memory (at 7680 x 4320 it is 3.45 GB, the film 2.1 GB). The
+//! header is read and checked first ([`FilmReader`], [`read_film_header`]), so that a film of another
+//! render is refused before a pixel is read; the pixels then go straight into one film (or are added to
+//! one: a merge), hashed as they are read, and the checksum is checked at the end. Writing encodes a
+//! chunk of pixels at a time into a buffered file, hashed as it goes: the same bytes as [`encode`].
 
-use super::checksum::xxh64;
+use super::checksum::{xxh64, Xxh64};
 use super::output::write_atomic;
 use super::{Film, Pixel};
 use crate::scene::Profile;
-use std::io::Write;
+use std::io::{Read, Write};
 use std::ops::Range;
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 pub const MAGIC: [u8; 8] = *b"STRATAFM";
 pub const VERSION: u32 = 2;
@@ -204,11 +211,10 @@ fn profile_differences(x: &str, y: &str, (a, b): (&str, &str)) -> String {
     }
 }
 
-/// Serialize a film file (header, pixels, checksum).
-pub fn encode(header: &FilmHeader, film: &Film) -> Vec<u8> {
-    assert_eq!((header.width, header.height), (film.width, film.height), "film and header sizes differ");
+/// The header's bytes: everything before the pixels.
+pub fn header_bytes(header: &FilmHeader) -> Vec<u8> {
     let n_units = header.completed.len();
-    let mut out = Vec::with_capacity(FIXED_HEADER + header.profile.len() + 8 + n_units.div_ceil(8) + film.len() * PIXEL_BYTES + 8);
+    let mut out = Vec::with_capacity(FIXED_HEADER + header.profile.len() + 8 + n_units.div_ceil(8));
     out.extend_from_slice(&MAGIC);
     for v in [VERSION, header.width, header.height, header.spp, header.samples.start, header.samples.end, header.tile, n_units as u32] {
         out.extend_from_slice(&v.to_le_bytes());
@@ -224,16 +230,273 @@ pub fn encode(header: &FilmHeader, film: &Film) -> Vec<u8> {
         bits[i / 8] |= 1 << (i % 8);
     }
     out.extend_from_slice(&bits);
-    for p in film.pixels() {
-        for v in p.sum.iter().chain(&p.sum_sq) {
-            out.extend_from_slice(&v.to_le_bytes());
-        }
-        out.extend_from_slice(&p.count.to_le_bytes());
-    }
-    let sum = xxh64(&out);
-    out.extend_from_slice(&sum.to_le_bytes());
     out
 }
+
+/// Pixels encoded (or decoded) at a time: 416 KiB of records.
+const CHUNK_PIXELS: usize = 4096;
+
+/// Write a film file (header, pixels, checksum) to `w`, pixel records a chunk at a time and hashed as
+/// they go: the same bytes as [`encode`], without the whole file in memory.
+pub fn write_film_to<W: Write>(w: &mut W, header: &FilmHeader, film: &Film) -> std::io::Result<()> {
+    write_film_until(w, header, film, &|| false).map(|_| ())
+}
+
+/// [`write_film_to`], stopping between chunks where `stop` says so: whether it wrote the whole film.
+fn write_film_until<W: Write>(w: &mut W, header: &FilmHeader, film: &Film, stop: &dyn Fn() -> bool) -> std::io::Result<bool> {
+    assert_eq!((header.width, header.height), (film.width, film.height), "film and header sizes differ");
+    let mut hash = Xxh64::new();
+    let head = header_bytes(header);
+    hash.update(&head);
+    w.write_all(&head)?;
+    let mut chunk = Vec::with_capacity(CHUNK_PIXELS.min(film.len()) * PIXEL_BYTES);
+    for start in (0..film.len()).step_by(CHUNK_PIXELS) {
+        if stop() {
+            return Ok(false);
+        }
+        chunk.clear();
+        for i in start..(start + CHUNK_PIXELS).min(film.len()) {
+            let p = film.pixel(i);
+            for v in p.sum.iter().chain(&p.sum_sq) {
+                chunk.extend_from_slice(&v.to_le_bytes());
+            }
+            chunk.extend_from_slice(&p.count.to_le_bytes());
+        }
+        hash.update(&chunk);
+        w.write_all(&chunk)?;
+    }
+    w.write_all(&hash.finish().to_le_bytes())?;
+    Ok(true)
+}
+
+/// Serialize a film file (header, pixels, checksum) into memory (small films and tests; files are
+/// written streaming, [`write_film`]).
+pub fn encode(header: &FilmHeader, film: &Film) -> Vec<u8> {
+    let mut out =
+        Vec::with_capacity(FIXED_HEADER + header.profile.len() + 8 + header.completed.len().div_ceil(8) + film.len() * PIXEL_BYTES + 8);
+    write_film_to(&mut out, header, film).expect("writing to memory does not fail");
+    out
+}
+
+/// The bytes of a film file being read: those before the checksum (`left` of them still unread) go
+/// through the hash as they are read.
+struct Source<R: Read> {
+    r: R,
+    hash: Xxh64,
+    left: u64,
+}
+
+impl<R: Read> Source<R> {
+    /// The next `buf.len()` bytes (within the checksummed part: the caller checked the length).
+    fn fill(&mut self, buf: &mut [u8]) -> Result<(), String> {
+        debug_assert!(buf.len() as u64 <= self.left);
+        self.r.read_exact(buf).map_err(|e| format!("reading: {e}"))?;
+        self.hash.update(buf);
+        self.left -= buf.len() as u64;
+        Ok(())
+    }
+    fn u64(&mut self) -> Result<u64, String> {
+        let mut b = [0; 8];
+        self.fill(&mut b)?;
+        Ok(u64::from_le_bytes(b))
+    }
+    /// Whether the stored checksum matches the bytes before it, reading (and hashing) what is left of
+    /// them first, a chunk at a time.
+    fn checksum_holds(&mut self) -> Result<bool, String> {
+        let mut buf = vec![0u8; (self.left.min(1 << 20)) as usize];
+        while self.left > 0 {
+            let n = self.left.min(buf.len() as u64) as usize;
+            self.fill(&mut buf[..n])?;
+        }
+        let mut stored = [0; 8];
+        self.r.read_exact(&mut stored).map_err(|e| format!("reading: {e}"))?;
+        Ok(self.hash.finish() == u64::from_le_bytes(stored))
+    }
+}
+
+/// A film file whose header has been read and checked, its pixels not yet read: the header can be
+/// compared with a render's before a byte of the pixels is read (or memory taken for them), and the
+/// pixels are then read straight into a film ([`FilmReader::read_into`]) or added to one
+/// ([`FilmReader::merge_into`]), never held as bytes. The checksum, which covers the whole file, is
+/// checked when the pixels have been read: a film whose header reads is not yet known to be intact.
+pub struct FilmReader<R: Read> {
+    header: FilmHeader,
+    src: Source<R>,
+}
+
+impl FilmReader<std::io::BufReader<std::fs::File>> {
+    /// Open a film file and read its header; errors start with the path.
+    pub fn open(path: &Path) -> Result<Self, String> {
+        let at = |e: String| format!("{}: {e}", path.display());
+        let f = std::fs::File::open(path).map_err(|e| at(e.to_string()))?;
+        // Not a pipe or a device (`/dev/zero` would be read until memory runs out), nor beyond the
+        // largest film a render can write.
+        let meta = f.metadata().map_err(|e| at(e.to_string()))?;
+        if !meta.is_file() {
+            return Err(at("not a regular file (a film is read from a file)".into()));
+        }
+        if meta.len() > MAX_FILM_BYTES {
+            return Err(at(format!("larger than any film strata writes ({MAX_FILM_BYTES} bytes at most): not a film")));
+        }
+        FilmReader::new(std::io::BufReader::with_capacity(1 << 16, f), meta.len()).map_err(at)
+    }
+}
+
+impl<R: Read> FilmReader<R> {
+    /// Read and check the header of the `len`-byte film file `r`. Errors say what is wrong, without the
+    /// path, and are those reading the whole file gives: where the header is inconsistent or implies
+    /// another length, the rest of the file is hashed (nothing kept) to tell a corrupted file (checksum
+    /// mismatch) from one written so by something else than strata.
+    pub fn new(r: R, len: u64) -> Result<Self, String> {
+        let mut fixed = [0u8; FIXED_HEADER];
+        let head = len.min(FIXED_HEADER as u64) as usize;
+        // (A file of the header's length at least: the fixed header lies in the checksummed bytes.)
+        let mut src = Source { r, hash: Xxh64::new(), left: len.saturating_sub(8) };
+        if len >= FIXED_HEADER as u64 + 8 {
+            src.fill(&mut fixed)?;
+        } else {
+            src.r.read_exact(&mut fixed[..head]).map_err(|e| format!("reading: {e}"))?;
+        }
+        let bytes = &fixed[..head];
+        if len < 12 || bytes[..8] != MAGIC {
+            return Err(if len >= 8 && bytes[..8] != MAGIC {
+                "not a Strata film file (bad magic; expected \"STRATAFM\")".to_string()
+            } else {
+                format!("not a Strata film file (only {len} bytes)")
+            });
+        }
+        let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
+        if version != VERSION && version != 1 {
+            return Err(format!("film format version {version} is not supported (this strata reads versions 1 and {VERSION})"));
+        }
+        if len < FIXED_HEADER as u64 + 8 {
+            return Err(format!("truncated: {len} bytes is shorter than the {}-byte header", FIXED_HEADER + 8));
+        }
+        let mut c = Cursor { bytes: &fixed, at: 8 };
+        let version = c.u32();
+        let build_bytes = if version >= 2 { 8 } else { 0 };
+        let (width, height, spp) = (c.u32(), c.u32(), c.u32());
+        let samples = c.u32()..c.u32();
+        let (tile, n_units) = (c.u32(), c.u32() as usize);
+        let (scene_hash, seed, profile_hash) = (c.u64(), c.u64(), c.u64());
+        let profile_len = c.u32() as usize;
+
+        // The size the header implies (u128: a corrupted header must not overflow the arithmetic).
+        let expected = FIXED_HEADER as u128
+            + profile_len as u128
+            + build_bytes
+            + n_units.div_ceil(8) as u128
+            + width as u128 * height as u128 * PIXEL_BYTES as u128
+            + 8;
+        if expected != len as u128 {
+            return Err(if !src.checksum_holds()? {
+                format!("truncated or corrupted: the header implies {expected} bytes, the file has {len} (checksum mismatch)")
+            } else {
+                format!("size mismatch: the header implies {expected} bytes, the file has {len}")
+            });
+        }
+
+        // With a checksum that holds, these can only fail for a file written by something else than
+        // strata; with one that does not, the file is corrupted, which is said instead.
+        let header = (|| -> Result<Result<FilmHeader, String>, String> {
+            let bad = |m: String| Ok(Err(format!("inconsistent header: {m}")));
+            if width == 0 || height == 0 || width > crate::scene::MAX_IMAGE_SIDE as u32 || height > crate::scene::MAX_IMAGE_SIDE as u32 {
+                return bad(format!("image size {width}x{height}"));
+            }
+            if !(samples.start < samples.end && samples.end <= spp) {
+                return bad(format!("sample range {}..{} of spp {spp}", samples.start, samples.end));
+            }
+            if tile == 0 {
+                return bad("tile side 0".into());
+            }
+            let want_units = crate::render::unit_count(width, height, tile, samples.clone());
+            if n_units != want_units {
+                return bad(format!("{n_units} work units, the size, tile and range give {want_units}"));
+            }
+            if profile_len > MAX_PROFILE_RECORD {
+                return bad(format!("profile record of {profile_len} bytes"));
+            }
+            let mut record = vec![0u8; profile_len];
+            src.fill(&mut record)?;
+            let Ok(profile) = String::from_utf8(record) else { return bad("profile record is not UTF-8".into()) };
+            if xxh64(profile.as_bytes()) != profile_hash {
+                return bad("profile hash does not match the profile record".into());
+            }
+            if let Err(e) = serde_json::from_str::<Profile>(&profile) {
+                return bad(format!("profile record: {e}"));
+            }
+            let build = if version >= 2 { src.u64()? } else { 0 };
+            let mut bits = vec![0u8; n_units.div_ceil(8)];
+            src.fill(&mut bits)?;
+            let completed: Vec<bool> = (0..n_units).map(|i| bits[i / 8] >> (i % 8) & 1 == 1).collect();
+            if n_units % 8 != 0 && bits[n_units / 8] >> (n_units % 8) != 0 {
+                return bad("bits set past the last work unit".into());
+            }
+            Ok(Ok(FilmHeader { width, height, spp, samples: samples.clone(), tile, scene_hash, seed, profile, completed, build }))
+        })()?;
+        match header {
+            Ok(header) => Ok(FilmReader { header, src }),
+            Err(_) if !src.checksum_holds()? => Err(CORRUPTED.to_string()),
+            Err(e) => Err(e),
+        }
+    }
+
+    pub fn header(&self) -> &FilmHeader {
+        &self.header
+    }
+
+    /// Read the pixels, handing each to `sink` (index, pixel) in order, then check the checksum.
+    fn pixels(mut self, mut sink: impl FnMut(usize, Pixel)) -> Result<FilmHeader, String> {
+        let n = self.header.width as usize * self.header.height as usize;
+        let mut buf = vec![0u8; CHUNK_PIXELS.min(n) * PIXEL_BYTES];
+        for start in (0..n).step_by(CHUNK_PIXELS) {
+            let m = (n - start).min(CHUNK_PIXELS);
+            let chunk = &mut buf[..m * PIXEL_BYTES];
+            self.src.fill(chunk)?;
+            for (k, rec) in chunk.chunks_exact(PIXEL_BYTES).enumerate() {
+                let v = |j: usize| i128::from_le_bytes(rec[16 * j..16 * j + 16].try_into().unwrap());
+                let count = u64::from_le_bytes(rec[96..104].try_into().unwrap());
+                sink(start + k, Pixel { sum: [v(0), v(1), v(2)], sum_sq: [v(3), v(4), v(5)], count });
+            }
+        }
+        if !self.src.checksum_holds()? {
+            return Err(CORRUPTED.to_string());
+        }
+        Ok(self.header)
+    }
+
+    /// Read the pixels into `film` (a film of the header's size, as [`Film::try_new`] gives it), each
+    /// replacing the film's; the header once the checksum holds (else the film holds what was read).
+    pub fn read_into(self, film: &mut Film) -> Result<FilmHeader, String> {
+        assert_eq!((film.width, film.height), (self.header.width, self.header.height), "film and header sizes differ");
+        self.pixels(|i, p| film.set_pixel(i, p))
+    }
+
+    /// Add the pixels to `film`'s (exact: as [`Film::merge`]); the header once the checksum holds. Where
+    /// it does not, `film` holds the pixels read added: the caller discards it.
+    pub fn merge_into(self, film: &mut Film) -> Result<FilmHeader, String> {
+        assert_eq!((film.width, film.height), (self.header.width, self.header.height), "film and header sizes differ");
+        self.pixels(|i, p| film.merge_pixel(i, &p))
+    }
+
+    /// Check the whole file (the checksum) without keeping its pixels: the header of an intact film.
+    pub fn verify(self) -> Result<FilmHeader, String> {
+        let mut me = self;
+        if !me.src.checksum_holds()? {
+            return Err(CORRUPTED.to_string());
+        }
+        Ok(me.header)
+    }
+
+    /// The whole film, in a film allocated for it (fallibly: an error where memory runs out).
+    pub fn read(self) -> Result<FilmFile, String> {
+        let mut film = Film::try_new(self.header.width, self.header.height)?;
+        let header = self.read_into(&mut film)?;
+        Ok(FilmFile { header, film })
+    }
+}
+
+const CORRUPTED: &str = "corrupted: checksum mismatch (the file was changed after it was written)";
 
 /// Little-endian reader over a byte slice whose length has already been checked.
 struct Cursor<'a> {
@@ -253,123 +516,62 @@ impl Cursor<'_> {
     fn u64(&mut self) -> u64 {
         u64::from_le_bytes(self.take(8).try_into().unwrap())
     }
-    fn i128(&mut self) -> i128 {
-        i128::from_le_bytes(self.take(16).try_into().unwrap())
-    }
 }
 
-/// Parse and validate a film file. Errors say what is wrong, without the path (the caller adds it).
+/// Parse and validate a film file held in memory. Errors say what is wrong, without the path (the
+/// caller adds it).
 pub fn decode(bytes: &[u8]) -> Result<FilmFile, String> {
-    let len = bytes.len();
-    if len < 12 || bytes[..8] != MAGIC {
-        return Err(if len >= 8 && bytes[..8] != MAGIC {
-            "not a Strata film file (bad magic; expected \"STRATAFM\")".to_string()
-        } else {
-            format!("not a Strata film file (only {len} bytes)")
-        });
-    }
-    let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
-    if version != VERSION && version != 1 {
-        return Err(format!("film format version {version} is not supported (this strata reads versions 1 and {VERSION})"));
-    }
-    let build_bytes = if version >= 2 { 8 } else { 0 };
-    if len < FIXED_HEADER + 8 {
-        return Err(format!("truncated: {len} bytes is shorter than the {}-byte header", FIXED_HEADER + 8));
-    }
-    let mut c = Cursor { bytes, at: 12 };
-    let (width, height, spp) = (c.u32(), c.u32(), c.u32());
-    let samples = c.u32()..c.u32();
-    let (tile, n_units) = (c.u32(), c.u32() as usize);
-    let (scene_hash, seed, profile_hash) = (c.u64(), c.u64(), c.u64());
-    let profile_len = c.u32() as usize;
-
-    // The size the header implies (u128: a corrupted header must not overflow the arithmetic).
-    let expected = FIXED_HEADER as u128
-        + profile_len as u128
-        + build_bytes
-        + n_units.div_ceil(8) as u128
-        + width as u128 * height as u128 * PIXEL_BYTES as u128
-        + 8;
-    let stored_sum = u64::from_le_bytes(bytes[len - 8..].try_into().unwrap());
-    if xxh64(&bytes[..len - 8]) != stored_sum {
-        return Err(if expected != len as u128 {
-            format!("truncated or corrupted: the header implies {expected} bytes, the file has {len} (checksum mismatch)")
-        } else {
-            "corrupted: checksum mismatch (the file was changed after it was written)".to_string()
-        });
-    }
-    if expected != len as u128 {
-        return Err(format!("size mismatch: the header implies {expected} bytes, the file has {len}"));
-    }
-
-    // The checksum holds, so these can only fail for a file written by something else than strata.
-    let bad = |m: String| Err(format!("inconsistent header: {m}"));
-    if width == 0 || height == 0 || width > crate::scene::MAX_IMAGE_SIDE as u32 || height > crate::scene::MAX_IMAGE_SIDE as u32 {
-        return bad(format!("image size {width}x{height}"));
-    }
-    if !(samples.start < samples.end && samples.end <= spp) {
-        return bad(format!("sample range {}..{} of spp {spp}", samples.start, samples.end));
-    }
-    if tile == 0 {
-        return bad("tile side 0".into());
-    }
-    let want_units = crate::render::unit_count(width, height, tile, samples.clone());
-    if n_units != want_units {
-        return bad(format!("{n_units} work units, the size, tile and range give {want_units}"));
-    }
-    if profile_len > MAX_PROFILE_RECORD {
-        return bad(format!("profile record of {profile_len} bytes"));
-    }
-    let profile =
-        String::from_utf8(c.take(profile_len).to_vec()).map_err(|_| "inconsistent header: profile record is not UTF-8".to_string())?;
-    if xxh64(profile.as_bytes()) != profile_hash {
-        return bad("profile hash does not match the profile record".into());
-    }
-    if let Err(e) = serde_json::from_str::<Profile>(&profile) {
-        return bad(format!("profile record: {e}"));
-    }
-    let build = if version >= 2 { c.u64() } else { 0 };
-    let bits = c.take(n_units.div_ceil(8));
-    let completed: Vec<bool> = (0..n_units).map(|i| bits[i / 8] >> (i % 8) & 1 == 1).collect();
-    if n_units % 8 != 0 && bits[n_units / 8] >> (n_units % 8) != 0 {
-        return bad("bits set past the last work unit".into());
-    }
-    let mut film = Film::new(width, height);
-    for i in 0..film.len() {
-        film.set_pixel(i, Pixel { sum: [c.i128(), c.i128(), c.i128()], sum_sq: [c.i128(), c.i128(), c.i128()], count: c.u64() });
-    }
-    let header = FilmHeader { width, height, spp, samples, tile, scene_hash, seed, profile, completed, build };
-    Ok(FilmFile { header, film })
+    FilmReader::new(bytes, bytes.len() as u64)?.read()
 }
 
-/// Read and validate a film file; errors start with the path.
+/// Read and validate a film file, streaming its pixels into one film; errors start with the path.
 pub fn read_film(path: &Path) -> Result<FilmFile, String> {
-    let at = |e: String| format!("{}: {e}", path.display());
-    let mut f = std::fs::File::open(path).map_err(|e| at(e.to_string()))?;
-    // Not a pipe or a device (`/dev/zero` would be read until memory runs out), nor beyond the largest
-    // film a render can write.
-    if !f.metadata().map_err(|e| at(e.to_string()))?.is_file() {
-        return Err(at("not a regular file (a film is read from a file)".into()));
-    }
-    let mut bytes = Vec::new();
-    std::io::Read::read_to_end(&mut std::io::Read::take(&mut f, MAX_FILM_BYTES + 1), &mut bytes).map_err(|e| at(e.to_string()))?;
-    if bytes.len() as u64 > MAX_FILM_BYTES {
-        return Err(at(format!("larger than any film strata writes ({MAX_FILM_BYTES} bytes at most): not a film")));
-    }
-    decode(&bytes).map_err(at)
+    let reader = FilmReader::open(path)?;
+    reader.read().map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Read and check a film file's header alone (a few KB: the pixels are not read, nor the checksum
+/// checked, which [`read_film`] and [`verify_film`] do); errors start with the path.
+pub fn read_film_header(path: &Path) -> Result<FilmHeader, String> {
+    Ok(FilmReader::open(path)?.header)
+}
+
+/// Read and validate a film file as [`read_film`] does (every check, the checksum's too), keeping only
+/// its header: memory for a buffer, not the film; errors start with the path.
+pub fn verify_film(path: &Path) -> Result<FilmHeader, String> {
+    FilmReader::open(path)?.verify().map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// The largest film file: the largest image's pixels, plus 64 MiB for the header, the profile record and
 /// the work units' completion bits (at most 8.4 MB: one bit per unit of the largest render).
 pub const MAX_FILM_BYTES: u64 = crate::scene::MAX_PIXELS * PIXEL_BYTES as u64 + (64 << 20);
 
-/// Write a film file atomically (temporary file, fsync, rename).
+/// Write a film file atomically (temporary file, fsync, rename), streaming: the pixels are encoded a
+/// chunk at a time into a buffered writer, never as a whole file in memory.
 pub fn write_film(path: &Path, header: &FilmHeader, film: &Film) -> Result<(), String> {
-    let bytes = encode(header, film);
-    write_atomic(path, |tmp| {
-        let mut f = std::fs::File::create(tmp).map_err(|e| format!("{}: {e}", path.display()))?;
-        f.write_all(&bytes).and_then(|_| f.sync_all()).map_err(|e| format!("{}: {e}", path.display()))
-    })
+    write_film_unless(path, header, film, &AtomicBool::new(false)).map(|_| ())
+}
+
+/// [`write_film`], given up where `stop` is set while it writes (a checkpoint that the render's final
+/// film supersedes): its temporary file is removed and the file at `path` left as it was. Whether it
+/// wrote the film.
+pub fn write_film_unless(path: &Path, header: &FilmHeader, film: &Film, stop: &AtomicBool) -> Result<bool, String> {
+    let stopped = AtomicBool::new(false);
+    let written = write_atomic(path, |tmp| {
+        let at = |e: std::io::Error| format!("{}: {e}", path.display());
+        let f = std::fs::File::create(tmp).map_err(at)?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+        if !write_film_until(&mut w, header, film, &|| stop.load(Ordering::Relaxed)).map_err(at)? {
+            stopped.store(true, Ordering::Relaxed);
+            return Err("stopped".into());
+        }
+        let f = w.into_inner().map_err(|e| at(e.into_error()))?;
+        f.sync_all().map_err(at)
+    });
+    match written {
+        Err(_) if stopped.load(Ordering::Relaxed) => Ok(false),
+        r => r.map(|_| true),
+    }
 }
 
 /// A new film (`--film`) named as an image is a slip: another program would take it for an image and
@@ -449,6 +651,243 @@ mod tests {
         assert!(e.starts_with("/dev/zero: not a regular file"), "{e}");
     }
 
+    /// The decoder as it was before films were read streaming (the whole file in memory), with its
+    /// cursor: the reference for the streamed reader's results and error messages.
+    struct OldCursor<'a> {
+        bytes: &'a [u8],
+        at: usize,
+    }
+
+    impl OldCursor<'_> {
+        fn take(&mut self, n: usize) -> &[u8] {
+            let s = &self.bytes[self.at..self.at + n];
+            self.at += n;
+            s
+        }
+        fn u32(&mut self) -> u32 {
+            u32::from_le_bytes(self.take(4).try_into().unwrap())
+        }
+        fn u64(&mut self) -> u64 {
+            u64::from_le_bytes(self.take(8).try_into().unwrap())
+        }
+        fn i128(&mut self) -> i128 {
+            i128::from_le_bytes(self.take(16).try_into().unwrap())
+        }
+    }
+
+    fn decode_whole(bytes: &[u8]) -> Result<FilmFile, String> {
+        let len = bytes.len();
+        if len < 12 || bytes[..8] != MAGIC {
+            return Err(if len >= 8 && bytes[..8] != MAGIC {
+                "not a Strata film file (bad magic; expected \"STRATAFM\")".to_string()
+            } else {
+                format!("not a Strata film file (only {len} bytes)")
+            });
+        }
+        let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
+        if version != VERSION && version != 1 {
+            return Err(format!("film format version {version} is not supported (this strata reads versions 1 and {VERSION})"));
+        }
+        let build_bytes = if version >= 2 { 8 } else { 0 };
+        if len < FIXED_HEADER + 8 {
+            return Err(format!("truncated: {len} bytes is shorter than the {}-byte header", FIXED_HEADER + 8));
+        }
+        let mut c = OldCursor { bytes, at: 12 };
+        let (width, height, spp) = (c.u32(), c.u32(), c.u32());
+        let samples = c.u32()..c.u32();
+        let (tile, n_units) = (c.u32(), c.u32() as usize);
+        let (scene_hash, seed, profile_hash) = (c.u64(), c.u64(), c.u64());
+        let profile_len = c.u32() as usize;
+
+        // The size the header implies (u128: a corrupted header must not overflow the arithmetic).
+        let expected = FIXED_HEADER as u128
+            + profile_len as u128
+            + build_bytes
+            + n_units.div_ceil(8) as u128
+            + width as u128 * height as u128 * PIXEL_BYTES as u128
+            + 8;
+        let stored_sum = u64::from_le_bytes(bytes[len - 8..].try_into().unwrap());
+        if xxh64(&bytes[..len - 8]) != stored_sum {
+            return Err(if expected != len as u128 {
+                format!("truncated or corrupted: the header implies {expected} bytes, the file has {len} (checksum mismatch)")
+            } else {
+                "corrupted: checksum mismatch (the file was changed after it was written)".to_string()
+            });
+        }
+        if expected != len as u128 {
+            return Err(format!("size mismatch: the header implies {expected} bytes, the file has {len}"));
+        }
+
+        // The checksum holds, so these can only fail for a file written by something else than strata.
+        let bad = |m: String| Err(format!("inconsistent header: {m}"));
+        if width == 0 || height == 0 || width > crate::scene::MAX_IMAGE_SIDE as u32 || height > crate::scene::MAX_IMAGE_SIDE as u32 {
+            return bad(format!("image size {width}x{height}"));
+        }
+        if !(samples.start < samples.end && samples.end <= spp) {
+            return bad(format!("sample range {}..{} of spp {spp}", samples.start, samples.end));
+        }
+        if tile == 0 {
+            return bad("tile side 0".into());
+        }
+        let want_units = crate::render::unit_count(width, height, tile, samples.clone());
+        if n_units != want_units {
+            return bad(format!("{n_units} work units, the size, tile and range give {want_units}"));
+        }
+        if profile_len > MAX_PROFILE_RECORD {
+            return bad(format!("profile record of {profile_len} bytes"));
+        }
+        let profile =
+            String::from_utf8(c.take(profile_len).to_vec()).map_err(|_| "inconsistent header: profile record is not UTF-8".to_string())?;
+        if xxh64(profile.as_bytes()) != profile_hash {
+            return bad("profile hash does not match the profile record".into());
+        }
+        if let Err(e) = serde_json::from_str::<Profile>(&profile) {
+            return bad(format!("profile record: {e}"));
+        }
+        let build = if version >= 2 { c.u64() } else { 0 };
+        let bits = c.take(n_units.div_ceil(8));
+        let completed: Vec<bool> = (0..n_units).map(|i| bits[i / 8] >> (i % 8) & 1 == 1).collect();
+        if n_units % 8 != 0 && bits[n_units / 8] >> (n_units % 8) != 0 {
+            return bad("bits set past the last work unit".into());
+        }
+        let mut film = Film::new(width, height);
+        for i in 0..film.len() {
+            film.set_pixel(i, Pixel { sum: [c.i128(), c.i128(), c.i128()], sum_sq: [c.i128(), c.i128(), c.i128()], count: c.u64() });
+        }
+        let header = FilmHeader { width, height, spp, samples, tile, scene_hash, seed, profile, completed, build };
+        Ok(FilmFile { header, film })
+    }
+
+    /// The encoder as it was before films were written streaming (the whole file in one buffer): the
+    /// reference the streamed writer's bytes are held to.
+    fn encode_whole(header: &FilmHeader, film: &Film) -> Vec<u8> {
+        let n_units = header.completed.len();
+        let mut out = Vec::new();
+        out.extend_from_slice(&MAGIC);
+        for v in [VERSION, header.width, header.height, header.spp, header.samples.start, header.samples.end, header.tile, n_units as u32] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        for v in [header.scene_hash, header.seed, header.profile_hash()] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&(header.profile.len() as u32).to_le_bytes());
+        out.extend_from_slice(header.profile.as_bytes());
+        out.extend_from_slice(&header.build.to_le_bytes());
+        let mut bits = vec![0u8; n_units.div_ceil(8)];
+        for (i, _) in header.completed.iter().enumerate().filter(|(_, &c)| c) {
+            bits[i / 8] |= 1 << (i % 8);
+        }
+        out.extend_from_slice(&bits);
+        for p in film.pixels() {
+            for v in p.sum.iter().chain(&p.sum_sq) {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            out.extend_from_slice(&p.count.to_le_bytes());
+        }
+        let sum = xxh64(&out);
+        out.extend_from_slice(&sum.to_le_bytes());
+        out
+    }
+
+    /// A film of more pixels than one chunk of the streamed writer and reader (4096), wide (128-bit)
+    /// pixels among compact ones, and its header.
+    fn large_sample() -> (FilmHeader, Film) {
+        let (w, h) = (83, 61);
+        let mut film = Film::new(w, h);
+        for i in 0..film.len() {
+            let sum = if i % 37 == 5 { [(i as i128) << 90, -(1i128 << 70), 3] } else { [i as i128, -(i as i128) * 7, 1 << 40] };
+            film.set_pixel(i, Pixel { sum, sum_sq: [i as i128 * 11, 0, 1 << 50], count: i as u64 % 9 });
+        }
+        let n = crate::render::unit_count(w, h, 16, 0..8);
+        let completed = (0..n).map(|i| i % 5 != 0).collect();
+        let profile = profile_record(&Profile::builtin("final"));
+        let header =
+            FilmHeader { width: w, height: h, spp: 8, samples: 0..8, tile: 16, scene_hash: 1, seed: 2, profile, completed, build: 3 };
+        (header, film)
+    }
+
+    /// The streamed writer (in memory and through `write_film`'s buffered file) gives the bytes of the
+    /// whole-file encoder, checksum included, for a small film of wide and compact pixels and one of
+    /// several chunks; reading the file back gives the film and header written.
+    #[test]
+    fn streamed_writer_gives_the_whole_file_encoders_bytes() {
+        let dir = std::env::temp_dir().join(format!("strata-film-stream-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (k, (h, f)) in [sample(), large_sample()].into_iter().enumerate() {
+            assert!(f.pixels().any(|p| p.sum.iter().any(|&s| s != s as i64 as i128)), "film {k} has no wide pixel");
+            let want = encode_whole(&h, &f);
+            assert!(encode(&h, &f) == want, "film {k}: streamed encode differs");
+            let path = dir.join(format!("f{k}.film"));
+            write_film(&path, &h, &f).unwrap();
+            assert!(std::fs::read(&path).unwrap() == want, "film {k}: the written file differs");
+            let back = read_film(&path).unwrap();
+            assert_eq!(back.header, h);
+            assert!(back.film == f, "film {k}: read(write(film)) differs");
+            assert_eq!(verify_film(&path).unwrap(), h);
+            assert_eq!(read_film_header(&path).unwrap(), h);
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A write given up leaves the file there as it was, and no temporary file.
+    #[test]
+    fn a_write_given_up_leaves_the_previous_file() {
+        let dir = std::env::temp_dir().join(format!("strata-film-stop-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("c.film");
+        let (h, f) = large_sample();
+        assert_eq!(write_film_unless(&path, &h, &f, &AtomicBool::new(false)), Ok(true));
+        let before = std::fs::read(&path).unwrap();
+        let (h2, f2) = sample();
+        assert_eq!(write_film_unless(&path, &h2, &f2, &AtomicBool::new(true)), Ok(false));
+        assert!(std::fs::read(&path).unwrap() == before);
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "a temporary file was left");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The header is read and checked alone: no byte of the pixels is read (a resume or merge refuses a
+    /// film of another render before reading them), and a film whose pixels are damaged still reads
+    /// its header; reading the pixels then finds the damage. Pixels added to a film as they are read
+    /// give `Film::merge`'s sums.
+    #[test]
+    fn the_header_is_read_without_the_pixels() {
+        struct Counting<'a>(&'a [u8], usize);
+        impl Read for Counting<'_> {
+            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                let n = self.0.read(buf)?;
+                self.1 += n;
+                Ok(n)
+            }
+        }
+        let (h, f) = large_sample();
+        let bytes = encode(&h, &f);
+        let head = header_bytes(&h).len();
+        let mut r = Counting(&bytes, 0);
+        let reader = FilmReader::new(&mut r, bytes.len() as u64).unwrap();
+        assert_eq!(reader.header(), &h);
+        drop(reader);
+        assert_eq!(r.1, head, "the header read read {} bytes, the header has {head}", r.1);
+        let mut damaged = bytes.clone();
+        damaged[head + 1000] ^= 1;
+        let reader = FilmReader::new(&damaged[..], damaged.len() as u64).unwrap();
+        assert_eq!(reader.header(), &h);
+        let e = reader.read().unwrap_err();
+        assert!(e.contains("checksum mismatch"), "{e}");
+        let mut sum = f.clone();
+        let mut want = f.clone();
+        want.merge(&f);
+        FilmReader::new(&bytes[..], bytes.len() as u64).unwrap().merge_into(&mut sum).unwrap();
+        assert!(sum == want);
+    }
+
+    /// Memory for a film that cannot be had is an error naming the size, not an abort (256 TB: beyond
+    /// any address space).
+    #[test]
+    fn a_film_too_large_for_memory_is_an_error() {
+        let e = Film::try_new(1 << 21, 1 << 21).unwrap_err();
+        assert!(e.contains("2097152x2097152") && e.contains("281474976710656 bytes"), "{e}");
+    }
+
     #[test]
     fn round_trip_is_exact() {
         let (h, f) = sample();
@@ -463,13 +902,31 @@ mod tests {
     fn every_single_byte_corruption_and_truncation_is_detected() {
         let (h, f) = sample();
         let bytes = encode(&h, &f);
+        let verify = |b: &[u8]| FilmReader::new(b, b.len() as u64).and_then(|r| r.verify());
         for i in 0..bytes.len() {
             let mut b = bytes.clone();
             b[i] ^= 0x10;
             assert!(decode(&b).is_err(), "flipped bit in byte {i} went unnoticed");
+            assert_eq!(decode(&b).unwrap_err(), decode_whole(&b).unwrap_err(), "byte {i}: not the whole-file reader's error");
+            assert_eq!(verify(&b).unwrap_err(), decode(&b).unwrap_err(), "byte {i}");
+        }
+        // The same flips with the checksum made to match (a file written by something else than
+        // strata): the header's own checks, the results and their messages those of the whole-file reader.
+        for i in 0..bytes.len() - 8 {
+            let mut b = bytes[..bytes.len() - 8].to_vec();
+            b[i] ^= 0x10;
+            let sum = xxh64(&b);
+            b.extend_from_slice(&sum.to_le_bytes());
+            match (decode(&b), decode_whole(&b)) {
+                (Ok(x), Ok(y)) => assert!(x == y, "byte {i}"),
+                (x, y) => assert_eq!(x.map(|_| ()), y.map(|_| ()), "byte {i}"),
+            }
+            assert_eq!(verify(&b).map(|_| ()), decode(&b).map(|_| ()), "byte {i}");
         }
         for n in 0..bytes.len() {
             assert!(decode(&bytes[..n]).is_err(), "truncation to {n} bytes went unnoticed");
+            assert_eq!(decode(&bytes[..n]).unwrap_err(), decode_whole(&bytes[..n]).unwrap_err(), "{n} bytes");
+            assert_eq!(verify(&bytes[..n]).unwrap_err(), decode(&bytes[..n]).unwrap_err(), "{n} bytes");
         }
         let e = decode(&bytes[..bytes.len() - 10]).unwrap_err();
         assert!(e.contains("truncated"), "{e}");

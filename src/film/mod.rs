@@ -342,7 +342,23 @@ impl Eq for Film {}
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Film {
-        let mut cells = cells::Cells::<Cell>::zeroed(width as usize * height as usize);
+        Film::with_cells(width, height, cells::Cells::<Cell>::zeroed(width as usize * height as usize))
+    }
+
+    /// [`Film::new`], or an error saying how much memory it needs where that cannot be had (where
+    /// `new` aborts the process): films read for resume and merge, and checkpoints' copies.
+    pub fn try_new(width: u32, height: u32) -> Result<Film, String> {
+        let n = width as usize * height as usize;
+        match cells::Cells::<Cell>::try_zeroed(n) {
+            Some(cells) => Ok(Film::with_cells(width, height, cells)),
+            None => Err(format!(
+                "not enough memory for the film of {width}x{height} pixels: it needs {} bytes ({FILM_BYTES_PER_PIXEL} per pixel)",
+                n as u128 * FILM_BYTES_PER_PIXEL as u128
+            )),
+        }
+    }
+
+    fn with_cells(width: u32, height: u32, mut cells: cells::Cells<Cell>) -> Film {
         // The pages come untouched (zero pages of the OS): touch every page now, once, rather than in
         // the render, where each first write would fault inside the accumulate stage with the film
         // locked (~1.5 us a 4 KiB page here; one fault per 2 MiB where huge pages are given).
@@ -350,6 +366,14 @@ impl Film {
             std::hint::black_box(c).wide = 0;
         }
         Film { width, height, cells, wide: Vec::new() }
+    }
+
+    /// Make this film a copy of `o` (of the same size), in the memory it has: a copy, no allocation
+    /// beyond the side table of wide pixels.
+    pub fn copy_from(&mut self, o: &Film) {
+        assert_eq!((self.width, self.height), (o.width, o.height));
+        self.cells.copy_from_slice(&o.cells);
+        self.wide.clone_from(&o.wide);
     }
 
     /// Number of pixels.
