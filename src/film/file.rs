@@ -516,6 +516,10 @@ impl Cursor<'_> {
     fn u64(&mut self) -> u64 {
         u64::from_le_bytes(self.take(8).try_into().unwrap())
     }
+    #[cfg(test)]
+    fn i128(&mut self) -> i128 {
+        i128::from_le_bytes(self.take(16).try_into().unwrap())
+    }
 }
 
 /// Parse and validate a film file held in memory. Errors say what is wrong, without the path (the
@@ -651,30 +655,8 @@ mod tests {
         assert!(e.starts_with("/dev/zero: not a regular file"), "{e}");
     }
 
-    /// The decoder as it was before films were read streaming (the whole file in memory), with its
-    /// cursor: the reference for the streamed reader's results and error messages.
-    struct OldCursor<'a> {
-        bytes: &'a [u8],
-        at: usize,
-    }
-
-    impl OldCursor<'_> {
-        fn take(&mut self, n: usize) -> &[u8] {
-            let s = &self.bytes[self.at..self.at + n];
-            self.at += n;
-            s
-        }
-        fn u32(&mut self) -> u32 {
-            u32::from_le_bytes(self.take(4).try_into().unwrap())
-        }
-        fn u64(&mut self) -> u64 {
-            u64::from_le_bytes(self.take(8).try_into().unwrap())
-        }
-        fn i128(&mut self) -> i128 {
-            i128::from_le_bytes(self.take(16).try_into().unwrap())
-        }
-    }
-
+    /// The decoder as it was before films were read streaming (the whole file in memory, read with
+    /// [`Cursor`]): the reference for the streamed reader's results and error messages.
     fn decode_whole(bytes: &[u8]) -> Result<FilmFile, String> {
         let len = bytes.len();
         if len < 12 || bytes[..8] != MAGIC {
@@ -692,7 +674,7 @@ mod tests {
         if len < FIXED_HEADER + 8 {
             return Err(format!("truncated: {len} bytes is shorter than the {}-byte header", FIXED_HEADER + 8));
         }
-        let mut c = OldCursor { bytes, at: 12 };
+        let mut c = Cursor { bytes, at: 12 };
         let (width, height, spp) = (c.u32(), c.u32(), c.u32());
         let samples = c.u32()..c.u32();
         let (tile, n_units) = (c.u32(), c.u32() as usize);
