@@ -325,7 +325,7 @@ pub fn render_resumable(job: &RenderJob, film: Film, completed: Vec<bool>) -> (F
             crate::wavefront::pick::LightPick::install(scene, &job.settings.profile, pick.clone());
             let mut wf = Wavefront::new(&scene.features);
             loop {
-                if job.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) || overflow.load(Ordering::Relaxed) {
+                if stopping() {
                     break;
                 }
                 let k = next.fetch_add(1, Ordering::Relaxed);
