@@ -1608,3 +1608,59 @@ fn lights_that_give_no_light_are_warned_of() {
         }
     }
 }
+
+/// A light inside a closed solid that keeps its light in is warned of at the light, naming the solid,
+/// and the warning is true: alone in the scene, such a light leaves every pixel black (an opaque sphere,
+/// an opaque box around a sphere light, a CSG solid, a glass ball around a point light), while the same
+/// light just outside the solid, or in a hole bored through it, or the glass ball under the profile's
+/// `transmissive_shadows`, lights the floor and is not warned of.
+#[test]
+fn lights_inside_solids_are_warned_of_and_the_warning_is_true() {
+    use strata::render::render;
+    use strata::scene::Profile;
+    use strata::wavefront::Settings;
+    let mats = "[materials.glass]\ntype = \"dielectric\"\nior = 1.5\n\
+                [[shapes]]\ntype = \"plane\"\npoint = [0, -1, 0]\nnormal = [0, 1, 0]\nmaterial = \"m\"\n";
+    let sphere = |r: &str, m: &str| format!("[[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = {r}\nmaterial = \"{m}\"\n");
+    let point = |y: &str| format!("[[lights]]\ntype = \"point\"\nposition = [0, {y}, 0]\nintensity = [5, 5, 5]\n");
+    let ball_light = "[[lights]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 0.2\nradiance = [5, 5, 5]\n";
+    let boxed = |h: &str| format!("[[shapes]]\ntype = \"box\"\nmin = [-{h}, -{h}, -{h}]\nmax = [{h}, {h}, {h}]\nmaterial = \"m\"\n");
+    // A ball with a square hole bored along y through its centre (the light in the hole) or off it.
+    let bored = |x: f32| {
+        format!(
+            "[[shapes]]\ntype = \"group\"\nmaterial = \"m\"\nchildren = [ {{ type = \"sphere\", center = [0, 0, 0], radius = 0.5 }}, \
+             {{ type = \"box\", min = [{}, -1, -0.1], max = [{}, 1, 0.1], hole = true }} ]\n",
+            x - 0.1,
+            x + 0.1
+        )
+    };
+    let cases: Vec<(String, Option<&str>, bool)> = vec![
+        (format!("{}{}", sphere("0.5", "m"), point("0")), Some("closed opaque solid"), false),
+        (format!("{}{}", sphere("0.5", "m"), point("0.6")), None, false),
+        (format!("{}{ball_light}", boxed("0.3")), Some("closed opaque solid"), false),
+        (format!("{}{ball_light}", boxed("0.15")), None, false),
+        (format!("{}{}", bored(0.3), point("0")), Some("closed opaque solid"), false),
+        (format!("{}{}", bored(0.0), point("0")), None, false),
+        (format!("{}{}", sphere("0.5", "glass"), point("0")), Some("a glass solid"), false),
+        (format!("{}{}", sphere("0.5", "glass"), point("0")), Some("a glass solid"), true),
+    ];
+    for (shapes, warned, transmissive) in cases {
+        let text = format!("{BASE}{mats}{shapes}");
+        let scene = parse_scene(Path::new("l.toml"), &text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        let says: Vec<&String> = scene.warnings.iter().filter(|w| w.contains("lies inside")).collect();
+        match warned {
+            Some(what) => {
+                assert_eq!(says.len(), 1, "{text}\n{:?}", scene.warnings);
+                assert!(says[0].contains(what) && says[0].contains("`lights[0]`") && says[0].contains("`shapes[1]`"), "{}", says[0]);
+                let line = text.lines().position(|l| l == "[[lights]]").unwrap() + 1;
+                assert!(says[0].contains(&format!("l.toml:{line}:")), "{}", says[0]);
+            }
+            None => assert!(says.is_empty(), "{text}\n{says:?}"),
+        }
+        let mut profile = Profile::builtin("preview");
+        profile.transmissive_shadows = transmissive;
+        let (film, _) = render(&scene, Settings { profile, seed: 1 }, 1);
+        let brightest = film.to_rgb().iter().fold(0.0f32, |m, c| m.max(c.max_element()));
+        assert_eq!(brightest > 0.0, warned.is_none() || transmissive, "{text}: brightest pixel {brightest}");
+    }
+}

@@ -567,6 +567,7 @@ impl Compiler<'_> {
             self.coincident_glass_surfaces(&spheres);
         }
         self.coincident_emitters();
+        self.enclosed_lights(&bvh, &bounded, shutter[0]);
         self.tell_counted();
         let cam = file.camera.get_ref();
         let sites = vec![
@@ -873,6 +874,145 @@ impl Compiler<'_> {
         if pairs.len() > SHOWN {
             let (span, field) = self.prim_at[pairs[SHOWN].0].clone();
             self.warn(span, field, more(pairs.len() - SHOWN));
+        }
+    }
+
+    /// Warn of lights inside a closed solid that keeps their light in (a user who puts a point light at
+    /// the centre of an opaque sphere, a lamp's bulb, gets no light from it and, with other lights in
+    /// the scene, no other sign of it): a light whose every test point (a point light's position; a
+    /// sphere light's centre and 14 points of its surface; a quad's corners and centre; a disk's centre
+    /// and 8 points of its rim) lies strictly inside one static solid (sphere, ellipsoid, box or CSG
+    /// solid) that is opaque (for a CSG solid: every leaf), or, for a point light, inside a glass solid
+    /// whose surfaces shadow rays cannot cross (glass blocks direct light: what it passes is a caustic,
+    /// which next-event estimation does not find, and no bounce ray can meet a point). At the light,
+    /// naming the solid; the candidates come from the BVH (solids whose bounds hold the first point).
+    /// Past a budget of work (BVH nodes, inside tests counted in CSG leaves) the check stops quietly.
+    fn enclosed_lights(&mut self, bvh: &crate::accel::Bvh, bounded: &[u32], t: f32) {
+        if self.prim_at.len() != self.prims.len() || bvh.is_empty() {
+            return;
+        }
+        // (A hint, not a rule: past a budget of work the check stops quietly, so that thousands of lamps
+        // inside the bounds of a solid of a million leaves cost no more than a second.)
+        const ENCLOSED_BUDGET: u64 = 1 << 26;
+        let (file, mut work) = (self.file, 0u64);
+        let mut found: Vec<(usize, usize, bool)> = Vec::new();
+        for (i, light) in self.lights.iter().enumerate() {
+            let points: Vec<Vec3> = match light {
+                Light::Point { position, .. } => vec![*position],
+                Light::Sphere { center, radius, .. } => {
+                    let mut v = vec![*center];
+                    for d in [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z] {
+                        v.push(*center + d * *radius);
+                    }
+                    for k in 0..8 {
+                        let d = Vec3::new(
+                            if k & 1 == 0 { 1.0 } else { -1.0 },
+                            if k & 2 == 0 { 1.0 } else { -1.0 },
+                            if k & 4 == 0 { 1.0 } else { -1.0 },
+                        );
+                        v.push(*center + d.normalize() * *radius);
+                    }
+                    v
+                }
+                Light::Quad { quad, .. } => {
+                    let (o, u, v) = (quad.origin, quad.u, quad.v);
+                    vec![o + 0.5 * (u + v), o, o + u, o + v, o + u + v]
+                }
+                Light::Disk { disk, .. } => {
+                    let (a, b) = disk.normal.any_orthonormal_pair();
+                    let mut v = vec![disk.center];
+                    for k in 0..8 {
+                        let phi = k as f32 * std::f32::consts::FRAC_PI_4;
+                        v.push(disk.center + (a * phi.cos() + b * phi.sin()) * disk.radius);
+                    }
+                    v
+                }
+            };
+            if !points.iter().all(|x| x.is_finite()) {
+                continue;
+            }
+            if work > ENCLOSED_BUDGET {
+                break;
+            }
+            let x = points[0];
+            // The solids whose bounds hold `x` (a point query of the BVH).
+            let mut stack = vec![0usize];
+            let mut holder: Option<(usize, bool)> = None;
+            while let Some(n) = stack.pop() {
+                let node = &bvh.nodes[n];
+                work += 1;
+                if !(Vec3::from(node.min).cmple(x).all() && x.cmple(Vec3::from(node.max)).all()) {
+                    continue;
+                }
+                if !node.is_leaf() {
+                    let l = node.left_first as usize;
+                    stack.extend([l, l + 1]);
+                    continue;
+                }
+                let (first, count) = (node.left_first as usize, node.count() as usize);
+                for &slot in &bvh.indices[first..first + count] {
+                    let k = bounded[slot as usize] as usize;
+                    let p = &self.prims[k];
+                    if p.is_light || p.motion != Vec3::ZERO {
+                        continue;
+                    }
+                    let opaque = |m: u32| !matches!(self.materials[m as usize], Material::Dielectric(_) | Material::Emissive { .. });
+                    let keeps = match p.shape {
+                        Shape::Csg { solid } => {
+                            // (Its leaves' materials, then each point's inside test: work in its leaves.)
+                            let (mut leaves, mut all) = (0u64, true);
+                            for l in self.csg.solid_leaves(solid) {
+                                leaves += 1;
+                                all &= opaque(self.csg.leaf(l).material);
+                            }
+                            work += leaves * (1 + points.len() as u64);
+                            all.then_some(true)
+                        }
+                        Shape::Sphere { .. } | Shape::Ellipsoid(_) | Shape::Box(_) => match &self.materials[p.material as usize] {
+                            Material::Dielectric(d) => (light.is_point() && !d.thin && !d.passable).then_some(false),
+                            Material::Emissive { .. } => None,
+                            _ => Some(true),
+                        },
+                        _ => None,
+                    };
+                    let Some(opaque) = keeps else { continue };
+                    work += points.len() as u64;
+                    if points.iter().all(|&x| self.solid_contains(p, x, t)) && holder.is_none_or(|(_, o)| opaque && !o) {
+                        holder = Some((k, opaque));
+                    }
+                }
+            }
+            if let Some((k, opaque)) = holder {
+                found.push((i, k, opaque));
+            }
+        }
+        for (n, &(i, k, opaque)) in found.iter().enumerate() {
+            let span = file.lights[i].span();
+            let field = format!("lights[{i}]");
+            if n == SHOWN_PER_KIND {
+                self.warn(
+                    span,
+                    field,
+                    format!("and {} more lights from here on lie inside a solid that keeps their light in", found.len() - n),
+                );
+                break;
+            }
+            let solid = &self.prim_at[k].1;
+            let msg = if opaque {
+                let seen = if self.lights[i].is_point() { "" } else { ", and it is hidden from everything outside" };
+                format!(
+                    "this light lies inside `{solid}`, a closed opaque solid: none of its light reaches outside that solid{seen}; \
+                     move it out, or make the solid a glass or smaller"
+                )
+            } else {
+                format!(
+                    "this point light lies inside `{solid}`, a glass solid: glass blocks a point light's direct light (what it \
+                     passes is a caustic, which next-event estimation does not find, and no ray can meet a point), so it lights \
+                     nothing outside the glass; set `transmissive_shadows = true` in the profile (shadows through glass, not \
+                     bent), or use a small sphere light, which bounce rays through the glass can find"
+                )
+            };
+            self.warn(span, field, msg);
         }
     }
 
