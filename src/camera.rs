@@ -51,14 +51,6 @@ impl Camera {
         self.forward + self.right * sx + self.up * sy
     }
 
-    /// Unit directions of 8 pinhole rays through image points (x, y): [`Camera::pinhole_dir`] and
-    /// `normalize` lane by lane, the same operations in the same order (no fused multiply-adds), so the
-    /// bits equal those of [`Camera::ray`].
-    #[inline]
-    pub fn pinhole_dirs_x8(&self, x: f32x8, y: f32x8) -> Vec3x8 {
-        self.pinhole_dir_x8(x, y).normalize()
-    }
-
     /// Eight lanes of [`Camera::pinhole_dir`] (same operations, same bits).
     #[inline(always)]
     fn pinhole_dir_x8(&self, x: f32x8, y: f32x8) -> Vec3x8 {

@@ -1104,3 +1104,55 @@ fn slopes_at_the_f32_floor_are_marked() {
     assert!(line("sobol").contains("rounding, not sampling, flattens the slope"), "{out}");
     assert!(!line("jittered").contains("rounding"), "{out}");
 }
+
+/// A contact sheet's cells are scaled by the render's longer side, so that a tall render's cell stays
+/// within `MAX_CELL_W` both ways (by the width alone, a 1 x 409 render made a cell 128 x 52,352 and the
+/// sheet's byte count overflowed u32: `study --sheet` aborted); a sheet of more than `MAX_SHEET_PIXELS`
+/// is refused before any run, and the study of a 1 x 409 render writes its sheet at the size given.
+#[test]
+fn tall_renders_make_small_cells_and_huge_sheets_are_refused() {
+    use strata::study::sheet::{cell_size, check_size, sheet_size, MAX_CELL_W, MAX_SHEET_PIXELS};
+    for (w, h) in [(1, 409), (1, 16384), (409, 1), (3, 2000), (48, 32), (1000, 10)] {
+        let (cw, ch, up, down) = cell_size(w, h);
+        assert!(cw <= MAX_CELL_W && ch <= MAX_CELL_W && (up == 1 || down == 1), "{w}x{h}: {cw}x{ch}");
+        assert_eq!((cw, ch), if up > 1 { (w * up, h * up) } else { ((w / down).max(1), (h / down).max(1)) });
+    }
+    // 48 x 32 renders of 5 strategies: the most counts whose sheet is within the limit, and one more.
+    let (cw, ch, _, _) = cell_size(48, 32);
+    let fits = |cols: u64| (110 + cols * (cw as u64 + 6) + 6) * (30 + 5 * (ch as u64 + 6) + 6) <= MAX_SHEET_PIXELS;
+    let most = (1..1_000_000u64).take_while(|&c| fits(c)).last().unwrap() as usize;
+    assert!(check_size(48, 32, 5, most).is_ok());
+    let e = check_size(48, 32, 5, most + 1).unwrap_err();
+    assert!(e.contains("--sheet") && e.contains("100000000"), "{e}");
+    // The CLI refuses it at once, before the reference or any run.
+    let counts = (1..=most + 1).map(|n| n.to_string()).collect::<Vec<_>>().join(",");
+    let dir = tmp_dir("huge_sheet");
+    let out = strata()
+        .args(["study", "scenes/quad_irradiance.toml", "--reference", "analytic", "--size", "48x32", "--spp", &counts])
+        .args(["--strategies", "center,grid,random,jittered,sobol", "--sheet", "--out", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("make a sheet of") && !err.contains("run 1/"), "{err}");
+    // A tall render's study writes its sheet.
+    let dir = tmp_dir("tall_sheet");
+    let _ = run_ok(&[
+        "study",
+        "scenes/quad_irradiance.toml",
+        "--reference",
+        "analytic",
+        "--size",
+        "1x409",
+        "--spp",
+        "1,2",
+        "--strategies",
+        "random,jittered",
+        "--sheet",
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    let sheet = image::open(dir.join("sheet.png")).unwrap().to_rgb8();
+    assert_eq!(sheet.dimensions(), sheet_size(1, 409, 2, 2));
+}

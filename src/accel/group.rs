@@ -146,7 +146,7 @@ pub(super) const SLACK: f32 = 1.0 / (1u32 << 19) as f32;
 /// Spatial widening of node boxes relative to the largest origin coordinate (see [`GroupBounds::misses`]).
 const PAD: f32 = 1.0 / (1u32 << 20) as f32;
 
-/// Sum of the active lanes' directions of all packets, as `near_is_right` bits (see `traverse.rs`).
+/// Sum of the active lanes' directions of all packets, as `near_is_right_bits` (see `traverse.rs`).
 fn near_bits(rays: &[Ray8]) -> u32 {
     let mut s = Vec3x8::splat(Vec3::ZERO);
     for r in rays {

@@ -221,7 +221,7 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
         )));
     }
     // The runs' sampling warnings, as `render` gives them, each once with the first run it concerns.
-    let mut warned: Vec<(String, String)> = Vec::new();
+    let mut warned: Vec<(String, String, Strategy)> = Vec::new();
     for &s in &strategies {
         for &n in &counts {
             let p = configure(&profile, &integrals, s, n, a.light_samples_from_spp).map_err(|e| Failure::input(format!("--spp: {e}")))?;
@@ -229,8 +229,8 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
                 .map_err(|e| Failure::input(format!("--spp {n}: {e}")))?;
             let identical = super::render_cmd::identical_samples_warning(&scene, &p);
             for w in super::render_cmd::sampling_warnings(&scene, &p).into_iter().chain(identical) {
-                if !warned.iter().any(|(_, seen)| *seen == w) {
-                    warned.push((format!("warning: {} n = {n}: {w}", s.name()), w));
+                if !warned.iter().any(|(_, seen, _)| *seen == w) {
+                    warned.push((format!("warning: {} n = {n}: {w}", s.name()), w, s));
                 }
             }
         }
@@ -242,6 +242,16 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
         (None, Some(0)) => return Err(Failure::input("--reference-spp must be at least 1")),
         (None, Some(n)) => ReferenceSource::Samples(n),
         (None, None) => {
+            // (16 x a count beyond 2^28 passes u32: refused here, in u64, rather than saturated to a
+            // count that is neither 16 x nor, for the light, a multiple of 4096.)
+            let wanted = 16 * largest as u64;
+            if wanted > u32::MAX as u64 {
+                return Err(Failure::input(format!(
+                    "the default reference (16 x the largest count {largest} = {wanted} samples) is more than {} samples: give a \
+                     smaller --reference-spp, or a reference image with --reference FILE.exr",
+                    u32::MAX
+                )));
+            }
             let mut n = largest.saturating_mul(16);
             if light_only(&integrals) && n > 4096 {
                 n = n.div_ceil(4096).saturating_mul(4096);
@@ -251,6 +261,9 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
     };
     let plan =
         Plan { integrals, strategies, counts, seeds: a.seeds, light_from_spp: a.light_samples_from_spp, threads: a.threads, cancel: None };
+    if a.sheet {
+        crate::study::sheet::check_size(scene.width, scene.height, plan.strategies.len(), plan.counts.len()).map_err(Failure::input)?;
+    }
     // The reference's own profile, checked before any run (the default's count is 16 x the largest).
     if let ReferenceSource::Samples(n) = source {
         if let Err(e) = reference_profile(&profile, &plan, n) {
@@ -266,8 +279,17 @@ fn setup(a: &StudyArgs) -> Result<Setup, Failure> {
         }
     }
     // (Printed once nothing is refused: a refused study is not also warned of.)
-    for (line, _) in &warned {
-        errln!("{line}");
+    // (The first 4 of each strategy, then how many more: a study of thousands of counts printed a
+    // warning or two for each.)
+    const SHOWN: usize = 4;
+    for &s in &plan.strategies {
+        let of: Vec<&String> = warned.iter().filter(|(_, _, by)| *by == s).map(|(line, _, _)| line).collect();
+        for line in of.iter().take(SHOWN) {
+            errln!("{line}");
+        }
+        if of.len() > SHOWN {
+            errln!("warning: and {} more sampling warnings of the `{}` runs at other counts", of.len() - SHOWN, s.name());
+        }
     }
     if let Some(l) = fixed_light_grid(&scene, &profile, &plan) {
         errln!(

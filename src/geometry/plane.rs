@@ -5,19 +5,11 @@ use crate::simd::{f32x8, Lanes, Ray8};
 use glam::{DVec3, Vec3};
 
 /// The plane of points `p` with `normal . p = offset`. `normal` need not be unit length (the
-/// kernel divides it out); [`Plane::from_point_normal`] builds a unit-normal plane.
+/// kernel divides it out).
 #[derive(Clone, Copy, Debug)]
 pub struct Plane {
     pub normal: Vec3,
     pub offset: f32,
-}
-
-impl Plane {
-    /// The plane through `point` with unit normal `normalize(normal)`.
-    pub fn from_point_normal(point: Vec3, normal: Vec3) -> Plane {
-        let n = normal.normalize_or_zero();
-        Plane { normal: n, offset: n.dot(point) }
-    }
 }
 
 /// Ray/plane: `t = (offset - n.o) / (n.d)`, one division (textbook; Haines, "Essential Ray

@@ -1657,7 +1657,7 @@ impl Compiler<'_> {
     /// ray entering it starts `offset_distance` (256 ULPs of the hit point's largest coordinate) inside,
     /// so through a thinner one it starts past the far face, never sees it, and counts as inside the glass
     /// for the rest of its path (a 2 mm pane at x = 200 rendered black, a user trial). CSG leaves have
-    /// their own, stricter warning (`csg_solid`).
+    /// their own, stricter warning (in [`Self::top_shape`]: a leaf thinner than 10 coincidence tolerances).
     fn thin_glass(&mut self, shape: &Shape, material: u32, def: &S<ShapeDef>, field: impl Display + Copy) {
         if !self.is_medium(material) {
             return;

@@ -338,7 +338,7 @@ pub struct Scene {
 
 impl Scene {
     /// The medium stack a camera ray of shutter time `t` starts with: the innermost
-    /// [`MediumStack::DEPTH`] of the media that hold the camera at `t`, outermost first.
+    /// [`MediumStack::DEPTH`](crate::wavefront::queues::MediumStack::DEPTH) of the media that hold the camera at `t`, outermost first.
     pub fn camera_media_at(&self, t: f32) -> crate::wavefront::queues::MediumStack {
         let holds = |m: &&CameraMedium| m.holds_at(t);
         let n = self.camera_media.iter().filter(holds).count();

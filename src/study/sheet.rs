@@ -20,22 +20,48 @@ pub const MIN_CELL_W: u32 = 128;
 pub const MAX_CELL_W: u32 = 256;
 
 /// A cell's size and scale for a `w x h` render: `(cell_w, cell_h, up, down)`, one of `up`, `down` being 1.
+/// By the render's longer side, so that neither side of a cell passes [`MAX_CELL_W`] (by the width alone,
+/// a 1 x 409 render became a cell 128 x 52,352, and its sheet's size overflowed).
 pub fn cell_size(w: u32, h: u32) -> (u32, u32, u32, u32) {
-    if w < MIN_CELL_W {
-        let up = MIN_CELL_W.div_ceil(w.max(1));
+    let side = w.max(h).max(1);
+    if side < MIN_CELL_W {
+        let up = MIN_CELL_W.div_ceil(side);
         (w * up, h * up, up, 1)
-    } else if w > MAX_CELL_W {
-        let down = w.div_ceil(MAX_CELL_W);
+    } else if side > MAX_CELL_W {
+        let down = side.div_ceil(MAX_CELL_W);
         ((w / down).max(1), (h / down).max(1), 1, down)
     } else {
         (w, h, 1, 1)
     }
 }
 
-/// Size of the sheet for `rows x cols` renders of `w x h`.
-pub fn sheet_size(w: u32, h: u32, rows: u32, cols: u32) -> (u32, u32) {
+/// The most pixels a sheet may have (300 MB of RGB): a study of more counts and strategies is refused
+/// before its runs ([`check_size`]).
+pub const MAX_SHEET_PIXELS: u64 = 100_000_000;
+
+/// Size of the sheet for `rows x cols` renders of `w x h` (in u64: rows and columns are the user's).
+pub fn sheet_size_u64(w: u32, h: u32, rows: u64, cols: u64) -> (u64, u64) {
     let (cw, ch, _, _) = cell_size(w, h);
-    (LABEL_W + cols * (cw + GAP) + GAP, HEADER_H + rows * (ch + GAP) + GAP)
+    (LABEL_W as u64 + cols * (cw + GAP) as u64 + GAP as u64, HEADER_H as u64 + rows * (ch + GAP) as u64 + GAP as u64)
+}
+
+/// Size of the sheet for `rows x cols` renders of `w x h` (within [`MAX_SHEET_PIXELS`]: see [`check_size`]).
+pub fn sheet_size(w: u32, h: u32, rows: u32, cols: u32) -> (u32, u32) {
+    let (sw, sh) = sheet_size_u64(w, h, rows as u64, cols as u64);
+    (sw.min(u32::MAX as u64) as u32, sh.min(u32::MAX as u64) as u32)
+}
+
+/// Whether the sheet of `rows x cols` renders of `w x h` is within [`MAX_SHEET_PIXELS`]: else the
+/// message saying so.
+pub fn check_size(w: u32, h: u32, rows: usize, cols: usize) -> Result<(), String> {
+    let (sw, sh) = sheet_size_u64(w, h, rows as u64, cols as u64);
+    if sw.saturating_mul(sh) > MAX_SHEET_PIXELS {
+        return Err(format!(
+            "--sheet: {rows} strategies x {cols} counts of {w}x{h} renders make a sheet of {sw} x {sh} pixels, more than \
+             {MAX_SHEET_PIXELS}; study fewer counts or strategies, or leave out --sheet"
+        ));
+    }
+    Ok(())
 }
 
 /// Scale a linear render to its cell (see the module doc).
@@ -70,7 +96,8 @@ pub fn draw(
     ensure_font();
     let (cw, ch, _, _) = cell_size(w, h);
     let (sw, sh) = sheet_size(w, h, strategies.len() as u32, counts.len() as u32);
-    let mut buf = vec![255u8; (sw * sh * 3) as usize];
+    check_size(w, h, strategies.len(), counts.len())?;
+    let mut buf = vec![255u8; sw as usize * sh as usize * 3];
     let origin = |row: usize, col: usize| (LABEL_W + GAP + col as u32 * (cw + GAP), HEADER_H + row as u32 * (ch + GAP));
     for (st, n, img) in images {
         let (Some(row), Some(col)) = (strategies.iter().position(|s| s == st), counts.iter().position(|c| c == n)) else {
@@ -79,9 +106,9 @@ pub fn draw(
         let cell = to_srgb8(&scale(img, w, h));
         let (x0, y0) = origin(row, col);
         for y in 0..ch {
-            let dst = (((y0 + y) * sw + x0) * 3) as usize;
-            let src = (y * cw * 3) as usize;
-            buf[dst..dst + (cw * 3) as usize].copy_from_slice(&cell[src..src + (cw * 3) as usize]);
+            let dst = ((y0 + y) as usize * sw as usize + x0 as usize) * 3;
+            let src = y as usize * cw as usize * 3;
+            buf[dst..dst + cw as usize * 3].copy_from_slice(&cell[src..src + cw as usize * 3]);
         }
     }
     let res: Result<(), Box<dyn std::error::Error>> = (|| {

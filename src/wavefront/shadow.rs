@@ -4,7 +4,7 @@
 //! unoccluded samples add their contribution to the path. Before a sample's rays join a batch, the chunk
 //! loop decides what it can without one: the light-cone test (`cone.rs`) for lights with many samples,
 //! and, for point lights in scenes that have one, the light's light buffer
-//! ([`occlusion_light_buffer`], `accel/light_buffer.rs`).
+//! ([`occlusion_light_buffer_x16`], `accel/light_buffer.rs`).
 //! Smooth dielectrics block direct light (the light they pass is a caustic), except where they do not
 //! deflect it (null crossings, index-matched media, thin sheets), or everywhere under the profile's opt-in,
 //! non-physical transmissive shadows: lanes whose any-hit test met only such dielectrics are then walked
