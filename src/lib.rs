@@ -21,6 +21,16 @@
 // `!(x > 0.0)` is deliberate throughout: it is also true for NaN, which must take the rejecting branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+// The kernels need a fused multiply-add: `wide`'s `mul_add` without the FMA target feature is a product
+// and a sum, two roundings, where the sphere kernel takes an exact product's error term from it and the
+// lanes must equal the scalar code's `f32::mul_add` bit for bit (a baseline `x86-64` build, session 50:
+// 21 of 512 tests failed, acne on a sphere of radius 1e4, hits reported as misses).
+#[cfg(all(target_arch = "x86_64", not(target_feature = "fma")))]
+compile_error!(
+    "Strata needs FMA (fused multiply-add): build with `-C target-cpu=native` (the default, .cargo/config.toml) on a CPU \
+     that has it, or `RUSTFLAGS=\"-C target-cpu=x86-64-v3\"` for a portable binary"
+);
+
 /// `println!` that ignores write errors: a closed stdout (`strata render ... | head -3`) must not end
 /// a command with a panic (Rust ignores SIGPIPE, so the write fails instead of killing the process).
 macro_rules! outln {
