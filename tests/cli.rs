@@ -156,7 +156,8 @@ fn render_writes_image_and_stats_json() {
     assert_eq!(v["nonfinite_samples"], 0);
     assert_eq!(v["lost_media"], 0);
     assert!(v["setup_seconds"].as_f64().unwrap() > 0.0);
-    assert!(stdout.contains("setup: ") && stdout.contains("(read, parse, BVH)"), "{stdout}");
+    assert!(stdout.contains("setup: ") && stdout.contains("(read, parse, BVH, film)"), "{stdout}");
+    assert!(v["output_seconds"].as_f64().unwrap() > 0.0 && stdout.contains("s after the render: the image)"), "{stdout}");
     assert_eq!(v["rays"]["camera"], 320 * 240 * 2);
     assert!(v["rays"]["shadow"].as_u64().unwrap() > 0);
 }

@@ -2,14 +2,21 @@
 //! its first touch costs one page fault per 4 KiB page: on this project's VM 5.6 ms for 640 x 400,
 //! a tenth of a 4-spp render. On Linux, films of 2 MiB and more are therefore mapped anonymously with
 //! the range asked to be backed by transparent huge pages (`MADV_HUGEPAGE`, which takes effect where the
-//! kernel's THP mode is `always` or `madvise`): 2 MiB per fault, 0.8 ms for the same film. Elsewhere,
-//! or when the mapping fails, a plain zeroed `Vec`.
+//! kernel's THP mode is `always` or `madvise`): 2 MiB per fault, 0.8 ms for the same film; films over
+//! [`HUGE_MAX`] are mapped with ordinary pages. Elsewhere, or when the mapping fails, a plain zeroed `Vec`.
 
 use bytemuck::Pod;
 use std::ops::{Deref, DerefMut};
 
 /// Huge-page size and the alignment of the range advised.
 const HUGE: usize = 2 << 20;
+
+/// The largest film asked for huge pages: 64 MiB (1 M pixels, 1280 x 800). Where free huge pages are
+/// scarce the kernel compacts memory for each one at the fault (THP's `defrag = madvise`, the default):
+/// measured in session 50 on the Zen 4 VM, a 4K film (530 MB) took 1.16-1.34 s to first touch with the
+/// advice and 0.25-0.29 s without (4K renders at 4 spp, 3 rounds each: 3.65-3.70 s against 2.54-3.56 s in
+/// all), while films up to 1280 x 720 took 2-41 ms either way.
+const HUGE_MAX: usize = 64 << 20;
 
 /// `len` zeroed `T`s (see the module doc).
 pub(super) struct Cells<T: Pod> {
@@ -59,8 +66,11 @@ impl<T: Pod> Cells<T> {
         let rounded = bytes.checked_next_multiple_of(HUGE)?;
         let map = memmap2::MmapMut::map_anon(rounded.checked_add(HUGE)?).ok()?;
         let offset = (map.as_ptr() as usize).next_multiple_of(HUGE) - map.as_ptr() as usize;
-        // Only advice: without THP the pages are ordinary ones, as a Vec's.
-        let _ = map.advise_range(memmap2::Advice::HugePage, offset, rounded);
+        // Only advice: without THP the pages are ordinary ones, as a Vec's. Not past `HUGE_MAX` (see
+        // there).
+        if rounded <= HUGE_MAX {
+            let _ = map.advise_range(memmap2::Advice::HugePage, offset, rounded);
+        }
         offset.is_multiple_of(std::mem::align_of::<T>()).then_some(Store::Map(map, offset))
     }
 }
