@@ -1663,4 +1663,45 @@ fn lights_inside_solids_are_warned_of_and_the_warning_is_true() {
         let brightest = film.to_rgb().iter().fold(0.0f32, |m, c| m.max(c.max_element()));
         assert_eq!(brightest > 0.0, warned.is_none() || transmissive, "{text}: brightest pixel {brightest}");
     }
+    // A moving opaque ball: warned of where it holds the light for the whole shutter (it moves 0.1 about
+    // a light 0.05 from its centre), not where the light is out of it for part of it (it moves 1).
+    for (motion, warned) in [("0.1", true), ("1", false)] {
+        let text = format!(
+            "{}shutter = [0, 1]\n{}[[shapes]]\ntype = \"plane\"\npoint = [0, -1, 0]\nnormal = [0, 1, 0]\nmaterial = \"m\"\n\
+             [[shapes]]\ntype = \"sphere\"\ncenter = [-0.05, 0, 0]\nradius = 0.4\nmaterial = \"m\"\nmotion = [{motion}, 0, 0]\n{}",
+            BASE.replace("[materials.m]", "").replace("type = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n", ""),
+            "[materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n",
+            point("0")
+        );
+        let scene = parse_scene(Path::new("l.toml"), &text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        assert_eq!(scene.warnings.iter().any(|w| w.contains("lies inside `shapes[1]`")), warned, "{text}\n{:?}", scene.warnings);
+        let (film, _) = render(&scene, Settings { profile: Profile::builtin("preview"), seed: 1 }, 1);
+        let brightest = film.to_rgb().iter().fold(0.0f32, |m, c| m.max(c.max_element()));
+        assert_eq!(brightest > 0.0, !warned, "{text}: brightest pixel {brightest}");
+    }
+}
+
+/// A moving shape shifted far during the shutter (a ball under a shutter of [1000, 1001], which is at
+/// the origin mid-shutter) is warned of at its `motion`: its spawn offset follows the shift; the same
+/// sweep under [0, 1], and a ball that is far away anyway (its own place sets the offset), are not.
+#[test]
+fn moving_shapes_shifted_far_are_warned_of() {
+    let ball = |x: &str, shutter: &str| {
+        format!(
+            "{}shutter = {shutter}\n[materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
+             [[shapes]]\ntype = \"sphere\"\ncenter = [{x}, 0, 0]\nradius = 0.5\nmaterial = \"m\"\nmotion = [1, 0, 0]\n",
+            BASE.replace("[materials.m]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n", "")
+        )
+    };
+    for (x, shutter, warned) in [("-1000.5", "[1000, 1001]", true), ("-0.5", "[0, 1]", false), ("5000", "[0, 1]", false)] {
+        let text = ball(x, shutter);
+        let scene = parse_scene(Path::new("m.toml"), &text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+        let says: Vec<&String> = scene.warnings.iter().filter(|w| w.contains("shifted by up to")).collect();
+        assert_eq!(says.len(), warned as usize, "{text}\n{:?}", scene.warnings);
+        if warned {
+            let line = text.lines().position(|l| l.starts_with("motion")).unwrap() + 1;
+            assert!(says[0].contains(&format!("m.toml:{line}:")) && says[0].contains("`shapes[0].motion`"), "{}", says[0]);
+            assert!(says[0].contains("1.001e3") && says[0].contains("camera.shutter's close"), "{}", says[0]);
+        }
+    }
 }

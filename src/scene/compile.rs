@@ -567,7 +567,7 @@ impl Compiler<'_> {
             self.coincident_glass_surfaces(&spheres);
         }
         self.coincident_emitters();
-        self.enclosed_lights(&bvh, &bounded, shutter[0]);
+        self.enclosed_lights(&bvh, &bounded, shutter);
         self.tell_counted();
         let cam = file.camera.get_ref();
         let sites = vec![
@@ -881,13 +881,13 @@ impl Compiler<'_> {
     /// the centre of an opaque sphere, a lamp's bulb, gets no light from it and, with other lights in
     /// the scene, no other sign of it): a light whose every test point (a point light's position; a
     /// sphere light's centre and 14 points of its surface; a quad's corners and centre; a disk's centre
-    /// and 8 points of its rim) lies strictly inside one static solid (sphere, ellipsoid, box or CSG
-    /// solid) that is opaque (for a CSG solid: every leaf), or, for a point light, inside a glass solid
+    /// and 8 points of its rim) lies strictly inside one solid (sphere, ellipsoid, box or CSG solid;
+    /// one that moves, for the whole shutter) that is opaque (for a CSG solid: every leaf), or, for a point light, inside a glass solid
     /// whose surfaces shadow rays cannot cross (glass blocks direct light: what it passes is a caustic,
     /// which next-event estimation does not find, and no bounce ray can meet a point). At the light,
     /// naming the solid; the candidates come from the BVH (solids whose bounds hold the first point).
     /// Past a budget of work (BVH nodes, inside tests counted in CSG leaves) the check stops quietly.
-    fn enclosed_lights(&mut self, bvh: &crate::accel::Bvh, bounded: &[u32], t: f32) {
+    fn enclosed_lights(&mut self, bvh: &crate::accel::Bvh, bounded: &[u32], shutter: [f32; 2]) {
         if self.prim_at.len() != self.prims.len() || bvh.is_empty() {
             return;
         }
@@ -953,7 +953,7 @@ impl Compiler<'_> {
                 for &slot in &bvh.indices[first..first + count] {
                     let k = bounded[slot as usize] as usize;
                     let p = &self.prims[k];
-                    if p.is_light || p.motion != Vec3::ZERO {
+                    if p.is_light {
                         continue;
                     }
                     let opaque = |m: u32| !matches!(self.materials[m as usize], Material::Dielectric(_) | Material::Emissive { .. });
@@ -977,7 +977,16 @@ impl Compiler<'_> {
                     };
                     let Some(opaque) = keeps else { continue };
                     work += points.len() as u64;
-                    if points.iter().all(|&x| self.solid_contains(p, x, t)) && holder.is_none_or(|(_, o)| opaque && !o) {
+                    // (A moving solid keeps the light in when it holds each point for the whole shutter; the
+                    // BVH's bounds are swept over the shutter.)
+                    let holds = |x: Vec3| {
+                        if p.motion == Vec3::ZERO {
+                            self.solid_contains(p, x, shutter[0])
+                        } else {
+                            self.times_inside(p, x, shutter).iter().any(|&(a, b)| a <= shutter[0] && b >= shutter[1])
+                        }
+                    };
+                    if points.iter().all(|&x| holds(x)) && holder.is_none_or(|(_, o)| opaque && !o) {
                         holder = Some((k, opaque));
                     }
                 }
@@ -1653,6 +1662,43 @@ impl Compiler<'_> {
         Ok(())
     }
 
+    /// Warn of a moving shape shifted so far during the shutter (`motion` x t) that the spawn offset of
+    /// its hits, which grows with the shift (rays meet it in its own frame at time 0, and the shift's
+    /// rounding enters the hit point: README, "Known limits"), passes 1% of its size and 4 times the
+    /// offset of its place alone at that time (a user trial, session 50: a glass ball of radius 0.5 under a shutter
+    /// of [1000, 1001] was off by up to 0.105 at its rim; a ball moving 1e5 over [0, 1] had lit pixels
+    /// black, its shadow rays starting under the floor). At the shape's `motion`.
+    fn far_shift(&mut self, shape: &Shape, motion: Vec3, def: &S<ShapeDef>, field: impl Display + Copy) {
+        let Some(m) = def.get_ref().motion.as_ref() else { return };
+        let Some(b) = prim_bounds(shape, &self.csg).filter(|b| !b.is_empty()) else { return };
+        if motion == Vec3::ZERO {
+            return;
+        }
+        let shutter = self.file.camera.get_ref().shutter.as_ref().map_or([0.0, 0.0], |s| s.get_ref().0);
+        let (t, shift) =
+            shutter.into_iter().map(|t| (t, (motion * t).abs().max_element())).fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+        // (Where it is at that time: the offset of its place alone, which no shutter choice changes.)
+        let place = (b.min + motion * t).abs().max((b.max + motion * t).abs()).max_element();
+        // Its size: the smallest extent of its box that is not flat (a quad's or disk's in-plane size).
+        let e = b.max - b.min;
+        let size = [e.x, e.y, e.z].into_iter().filter(|&x| x > 0.0).fold(f32::INFINITY, f32::min);
+        let (off, own) = (crate::geometry::offset_distance(shift), crate::geometry::offset_distance(place));
+        if !(size.is_finite() && off > 0.01 * size && off > 4.0 * own) {
+            return;
+        }
+        let msg = format!(
+            "moving by this motion, it is shifted by up to {shift:.3e} (at time {}, camera.shutter's {}): rays meet a moving \
+             shape in its own frame at time 0, and the shift's rounding sets its spawn offset, {off:.1e}, {:.0}% of its size \
+             {size:.2e}: its edges, refraction and shadows lose that precision (a trial: a glass ball's rim off by up to \
+             0.1 at a shift of 1e3); give shutters near time 0 (a moving shape is at its given place at time 0), or a \
+             slower motion",
+            plain_number(t),
+            if t == shutter[1] { "close" } else { "open" },
+            100.0 * off / size
+        );
+        self.warn_each(WarnKind::FarShift, m.span(), Sub(field, "motion"), || msg);
+    }
+
     /// Warn of a glass box or ball (a medium rays enter) thinner than a few spawn offsets where it lies: a
     /// ray entering it starts `offset_distance` (256 ULPs of the hit point's largest coordinate) inside,
     /// so through a thinner one it starts past the far face, never sees it, and counts as inside the glass
@@ -1746,6 +1792,7 @@ impl Compiler<'_> {
                 return Err(self.err(s.motion.as_ref().unwrap().span(), Sub(at, "motion"), "an infinite plane cannot move"));
             }
             self.within_range(&shape, motion, def, at)?;
+            self.far_shift(&shape, motion, def, at);
             self.thin_glass(&shape, material, def, at);
             self.prims.push(Prim { shape, material, motion, is_light: false });
             self.prim_at.push((def.span(), PrimField::Shape(i)));
@@ -1857,6 +1904,7 @@ impl Compiler<'_> {
         }
         let shape = Shape::Csg { solid };
         self.within_range(&shape, motion, def, field)?;
+        self.far_shift(&shape, motion, def, field);
         self.prims.push(Prim { shape, material: material.unwrap_or(0), motion, is_light: false });
         self.prim_at.push((def.span(), PrimField::Path(field.to_string())));
         Ok(())
@@ -2524,6 +2572,7 @@ enum WarnKind {
     LostDetail,
     LoneDifference,
     DarkLight,
+    FarShift,
 }
 
 impl WarnKind {
@@ -2540,6 +2589,7 @@ impl WarnKind {
             WarnKind::LostDetail => "CSG solids whose detail may be lost to their coincidence tolerance, as above".into(),
             WarnKind::LoneDifference => "differences of one operand, as above".into(),
             WarnKind::DarkLight => "lights that give no light, as above".into(),
+            WarnKind::FarShift => "moving shapes shifted far enough to lose precision, as above".into(),
         }
     }
 }
