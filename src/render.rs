@@ -205,6 +205,27 @@ impl WorkUnits {
         self.len == 0
     }
 
+    /// The samples each tile holds (indexed as [`WorkUnits::tile_of`] gives) by the units flagged in
+    /// `completed` (one flag per unit): the samples every pixel of the tile holds.
+    pub fn tile_samples(&self, completed: &[bool]) -> Vec<u64> {
+        let mut per = vec![0u64; self.tiles];
+        for (i, _) in completed.iter().enumerate().filter(|(_, &c)| c) {
+            per[i % self.tiles] += self.get(i).samples.len() as u64;
+        }
+        per
+    }
+
+    /// The index of the tile of pixel column `x` (within a batch, units are their tiles in row order),
+    /// less the row's part: [`WorkUnits::row_of`] adds it.
+    pub fn column_of(&self, x: u32) -> usize {
+        (x / self.tile) as usize
+    }
+
+    /// The index of the first tile of pixel row `y` (see [`WorkUnits::column_of`]).
+    pub fn row_of(&self, y: u32) -> usize {
+        (y / self.tile) as usize * self.tiles_x
+    }
+
     /// Unit `i` (< `len()`).
     pub fn get(&self, i: usize) -> WorkUnit {
         let (b, k) = (i / self.tiles, i % self.tiles);

@@ -495,6 +495,84 @@ fn cli_merge_refuses_mismatched_films_and_writes_nothing() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// A film whose pixel no render gives, its checksum made to match (the reviewer's crafted films:
+/// sums of 1.5 2^126 in both films, a count of 2^64 - 1, a count of 0 under sums; each merged exit 0
+/// into a wrong image, a mean of -4.95e27, and a film with a valid checksum), is refused by merge, by
+/// `merge --status` and by resume, exit 2, naming the film, the pixel and what is wrong, and nothing is
+/// written; the films unaltered still merge into the one-process render's film and image, byte for byte.
+#[test]
+fn cli_films_of_impossible_pixels_are_refused() {
+    use strata::film::checksum::xxh64;
+    use strata::film::file::{header_bytes, read_film, PIXEL_BYTES};
+    let d = dir("pixels");
+    let sc = write_scene(&d);
+    let p = |n: &str| d.join(n);
+    ok(render(&sc, &["-o", s(&p("full.exr")), "--film", s(&p("full.film"))]));
+    ok(render(&sc, &["-o", s(&p("a.exr")), "--film", s(&p("a.film")), "--samples", "0..3"]));
+    ok(render(&sc, &["-o", s(&p("b.exr")), "--film", s(&p("b.film")), "--samples", "3..6"]));
+    // Pixel (x, y) of film `src` changed by `f` (sums r g b, sums of squares r g b, count), written
+    // at `dst` with its checksum made to match again (the film module's own xxh64).
+    let craft = |src: &str, dst: &str, (x, y): (usize, usize), f: &dyn Fn(&mut [i128; 6], &mut u64)| {
+        let b = bytes(&p(src));
+        let head = header_bytes(&read_film(&p(src)).unwrap().header).len();
+        let at = head + (y * W as usize + x) * PIXEL_BYTES;
+        let mut b = b[..b.len() - 8].to_vec();
+        let mut v: [i128; 6] = std::array::from_fn(|j| i128::from_le_bytes(b[at + 16 * j..at + 16 * j + 16].try_into().unwrap()));
+        let mut count = u64::from_le_bytes(b[at + 96..at + 104].try_into().unwrap());
+        assert_eq!(count, 3, "{src} ({x}, {y})");
+        f(&mut v, &mut count);
+        for (j, v) in v.iter().enumerate() {
+            b[at + 16 * j..at + 16 * j + 16].copy_from_slice(&v.to_le_bytes());
+        }
+        b[at + 96..at + 104].copy_from_slice(&count.to_le_bytes());
+        let sum = xxh64(&b);
+        b.extend_from_slice(&sum.to_le_bytes());
+        std::fs::write(p(dst), b).unwrap();
+    };
+    craft("a.film", "a_big.film", (0, 0), &|v, _| v[..3].fill(3 << 125));
+    craft("b.film", "b_big.film", (0, 0), &|v, _| v[..3].fill(3 << 125));
+    craft("a.film", "a_countmax.film", (5, 2), &|_, n| *n = u64::MAX);
+    craft("b.film", "b_countmax.film", (5, 2), &|_, n| *n = u64::MAX);
+    craft("a.film", "a_count0.film", (47, 29), &|v, n| {
+        assert!(v[0] > 0);
+        *n = 0
+    });
+    craft("b.film", "b_count4.film", (10, 20), &|_, n| *n = 4);
+    let sum = "beyond what 3 samples can give (|sum| <= 3 x (2^63 - 2^39) = 27670114461296885760)";
+    let cases: [(&str, &str, String); 4] = [
+        ("a_big.film", "b_big.film", format!("a_big.film: inconsistent pixel (0, 0): red sum 127605887595351923798765477786913079296 (in units of 2^-32) is {sum}")),
+        ("a_countmax.film", "b_countmax.film", "a_countmax.film: inconsistent pixel (5, 2): 18446744073709551615 samples, but the film's completed work units hold 3 samples for it".into()),
+        ("a_count0.film", "b.film", "a_count0.film: inconsistent pixel (47, 29): red sum".into()),
+        ("a.film", "b_count4.film", "b_count4.film: inconsistent pixel (10, 20): 4 samples, but the film's completed work units hold 3 samples for it".into()),
+    ];
+    for (a, b, want) in &cases {
+        let o = strata().args(["merge", s(&p(a)), s(&p(b)), "-o", s(&p("m.exr")), "--film", s(&p("m.film"))]).output().unwrap();
+        refused(&o, &[want]);
+        assert!(!p("m.exr").exists() && !p("m.film").exists(), "{a} + {b}: a refused merge wrote output");
+        let st = strata().args(["merge", "--status", s(&p(a)), s(&p(b))]).output().unwrap();
+        assert_eq!(st.status.code(), Some(2));
+        let out = String::from_utf8_lossy(&st.stdout);
+        let bad = if want.starts_with(a) { a } else { b };
+        assert!(out.contains(&format!("{bad}  unreadable: ")) && out.contains("inconsistent pixel ("), "{out}");
+    }
+    let o = String::from_utf8_lossy(
+        &strata().args(["merge", s(&p("a_count0.film")), s(&p("b.film")), "-o", s(&p("m.exr"))]).output().unwrap().stderr,
+    )
+    .to_string();
+    assert!(o.contains("(in units of 2^-32) with no samples (a pixel of no samples sums to 0)"), "{o}");
+    // Resume refuses them the same way, and leaves the film as it was.
+    for (film, range) in [("a_big.film", "0..3"), ("b_count4.film", "3..6")] {
+        let before = bytes(&p(film));
+        let o = render(&sc, &["-o", s(&p("r.exr")), "--resume", s(&p(film)), "--samples", range]);
+        refused(&o, &[&format!("--resume {}: inconsistent pixel (", p(film).display())]);
+        assert!(bytes(&p(film)) == before && !p("r.exr").exists(), "{film}");
+    }
+    // The films themselves merge into the one-process render, byte for byte.
+    ok(strata().args(["merge", s(&p("a.film")), s(&p("b.film")), "-o", s(&p("m.exr")), "--film", s(&p("m.film"))]).output().unwrap());
+    assert!(bytes(&p("m.film")) == bytes(&p("full.film")) && bytes(&p("m.exr")) == bytes(&p("full.exr")));
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 #[test]
 fn local_split_script_matches_one_render() {
     if Command::new("xargs").arg("--version").output().is_err() {

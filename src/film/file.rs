@@ -33,7 +33,9 @@
 //!
 //! A film is consistent: its pixels hold exactly the samples of the work units marked complete (the
 //! render driver snapshots it between units). Reading checks the magic, the version, the size implied by
-//! the header, the checksum and the header's own consistency, and says which failed. Writing is atomic
+//! the header, the checksum, the header's own consistency and every pixel's (its count at most the samples
+//! of the completed units that cover it, its sums within what that many samples can give:
+//! [`Pixel::inconsistency`]), and says which failed. Writing is atomic
 //! (temporary file in the same directory, synced, renamed), so a checkpoint interrupted mid-write leaves
 //! the previous checkpoint intact.
 //!
@@ -445,47 +447,86 @@ impl<R: Read> FilmReader<R> {
         &self.header
     }
 
-    /// Read the pixels, handing each to `sink` (index, pixel) in order, then check the checksum.
-    fn pixels(mut self, mut sink: impl FnMut(usize, Pixel)) -> Result<FilmHeader, String> {
-        let n = self.header.width as usize * self.header.height as usize;
+    /// Read the pixels, handing each to `sink` (index, pixel) in order, then check the checksum. Each
+    /// pixel is checked first ([`Pixel::inconsistency`]): its count against the samples of the
+    /// completed work units that cover it, its sums against what that count of samples can give. At
+    /// the first that fails (or that `sink` refuses, saying why) no further pixel goes to `sink`, the
+    /// rest of the file is hashed, and the error is the checksum's where it does not hold (a corrupted
+    /// file), else the pixel's, naming it (x, y): a file written so by something else than strata.
+    fn pixels(mut self, mut sink: impl FnMut(usize, Pixel) -> Result<(), String>) -> Result<FilmHeader, String> {
+        let (w, h) = (self.header.width, self.header.height);
+        let n = w as usize * h as usize;
+        // The samples each pixel holds: those of its tile's completed units (one table of tiles, and
+        // each column's tile; a row adds its first tile's index).
+        let units = crate::render::WorkUnits::new(w, h, self.header.tile, self.header.samples.clone());
+        let per_tile = units.tile_samples(&self.header.completed);
+        let column: Vec<usize> = (0..w).map(|x| units.column_of(x)).collect();
         let mut buf = vec![0u8; CHUNK_PIXELS.min(n) * PIXEL_BYTES];
-        for start in (0..n).step_by(CHUNK_PIXELS) {
+        let mut bad = None;
+        let (mut x, mut y) = (0usize, 0u32);
+        let mut row = units.row_of(0);
+        'read: for start in (0..n).step_by(CHUNK_PIXELS) {
             let m = (n - start).min(CHUNK_PIXELS);
             let chunk = &mut buf[..m * PIXEL_BYTES];
             self.src.fill(chunk)?;
             for (k, rec) in chunk.chunks_exact(PIXEL_BYTES).enumerate() {
                 let v = |j: usize| i128::from_le_bytes(rec[16 * j..16 * j + 16].try_into().unwrap());
                 let count = u64::from_le_bytes(rec[96..104].try_into().unwrap());
-                sink(start + k, Pixel { sum: [v(0), v(1), v(2)], sum_sq: [v(3), v(4), v(5)], count });
+                let p = Pixel { sum: [v(0), v(1), v(2)], sum_sq: [v(3), v(4), v(5)], count };
+                let why = match p.inconsistency(per_tile[row + column[x]]) {
+                    None => sink(start + k, p).err(),
+                    why => why,
+                };
+                if let Some(why) = why {
+                    bad = Some(format!("inconsistent pixel ({x}, {y}): {why}"));
+                    break 'read;
+                }
+                x += 1;
+                if x == w as usize {
+                    (x, y) = (0, y + 1);
+                    row = units.row_of(y);
+                }
             }
         }
         if !self.src.checksum_holds()? {
             return Err(CORRUPTED.to_string());
         }
-        Ok(self.header)
+        match bad {
+            Some(e) => Err(e),
+            None => Ok(self.header),
+        }
     }
 
     /// Read the pixels into `film` (a film of the header's size, as [`Film::try_new`] gives it), each
-    /// replacing the film's; the header once the checksum holds (else the film holds what was read).
+    /// replacing the film's; the header once the checksum and every pixel hold (else the film holds
+    /// what was read).
     pub fn read_into(self, film: &mut Film) -> Result<FilmHeader, String> {
         assert_eq!((film.width, film.height), (self.header.width, self.header.height), "film and header sizes differ");
-        self.pixels(|i, p| film.set_pixel(i, p))
+        self.pixels(|i, p| {
+            film.set_pixel(i, p);
+            Ok(())
+        })
     }
 
-    /// Add the pixels to `film`'s (exact: as [`Film::merge`]); the header once the checksum holds. Where
-    /// it does not, `film` holds the pixels read added: the caller discards it.
+    /// Add the pixels to `film`'s (exact: as [`Film::merge`]); the header once the checksum and every
+    /// pixel hold. A sum that would overflow is an error, not a wrap (films of one render's disjoint
+    /// ranges cannot reach it: see [`Pixel::merge`]). Where it fails, `film` holds the pixels read
+    /// added: the caller discards it.
     pub fn merge_into(self, film: &mut Film) -> Result<FilmHeader, String> {
         assert_eq!((film.width, film.height), (self.header.width, self.header.height), "film and header sizes differ");
-        self.pixels(|i, p| film.merge_pixel(i, &p))
+        self.pixels(|i, p| {
+            if film.try_merge_pixel(i, &p) {
+                Ok(())
+            } else {
+                Err(format!("its sums added to the film's ({:?}) overflow", film.pixel(i)))
+            }
+        })
     }
 
-    /// Check the whole file (the checksum) without keeping its pixels: the header of an intact film.
+    /// Check the whole file (the checksum and every pixel) without keeping its pixels: the header of an
+    /// intact film.
     pub fn verify(self) -> Result<FilmHeader, String> {
-        let mut me = self;
-        if !me.src.checksum_holds()? {
-            return Err(CORRUPTED.to_string());
-        }
-        Ok(me.header)
+        self.pixels(|_, _| Ok(()))
     }
 
     /// The whole film, in a film allocated for it (fallibly: an error where memory runs out).
@@ -608,21 +649,52 @@ pub fn check_film_writable(path: &Path) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::film::{MAX_QUANTIZED, MAX_SQUARE_TERM};
+
+    /// The samples each pixel of `h`'s film holds by its completed work units (row-major), from the
+    /// list of work units (not the reader's table of tiles).
+    fn held(h: &FilmHeader) -> Vec<u64> {
+        let mut n = vec![0u64; h.width as usize * h.height as usize];
+        for (u, _) in crate::render::work_units(h.width, h.height, h.tile, h.samples.clone()).iter().zip(&h.completed).filter(|(_, &c)| c) {
+            for y in u.tile.y0..u.tile.y1 {
+                for x in u.tile.x0..u.tile.x1 {
+                    n[(y * h.width + x) as usize] += u.samples.len() as u64;
+                }
+            }
+        }
+        n
+    }
+
+    /// Fill `film` with pixels a render of `h` can give: each holds the samples of its completed units
+    /// (one fewer for every `discard`-th: a discarded sample), its sums in range; where `wide(i)` and
+    /// it holds 2 samples or more, sums beyond 64 bits (near their bound) of both signs.
+    fn fill(h: &FilmHeader, film: &mut Film, discard: usize, wide: impl Fn(usize) -> bool) {
+        let held = held(h);
+        for (i, &held) in held.iter().enumerate() {
+            let count = held - (held > 0 && (i + 1) % discard == 0) as u64;
+            let n = count as i128;
+            let p = if count == 0 {
+                Pixel::default()
+            } else if wide(i) && count >= 2 {
+                Pixel { sum: [n * MAX_QUANTIZED - i as i128, -n * MAX_QUANTIZED, 3], sum_sq: [n * MAX_SQUARE_TERM, 0, 1 << 50], count }
+            } else {
+                Pixel { sum: [i as i128 - 7, i as i128 * 1000, -(1i128 << 40)], sum_sq: [1, 2, i as i128 * 11], count }
+            };
+            film.set_pixel(i, p);
+        }
+    }
 
     fn sample() -> (FilmHeader, Film) {
-        let mut film = Film::new(5, 3);
-        for i in 0..film.len() {
-            // Odd pixels use the high bits and the sign of the 128-bit sums (the film keeps them in its
-            // side table), even ones fit its 64-bit cells.
-            let big = if i % 2 == 1 { (i as i128) << 100 } else { i as i128 * 1000 };
-            let sum = [i as i128 - 7, big, -(1i128 << [40, 90][i % 2])];
-            film.set_pixel(i, Pixel { sum, sum_sq: [1, 2, i as i128], count: i as u64 * 3 });
-        }
         let profile = profile_record(&Profile::builtin("preview"));
         let n = crate::render::unit_count(5, 3, 2, 1..4);
         let completed = (0..n).map(|i| i % 3 != 1).collect();
         let (scene_hash, seed, build) = (0xdead_beef, 9, 0x5eed);
         let h = FilmHeader { width: 5, height: 3, spp: 4, samples: 1..4, tile: 2, scene_hash, seed, profile, completed, build };
+        // Odd pixels use the high bits and the sign of the 128-bit sums (the film keeps them in its
+        // side table), even ones fit its 64-bit cells.
+        let mut film = Film::new(5, 3);
+        fill(&h, &mut film, 4, |i| i % 2 == 1);
+        assert!(film.pixels().any(|p| p.count == 0) && film.pixels().any(|p| p.count == 2));
         (h, film)
     }
 
@@ -775,16 +847,14 @@ mod tests {
     /// pixels among compact ones, and its header.
     fn large_sample() -> (FilmHeader, Film) {
         let (w, h) = (83, 61);
-        let mut film = Film::new(w, h);
-        for i in 0..film.len() {
-            let sum = if i % 37 == 5 { [(i as i128) << 90, -(1i128 << 70), 3] } else { [i as i128, -(i as i128) * 7, 1 << 40] };
-            film.set_pixel(i, Pixel { sum, sum_sq: [i as i128 * 11, 0, 1 << 50], count: i as u64 % 9 });
-        }
         let n = crate::render::unit_count(w, h, 16, 0..8);
         let completed = (0..n).map(|i| i % 5 != 0).collect();
         let profile = profile_record(&Profile::builtin("final"));
         let header =
             FilmHeader { width: w, height: h, spp: 8, samples: 0..8, tile: 16, scene_hash: 1, seed: 2, profile, completed, build: 3 };
+        let mut film = Film::new(w, h);
+        fill(&header, &mut film, 7, |i| i % 37 == 5);
+        assert!(film.pixels().any(|p| p.count == 0) && film.pixels().any(|p| p.count == 7));
         (header, film)
     }
 
@@ -893,7 +963,9 @@ mod tests {
             assert_eq!(verify(&b).unwrap_err(), decode(&b).unwrap_err(), "byte {i}");
         }
         // The same flips with the checksum made to match (a file written by something else than
-        // strata): the header's own checks, the results and their messages those of the whole-file reader.
+        // strata): the header's own checks, the results and their messages those of the whole-file
+        // reader; pixels that no render gives are refused too.
+        let mut inconsistent = 0;
         for i in 0..bytes.len() - 8 {
             let mut b = bytes[..bytes.len() - 8].to_vec();
             b[i] ^= 0x10;
@@ -901,10 +973,19 @@ mod tests {
             b.extend_from_slice(&sum.to_le_bytes());
             match (decode(&b), decode_whole(&b)) {
                 (Ok(x), Ok(y)) => assert!(x == y, "byte {i}"),
+                // (The whole-file reader did not check pixels: a count or sum out of range, or a
+                // completion flag that leaves a pixel more samples than its units hold.)
+                (Err(e), Ok(_)) => {
+                    assert!(e.starts_with("inconsistent pixel ("), "byte {i}: {e}");
+                    inconsistent += 1;
+                }
                 (x, y) => assert_eq!(x.map(|_| ()), y.map(|_| ()), "byte {i}"),
             }
-            assert_eq!(verify(&b).map(|_| ()), decode(&b).map(|_| ()), "byte {i}");
+            assert_eq!(verify(&b), decode(&b).map(|f| f.header), "byte {i}");
         }
+        // Flips in counts (their bit 4: above 3) and in the top bytes of sums, and completion flags
+        // cleared under pixels with samples.
+        assert!(inconsistent > 1000, "{inconsistent} flips found inconsistent");
         for n in 0..bytes.len() {
             assert!(decode(&bytes[..n]).is_err(), "truncation to {n} bytes went unnoticed");
             assert_eq!(decode(&bytes[..n]).unwrap_err(), decode_whole(&bytes[..n]).unwrap_err(), "{n} bytes");
@@ -920,6 +1001,128 @@ mod tests {
         assert!(decode(&b).unwrap_err().contains("version 7"));
         b[0] = b'X';
         assert!(decode(&b).unwrap_err().contains("magic"));
+    }
+
+    /// `bytes` (a film file) with pixel `i`'s record changed by `f` and the checksum made to match
+    /// again (with the module's own xxh64): a film written so by something else than strata.
+    fn with_pixel(bytes: &[u8], h: &FilmHeader, i: usize, f: impl Fn(&mut Pixel)) -> Vec<u8> {
+        let at = header_bytes(h).len() + i * PIXEL_BYTES;
+        let mut b = bytes[..bytes.len() - 8].to_vec();
+        let rec = &b[at..at + PIXEL_BYTES];
+        let v = |j: usize| i128::from_le_bytes(rec[16 * j..16 * j + 16].try_into().unwrap());
+        let mut p = Pixel { sum: [v(0), v(1), v(2)], sum_sq: [v(3), v(4), v(5)], count: u64::from_le_bytes(rec[96..].try_into().unwrap()) };
+        f(&mut p);
+        let mut rec = Vec::new();
+        for v in p.sum.iter().chain(&p.sum_sq) {
+            rec.extend_from_slice(&v.to_le_bytes());
+        }
+        rec.extend_from_slice(&p.count.to_le_bytes());
+        b[at..at + PIXEL_BYTES].copy_from_slice(&rec);
+        let sum = xxh64(&b);
+        b.extend_from_slice(&sum.to_le_bytes());
+        b
+    }
+
+    /// A pixel that no render gives, in a film whose checksum holds (the reviewer's crafted films: sums
+    /// of 1.5 2^126, a count of 2^64 - 1, a count of 0 under sums, each merged into a wrong image and a
+    /// film with a valid checksum), is refused by every reader (read, verify, merge), naming the pixel
+    /// (x, y) and what is wrong: a count above the samples of its completed units (a complete film's
+    /// and a partial one's), sums beyond what its count of samples can give (one past the bound, either
+    /// sign; the bound itself reads), a negative sum of squares or one past its bound, sums under no
+    /// samples. The checksum's error comes first where both fail.
+    #[test]
+    fn inconsistent_pixels_are_refused_naming_them() {
+        // A complete film of samples 0..4 (4 per pixel) and the partial one of `sample`.
+        let (mut h, _) = sample();
+        h.samples = 0..4;
+        h.completed = vec![true; crate::render::unit_count(5, 3, 2, 0..4)];
+        let mut film = Film::new(5, 3);
+        fill(&h, &mut film, 1000, |i| i % 2 == 1);
+        let bytes = encode(&h, &film);
+        assert!(decode(&bytes).unwrap().film == film);
+        let (ph, pf) = sample();
+        let partial = encode(&ph, &pf);
+        let held = held(&ph);
+        // (6 = (1, 1): in a completed unit, 3 samples; 13 = (3, 2): in none.)
+        assert_eq!((held[6], held[13], pf.pixel(6).count, pf.pixel(13).count), (3, 0, 3, 0));
+        let (q, s2) = (MAX_QUANTIZED, MAX_SQUARE_TERM);
+        type Case = (usize, fn(&mut Pixel), &'static str);
+        let cases: [Case; 12] = [
+            (0, |p| p.sum = [3 << 125; 3], "inconsistent pixel (0, 0): red sum 127605887595351923798765477786913079296 (in units of 2^-32) is beyond what 4 samples can give (|sum| <= 4 x (2^63 - 2^39) = 36893485948395847680)"),
+            (6, |p| p.count = u64::MAX, "inconsistent pixel (1, 1): 18446744073709551615 samples, but the film's completed work units hold 4 samples for it"),
+            (6, |p| p.count = 5, "inconsistent pixel (1, 1): 5 samples, but the film's completed work units hold 4 samples for it"),
+            (2, |p| p.count = 0, "inconsistent pixel (2, 0): red sum -5 (in units of 2^-32) with no samples (a pixel of no samples sums to 0)"),
+            (2, |p| *p = Pixel { sum_sq: [0, 0, 1], ..Pixel::default() }, "inconsistent pixel (2, 0): blue sum of squares 1 (in units of 2^-32) with no samples (a pixel of no samples sums to 0)"),
+            (3, |p| p.sum[0] = 4 * MAX_QUANTIZED + 1, "inconsistent pixel (3, 0): red sum 36893485948395847681 (in units of 2^-32) is beyond what 4 samples can give (|sum| <= 4 x (2^63 - 2^39) = 36893485948395847680)"),
+            (3, |p| p.sum[1] = -4 * MAX_QUANTIZED - 1, "inconsistent pixel (3, 0): green sum -36893485948395847681 (in units of 2^-32) is beyond what 4 samples can give (|sum| <= 4 x (2^63 - 2^39) = 36893485948395847680)"),
+            (4, |p| p.sum_sq[1] = -1, "inconsistent pixel (4, 0): green sum of squares -1 (in units of 2^-32) is negative"),
+            (14, |p| p.sum_sq[2] = 4 * MAX_SQUARE_TERM + 1, "inconsistent pixel (4, 2): blue sum of squares 79228153069531653329230233601 (in units of 2^-32) is beyond what 4 samples can give (<= 4 x (2^94 - 2^71 + 2^46) = 79228153069531653329230233600)"),
+            (14, |p| p.sum_sq[0] = i128::MIN, "inconsistent pixel (4, 2): red sum of squares -170141183460469231731687303715884105728 (in units of 2^-32) is negative"),
+            (1, |p| *p = Pixel { sum: [1, 0, 0], sum_sq: [0; 3], count: 1 }, ""),
+            (1, |p| p.sum = [i128::MIN; 3], "inconsistent pixel (1, 0): red sum -170141183460469231731687303715884105728 (in units of 2^-32) is beyond what 4 samples can give (|sum| <= 4 x (2^63 - 2^39) = 36893485948395847680)"),
+        ];
+        let verify = |b: &[u8]| FilmReader::new(b, b.len() as u64).and_then(|r| r.verify());
+        let merge = |b: &[u8]| FilmReader::new(b, b.len() as u64).and_then(|r| r.merge_into(&mut Film::new(5, 3)));
+        for (i, f, want) in cases {
+            let b = with_pixel(&bytes, &h, i, f);
+            if want.is_empty() {
+                // (A pixel of 1 sample of 1 unit of 2^-32, its square term rounding to 0: consistent.)
+                assert!(decode(&b).is_ok() && verify(&b).is_ok() && merge(&b).is_ok(), "pixel {i}");
+                continue;
+            }
+            assert_eq!(decode(&b).unwrap_err(), want);
+            assert_eq!(verify(&b).unwrap_err(), want);
+            assert_eq!(merge(&b).unwrap_err(), want);
+            // The same file damaged too: the checksum's error.
+            let mut d = b.clone();
+            *d.last_mut().unwrap() ^= 1;
+            assert_eq!(decode(&d).unwrap_err(), CORRUPTED);
+        }
+        // The bounds themselves are sums a render can give: they read.
+        let b = with_pixel(&bytes, &h, 3, |p| *p = Pixel { sum: [4 * q, -4 * q, 0], sum_sq: [4 * s2, 0, 4 * s2], count: 4 });
+        assert_eq!(decode(&b).unwrap().film.pixel(3), Pixel { sum: [4 * q, -4 * q, 0], sum_sq: [4 * s2, 0, 4 * s2], count: 4 });
+        // A partial film: a pixel of a completed unit may hold its samples (or fewer: discarded ones),
+        // not more; one of no completed unit holds none.
+        for (i, count, want) in [
+            (6, 2, None),
+            (6, 4, Some("inconsistent pixel (1, 1): 4 samples, but the film's completed work units hold 3 samples for it")),
+            (13, 1, Some("inconsistent pixel (3, 2): 1 sample, but the film's completed work units hold 0 samples for it")),
+        ] {
+            let b = with_pixel(&partial, &ph, i, |p| p.count = count);
+            assert_eq!(decode(&b).err().as_deref(), want, "pixel {i}, count {count}");
+        }
+        // Completion flags cleared under a pixel with samples: that pixel's count is too many.
+        let mut cleared = ph.clone();
+        cleared.completed[0] = false;
+        let e = decode(&encode(&cleared, &pf)).unwrap_err();
+        assert_eq!(e, "inconsistent pixel (0, 0): 3 samples, but the film's completed work units hold 0 samples for it");
+    }
+
+    /// Films added to a film as they are read (a merge) whose sums would overflow 128 bits are an error
+    /// naming the pixel, the film unchanged there, not a wrap: with a film already near the top (no
+    /// render of one film gives it; many films of 2^32 samples a pixel could).
+    #[test]
+    fn a_merge_that_would_overflow_is_an_error() {
+        let (h, f) = large_sample();
+        let bytes = encode(&h, &f);
+        let i = (0..f.len()).find(|&i| f.pixel(i).sum_sq[0] > 0).unwrap();
+        let mut sum = Film::new(h.width, h.height);
+        let top = Pixel { sum: [0; 3], sum_sq: [i128::MAX, 0, 0], count: 1 };
+        sum.set_pixel(i, top);
+        let e = FilmReader::new(&bytes[..], bytes.len() as u64).unwrap().merge_into(&mut sum).unwrap_err();
+        let (x, y) = (i % h.width as usize, i / h.width as usize);
+        assert!(
+            e.starts_with(&format!("inconsistent pixel ({x}, {y}): its sums added to the film's (")) && e.ends_with(") overflow"),
+            "{e}"
+        );
+        assert_eq!(sum.pixel(i), top);
+        // A count that would overflow, in a compact cell and a wide pixel alike.
+        for top in [Pixel { count: u64::MAX, ..Pixel::default() }, Pixel { sum: [1 << 100, 0, 0], sum_sq: [0; 3], count: u64::MAX }] {
+            let mut sum = Film::new(h.width, h.height);
+            sum.set_pixel(i, top);
+            assert!(FilmReader::new(&bytes[..], bytes.len() as u64).unwrap().merge_into(&mut sum).is_err());
+            assert_eq!(sum.pixel(i), top);
+        }
     }
 
     #[test]

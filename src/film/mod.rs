@@ -128,6 +128,14 @@ pub fn square_fixed_x8(q: &[i64; 8]) -> [i64; 8] {
     })
 }
 
+/// The largest magnitude of one sample channel's fixed-point value ([`quantize`] of a valid sample):
+/// the largest `f32` below [`MAX_SAMPLE_VALUE`] (2^31) is 2^31 - 2^7 (`f32`s in [2^30, 2^31) are
+/// 2^7 apart), and `quantize` is odd and monotonic, so `|q| <= (2^31 - 2^7) 2^32 = 2^63 - 2^39`.
+pub const MAX_QUANTIZED: i128 = (1 << 63) - (1 << 39);
+/// The largest sum-of-squares term of one sample channel: `floor(MAX_QUANTIZED^2 / 2^32)` =
+/// `(2^31 - 2^7)^2 2^32` (exact) `= 2^94 - 2^71 + 2^46`; the term is never negative.
+pub const MAX_SQUARE_TERM: i128 = (1 << 94) - (1 << 71) + (1 << 46);
+
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Pixel {
     pub sum: [i128; 3],
@@ -223,13 +231,91 @@ impl Pixel {
         self.count += 8;
     }
 
+    /// Add `o`'s sums and count to this pixel's. An overflow panics (never a silent wrap); pixels of
+    /// films that read ([`Pixel::inconsistency`] holds them to `|sum| <= count MAX_QUANTIZED` and
+    /// `0 <= sum_sq <= count MAX_SQUARE_TERM`, `count <= 2^32 - 1` each) cannot reach it: those bounds
+    /// add up, so a sum of pixels of `n` samples in all has `|sum| <= n (2^63 - 2^39) < 2^127` for any
+    /// `n < 2^64` (the count overflows first) and `sum_sq <= n (2^94 - 2^71 + 2^46) < 2^127` for any
+    /// `n < 2^33`: the merge of films of disjoint ranges of one render (`n <= spp < 2^32`), or of
+    /// fewer than 2 films' worth of 2^32 samples per pixel. [`Pixel::checked_merged`] says so instead.
     #[inline]
     pub fn merge(&mut self, o: &Pixel) {
+        *self = self.checked_merged(o).unwrap_or_else(|| panic!("pixel sums overflow: {self:?} + {o:?}"));
+    }
+
+    /// `self` plus `o` (sums and count), or `None` where a sum or the count overflows.
+    #[inline]
+    pub fn checked_merged(&self, o: &Pixel) -> Option<Pixel> {
+        let mut out = *self;
         for c in 0..3 {
-            self.sum[c] += o.sum[c];
-            self.sum_sq[c] += o.sum_sq[c];
+            out.sum[c] = self.sum[c].checked_add(o.sum[c])?;
+            out.sum_sq[c] = self.sum_sq[c].checked_add(o.sum_sq[c])?;
         }
-        self.count += o.count;
+        out.count = self.count.checked_add(o.count)?;
+        Some(out)
+    }
+
+    /// What makes this pixel one that no `count` samples can give, or that holds more samples than
+    /// `samples` (those its film's completed work units hold), if anything: a pixel read from a film is
+    /// held to it. Each sample channel adds `q` with `|q| <= MAX_QUANTIZED` to `sum` and
+    /// `floor(q^2 / 2^32)`, between 0 and [`MAX_SQUARE_TERM`], to `sum_sq` (see [`MAX_QUANTIZED`]), so
+    /// `|sum| <= count MAX_QUANTIZED` and `0 <= sum_sq <= count MAX_SQUARE_TERM` (a pixel of no
+    /// samples sums to 0). Its count may be below `samples`: samples discarded as non-finite or out
+    /// of range are not counted ([`warn_discarded`]).
+    #[inline]
+    pub fn inconsistency(&self, samples: u64) -> Option<String> {
+        // The test of a valid pixel, without branches or overflow checks: counts below 2^32 (every
+        // film's: its range holds at most 2^32 - 1 samples) bound the sums by plain products in 128
+        // bits (`n MAX_QUANTIZED < 2^95`, `n MAX_SQUARE_TERM < 2^126`), and a negative sum of squares
+        // taken as unsigned is at least 2^127, beyond its bound. Any other pixel is judged exactly by
+        // `explain`, which says what is wrong (or finds nothing: a count of 2^32 or more that holds).
+        let n = self.count;
+        let nq = n as u128 * MAX_QUANTIZED as u128;
+        let nsq = (n & 0xffff_ffff) as u128 * MAX_SQUARE_TERM as u128;
+        let mut ok = (n <= samples) & (n >> 32 == 0);
+        for c in 0..3 {
+            ok &= (self.sum[c].unsigned_abs() <= nq) & ((self.sum_sq[c] as u128) <= nsq);
+        }
+        if ok {
+            return None;
+        }
+        self.explain(samples)
+    }
+
+    #[cold]
+    fn explain(&self, samples: u64) -> Option<String> {
+        let n = self.count;
+        let of = |n: u64| if n == 1 { "1 sample".to_string() } else { format!("{n} samples") };
+        if n > samples {
+            return Some(format!("{}, but the film's completed work units hold {} for it", of(n), of(samples)));
+        }
+        for (name, (&s, &s2)) in ["red", "green", "blue"].iter().zip(self.sum.iter().zip(&self.sum_sq)) {
+            let what = |m: &str, v: i128| format!("{name} {m} {v} (in units of 2^-32)");
+            if n == 0 && (s != 0 || s2 != 0) {
+                let m = if s != 0 { what("sum", s) } else { what("sum of squares", s2) };
+                return Some(format!("{m} with no samples (a pixel of no samples sums to 0)"));
+            }
+            if s.unsigned_abs() > (n as i128 * MAX_QUANTIZED) as u128 {
+                return Some(format!(
+                    "{} is beyond what {} can give (|sum| <= {n} x (2^63 - 2^39) = {})",
+                    what("sum", s),
+                    of(n),
+                    n as i128 * MAX_QUANTIZED
+                ));
+            }
+            if s2 < 0 {
+                return Some(format!("{} is negative", what("sum of squares", s2)));
+            }
+            if s2 > (n as i128).saturating_mul(MAX_SQUARE_TERM) {
+                return Some(format!(
+                    "{} is beyond what {} can give (<= {n} x (2^94 - 2^71 + 2^46) = {})",
+                    what("sum of squares", s2),
+                    of(n),
+                    (n as i128).saturating_mul(MAX_SQUARE_TERM)
+                ));
+            }
+        }
+        None
     }
 
     /// Mean radiance (zero for a pixel with no samples).
@@ -429,12 +515,38 @@ impl Film {
     #[cold]
     #[inline(never)]
     fn merge_wide(&mut self, i: usize, p: &Pixel) {
+        if !self.merge_wide_checked(i, p) {
+            panic!("pixel {i}: sums overflow: {:?} + {p:?}", self.pixel(i));
+        }
+    }
+
+    /// [`Film::merge_wide`], or false (the pixel unchanged) where a sum or the count would overflow.
+    #[cold]
+    #[inline(never)]
+    fn merge_wide_checked(&mut self, i: usize, p: &Pixel) -> bool {
+        let Some(sum) = self.pixel(i).checked_merged(p) else { return false };
         let cell = &mut self.cells[i];
         if cell.wide == 0 {
-            self.wide.push(cell.to_pixel());
+            self.wide.push(sum);
             cell.wide = u32::try_from(self.wide.len()).expect("at most 2^32 - 1 wide pixels");
+        } else {
+            self.wide[cell.wide as usize - 1] = sum;
         }
-        self.wide[cell.wide as usize - 1].merge(p);
+        true
+    }
+
+    /// [`Film::merge_pixel`], or false (the pixel unchanged) where a sum or the count would overflow:
+    /// films read from files ([`file::FilmReader::merge_into`]), which make that an error.
+    #[inline(always)]
+    pub fn try_merge_pixel(&mut self, i: usize, p: &Pixel) -> bool {
+        let cell = &mut self.cells[i];
+        if cell.wide == 0 {
+            if let Some(sum) = cell.checked_add(p) {
+                *cell = sum;
+                return true;
+            }
+        }
+        self.merge_wide_checked(i, p)
     }
 
     /// Make pixel `i` exactly `p`.
@@ -469,8 +581,15 @@ impl Film {
         }
     }
 
+    /// Samples in all. Checked (an overflow panics, never wraps): films read are held to at most
+    /// 2^32 - 1 samples per pixel of their range, so a merge of one render's disjoint ranges totals at
+    /// most `MAX_PIXELS (2^32 - 1) < 2^58`.
     pub fn total_samples(&self) -> u64 {
-        self.cells.iter().map(|c| if c.wide == 0 { c.count as u64 } else { self.wide[c.wide as usize - 1].count }).sum()
+        self.cells
+            .iter()
+            .map(|c| if c.wide == 0 { c.count as u64 } else { self.wide[c.wide as usize - 1].count })
+            .try_fold(0u64, u64::checked_add)
+            .expect("the film's sample count overflows 64 bits")
     }
 }
 
@@ -682,6 +801,65 @@ mod tests {
         assert_eq!(a, c);
         let mean: f64 = vals.iter().map(|v| v.x as f64).sum::<f64>() / 1000.0;
         assert!((a.mean().x as f64 - mean).abs() < 1e-6);
+    }
+
+    /// The bounds a film's pixels are held to are those of the quantisation, exactly: the largest valid
+    /// sample channel (scalar and 8-lane quantisation alike) gives `MAX_QUANTIZED` and the square term
+    /// `MAX_SQUARE_TERM`, so a pixel of `n` such samples (either sign) sits on its bounds and is
+    /// consistent, and one unit more is not; `n` samples is consistent with `n` or more held, not fewer.
+    #[test]
+    fn pixel_bounds_are_the_quantisations() {
+        let top = MAX_SAMPLE_VALUE.next_down();
+        assert_eq!(top as f64, 2f64.powi(31) - 128.0);
+        assert_eq!(quantize(top) as i128, MAX_QUANTIZED);
+        assert_eq!(quantize(-top) as i128, -MAX_QUANTIZED);
+        assert_eq!(quantize_x8(&[top; 8]), [MAX_QUANTIZED as i64; 8]);
+        assert_eq!((MAX_QUANTIZED * MAX_QUANTIZED) >> 32, MAX_SQUARE_TERM);
+        let mut p = Pixel::default();
+        for k in 0..5u64 {
+            assert_eq!(p.inconsistency(k), None);
+            assert!(p.add(Vec3::new(top, -top, 0.0)));
+        }
+        assert_eq!(p.sum, [5 * MAX_QUANTIZED, -5 * MAX_QUANTIZED, 0]);
+        assert_eq!(p.sum_sq, [5 * MAX_SQUARE_TERM, 5 * MAX_SQUARE_TERM, 0]);
+        assert_eq!(p.inconsistency(5), None);
+        assert_eq!(p.inconsistency(4).unwrap(), "5 samples, but the film's completed work units hold 4 samples for it");
+        for (c, d) in [(0, 1), (1, -1)] {
+            let mut q = p;
+            q.sum[c] += d;
+            assert!(q.inconsistency(5).unwrap().contains("sum") && q.inconsistency(5).unwrap().contains("beyond what 5 samples"));
+            let mut q = p;
+            q.sum_sq[c] += 1;
+            assert!(q.inconsistency(5).unwrap().contains("sum of squares"));
+        }
+    }
+
+    /// Merging pixels adds with checks: an overflow of a sum, a sum of squares or the count is `None`
+    /// (`checked_merged`) or a panic (`merge`, `Film::merge_pixel`), never a wrap (the reviewer's films
+    /// of sums 1.5 2^126 merged to -4.95e27).
+    #[test]
+    fn pixel_merges_never_wrap() {
+        let big = Pixel { sum: [3 << 125, 0, 0], sum_sq: [0; 3], count: 2 };
+        assert_eq!(big.checked_merged(&big), None);
+        let sq = Pixel { sum: [0; 3], sum_sq: [0, 0, i128::MAX], count: 1 };
+        assert_eq!(sq.checked_merged(&Pixel { sum_sq: [0, 0, 1], ..Pixel::default() }), None);
+        let n = Pixel { count: u64::MAX, ..Pixel::default() };
+        assert_eq!(n.checked_merged(&Pixel { count: 1, ..Pixel::default() }), None);
+        assert_eq!(big.checked_merged(&Pixel::default()), Some(big));
+        let neg = Pixel { sum: [-(3 << 125), 0, 0], sum_sq: [0; 3], count: 2 };
+        assert_eq!(big.checked_merged(&neg), Some(Pixel { sum: [0; 3], sum_sq: [0; 3], count: 4 }));
+        for (a, b) in [(big, big), (n, Pixel { count: 1, ..Pixel::default() })] {
+            assert!(std::panic::catch_unwind(|| {
+                let mut a = a;
+                a.merge(&b)
+            })
+            .is_err());
+            let mut film = Film::new(1, 1);
+            film.set_pixel(0, a);
+            assert!(!film.try_merge_pixel(0, &b));
+            assert_eq!(film.pixel(0), a);
+            assert!(std::panic::catch_unwind(move || film.merge_pixel(0, &b)).is_err());
+        }
     }
 
     #[test]
