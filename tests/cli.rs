@@ -1068,3 +1068,34 @@ fn many_lights_under_all_are_noted() {
     assert!(!run("scenes/many_lights.toml", &["--set", "light_selection=tree"]).contains("note:"));
     assert!(!run("scenes/showcase.toml", &[]).contains("note:"));
 }
+
+/// A shutter of no length away from time 0 places moving shapes at its one instant: the time integral
+/// is not sampled, so the summary lists no time strategy, and `--spp 4` with every integral at `center`
+/// is warned of as identical samples (a motion trial found neither), and renders what `--spp 1` does.
+#[test]
+fn a_shutter_of_no_length_samples_no_time() {
+    let scene = tmp("instant.toml");
+    std::fs::write(
+        &scene,
+        "[image]\nwidth = 12\nheight = 8\n[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\nfov = 40\nshutter = [0.5, 0.5]\n\
+         [materials.m]\ntype = \"lambert\"\nalbedo = [0.6, 0.5, 0.4]\n\
+         [[shapes]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"m\"\nmotion = [1, 0, 0]\n\
+         [[lights]]\ntype = \"point\"\nposition = [0, 3, 3]\nintensity = [5, 5, 5]\n",
+    )
+    .unwrap();
+    let render = |name: &str, spp: &str| {
+        let out_path = tmp(name);
+        let o = strata()
+            .args(["render", scene.to_str().unwrap(), "-o", out_path.to_str().unwrap(), "--spp", spp, "--strategy", "center"])
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+        let px: Vec<u32> = image::open(&out_path).unwrap().into_rgb32f().into_raw().iter().map(|x| x.to_bits()).collect();
+        (String::from_utf8_lossy(&o.stderr).into_owned(), String::from_utf8_lossy(&o.stdout).into_owned(), px)
+    };
+    let (w4, out4, img4) = render("i4.exr", "4");
+    let (_, _, img1) = render("i1.exr", "1");
+    assert!(w4.contains("warning: spp 4") && w4.contains("shutter [0.5, 0.5] has zero length"), "{w4}");
+    assert!(out4.contains("strategies: pixel center") && !out4.contains("time center"), "{out4}");
+    assert_eq!(img4, img1, "the warning's claim");
+}

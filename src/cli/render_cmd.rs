@@ -687,7 +687,8 @@ pub fn used_strategies(scene: &Scene, p: &Profile) -> Vec<(&'static str, Strateg
         ("pixel", p.pixel_strategy, true),
         ("light", p.light_strategy, f.area_lights),
         ("lens", p.lens_strategy, f.lens),
-        ("time", p.time_strategy, f.motion),
+        // (A shutter of no length places moving shapes at its one instant: no time integral to sample.)
+        ("time", p.time_strategy, f.motion && !scene.motion_at_one_instant()),
         ("glossy", p.glossy_strategy, f.glossy),
         ("diffuse", p.diffuse_strategy, p.diffuse_depth > 0),
         ("wavelength", p.wavelength_strategy, f.dispersion),
