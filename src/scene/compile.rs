@@ -1665,9 +1665,9 @@ impl Compiler<'_> {
     /// Warn of a moving shape shifted so far during the shutter (`motion` x t) that the spawn offset of
     /// its hits, which grows with the shift (rays meet it in its own frame at time 0, and the shift's
     /// rounding enters the hit point: README, "Known limits"), passes 1% of its size and 4 times the
-    /// offset of its place alone at that time (a user trial, session 50: a glass ball of radius 0.5 under a shutter
-    /// of [1000, 1001] was off by up to 0.105 at its rim; a ball moving 1e5 over [0, 1] had lit pixels
-    /// black, its shadow rays starting under the floor). At the shape's `motion`.
+    /// offset of its place alone at that time (a user trial, session 50: a glass ball of radius 0.5
+    /// under a shutter of [1000, 1001] was off by up to 0.105 at its rim; a ball moving 1e5 over [0, 1]
+    /// had lit pixels black, its shadow rays starting under the floor). At the shape's `motion`.
     fn far_shift(&mut self, shape: &Shape, motion: Vec3, def: &S<ShapeDef>, field: impl Display + Copy) {
         let Some(m) = def.get_ref().motion.as_ref() else { return };
         let Some(b) = prim_bounds(shape, &self.csg).filter(|b| !b.is_empty()) else { return };
