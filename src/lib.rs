@@ -25,7 +25,9 @@
 // and a sum, two roundings, where the sphere kernel takes an exact product's error term from it and the
 // lanes must equal the scalar code's `f32::mul_add` bit for bit (a baseline `x86-64` build, session 50:
 // 21 of 512 tests failed, acne on a sphere of radius 1e4, hits reported as misses).
-#[cfg(all(target_arch = "x86_64", not(target_feature = "fma")))]
+// (Not where rustdoc reads the crate: `cargo test`'s doctests and `cargo doc` run rustdoc, which takes
+// `rustdocflags`, not the build's `rustflags`.)
+#[cfg(all(target_arch = "x86_64", not(target_feature = "fma"), not(doc), not(doctest)))]
 compile_error!(
     "Strata needs FMA (fused multiply-add): build with `-C target-cpu=native` (the default, .cargo/config.toml) on a CPU \
      that has it, or `RUSTFLAGS=\"-C target-cpu=x86-64-v3\"` for a portable binary"
